@@ -1,0 +1,1 @@
+"""Numerical core: physics, phase estimation, identification, diagnosis (no rclpy)."""

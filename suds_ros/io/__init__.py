@@ -1,0 +1,1 @@
+"""Recording I/O (MCAP, ROS 2 profile) without rclpy."""
