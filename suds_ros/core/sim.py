@@ -268,15 +268,16 @@ def simulate(
     rest = _rest_angles(system)
     traj = integrate(still, r_a, dt, rest, substeps=config.substeps, flow=(0.0, 0.0))
     r_true = traj.r[nw:]
-    pose_true = traj.pose[nw:].copy()
-    # restart the world frame at the first recorded sample's pose, then add flow drift
+    pose_all = traj.pose.copy()
+    pose_all[:, 0] += flow[0] * t_gait  # uniform flow drifts the chain by U·t (t = 0 at the first sample)
+    pose_all[:, 1] += flow[1] * t_gait
     tt = dt * np.arange(n)
-    pose_true[:, 0] += flow[0] * tt
-    pose_true[:, 1] += flow[1] * tt
     stamps = config.t0 + tt
     pose_stamps = stamps
     if config.pose_delay != 0.0:
-        pose_true = _delay_pose(pose_true, tt, config.pose_delay)
+        pose_true = _delay_pose(pose_all, t_gait, tt, config.pose_delay)
+    else:
+        pose_true = pose_all[nw:]
     sd = config.noise_std
     r_meas = r_true + sd * rng_noise.standard_normal(r_true.shape)
     pose_meas = pose_true + sd * rng_noise.standard_normal(pose_true.shape)
@@ -314,9 +315,11 @@ def _rest_angles(system: SudsSystem) -> FloatArray:
     return np.asarray(rest, dtype=float)[list(system.passive)]
 
 
-def _delay_pose(pose: FloatArray, tt: FloatArray, delay: float) -> FloatArray:
-    """Pose stamped s carries the true pose at s − delay (linear interpolation, clamped at the ends)."""
-    return np.stack([np.interp(tt - delay, tt, pose[:, i]) for i in range(3)], axis=1)
+def _delay_pose(pose: FloatArray, t_all: FloatArray, tt: FloatArray, delay: float) -> FloatArray:
+    """Pose stamped s carries the true pose at s − delay (linear interpolation; warm-up covers s < delay)."""
+    if delay > t_all[-1] - t_all[0]:
+        raise SudsConfigError(f"`pose_delay`: {delay} s exceeds the simulated span")
+    return np.stack([np.interp(tt - delay, t_all, pose[:, i]) for i in range(3)], axis=1)
 
 
 def _effort_at_samples(system: SudsSystem, r_a: FloatArray, r: FloatArray, dt: float) -> FloatArray:
