@@ -1,0 +1,316 @@
+"""SUDS regression: (g°, ṙ_p) ~ C + C_r δ + B δ̇_a + B_r δ⊗δ̇_a, coefficients smooth in phase.
+
+Choice of phase dependence
+--------------------------
+Each coefficient is a truncated Fourier series in the gait phase φ, so the
+whole model is one linear least-squares problem on the design
+
+    X = [ F_g(δ, δ̇_a) ⊗ (1, cos φ, sin φ, …, cos M_g φ, sin M_g φ) ]_g
+
+over feature groups g (intercept, linear, bilinear, …).  Compared with
+kernel-weighted phase bins this (a) gives coefficients that are smooth and
+periodic by construction, (b) makes the sufficient statistics a single pair
+XᵀX, XᵀY, so ``partial_fit`` on chunks reproduces ``fit`` exactly and
+supports an exponential forgetting factor, and (c) lets each group have its own
+bandwidth: the intercept C(φ) is the template velocity and needs many
+harmonics, while the perturbation gains vary slowly along the gait and need
+few (fewer parameters, less variance).  A small relative ridge keeps the
+normal equations well conditioned for short training sets.
+
+Regressor sets (paper §"Estimation for SUDS"; ṙ_p is never a regressor — it is
+an output, and using it as an input would leak the answer):
+
+1. ``[1, δ, δ̇_a]``                    — first order, O(n) per output and harmonic
+2. ``[1, δ, δ̇_a, δ⊗δ̇_a]``            — SUDS structure, O(n·n_a)
+3. set 2 plus ``δ⊗δ`` and ``δ̇_a⊗δ̇_a`` — full second order, O(n²)
+
+δ = r − θ(φ) and δ̇ = ṙ − θ'(φ)·ω̄ with θ the phase-averaged gait and ω̄ the
+mean phase rate (rad/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+
+
+@dataclass(frozen=True)
+class SudsConfig:
+    """Hyperparameters of :class:`SudsRegressor`.
+
+    Parameters
+    ----------
+    regressors : int
+        Regressor set 1, 2 or 3 (see module docstring).
+    intercept_order : int
+        Fourier order of C(φ).
+    linear_order : int
+        Fourier order of the gains on δ and δ̇_a.
+    bilinear_order : int
+        Fourier order of the gains on the products (δ⊗δ̇_a, and set 3's squares).
+    ridge : float
+        Relative Tikhonov weight: λ = ridge · mean(diag XᵀX) added to the diagonal.
+    forgetting : float
+        Per-sample forgetting factor in (0, 1]; 1 keeps all data equally.
+    """
+
+    regressors: int = 2
+    intercept_order: int = 8
+    linear_order: int = 3
+    bilinear_order: int = 1
+    ridge: float = 1e-6
+    forgetting: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.regressors not in (1, 2, 3):
+            raise SudsConfigError(f"`regressors`: expected 1, 2 or 3, got {self.regressors!r}")
+        for name in ("intercept_order", "linear_order", "bilinear_order"):
+            v = getattr(self, name)
+            if int(v) != v or v < 0:
+                raise SudsConfigError(f"`{name}`: expected an integer ≥ 0, got {v!r}")
+        if not self.ridge >= 0:
+            raise SudsConfigError(f"`ridge`: expected ≥ 0, got {self.ridge!r}")
+        if not 0 < self.forgetting <= 1:
+            raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
+
+
+def fourier_basis(phase: FloatArray, order: int) -> FloatArray:
+    """Design (n, 2·order + 1): [1, cos φ, sin φ, …, cos Mφ, sin Mφ]."""
+    phase = np.asarray(phase, dtype=float)
+    out = np.empty((phase.size, 2 * order + 1))
+    out[:, 0] = 1.0
+    if order:
+        m = np.arange(1, order + 1)
+        ang = phase[:, None] * m[None, :]
+        out[:, 1::2] = np.cos(ang)
+        out[:, 2::2] = np.sin(ang)
+    return out
+
+
+def _upper_products(a: FloatArray) -> FloatArray:
+    i, j = np.triu_indices(a.shape[1])
+    return a[:, i] * a[:, j]
+
+
+@dataclass(frozen=True)
+class FeatureLayout:
+    """Column bookkeeping of the SUDS design matrix.
+
+    ``groups`` lists (name, n_features, fourier_order) in column order.
+    """
+
+    groups: tuple[tuple[str, int, int], ...]
+
+    @property
+    def n_columns(self) -> int:
+        """Total number of design columns (parameters per output)."""
+        return sum(f * (2 * m + 1) for _, f, m in self.groups)
+
+    def slices(self) -> dict[str, slice]:
+        """Column slice of each group."""
+        out: dict[str, slice] = {}
+        start = 0
+        for name, f, m in self.groups:
+            stop = start + f * (2 * m + 1)
+            out[name] = slice(start, stop)
+            start = stop
+        return out
+
+
+def feature_layout(config: SudsConfig, n_joints: int, n_actuated: int) -> FeatureLayout:
+    """The groups of regressor set ``config.regressors`` for nj joints and na actuated joints."""
+    groups: list[tuple[str, int, int]] = [
+        ("C", 1, config.intercept_order),
+        ("C_r", n_joints, config.linear_order),
+        ("B", n_actuated, config.linear_order),
+    ]
+    if config.regressors >= 2:
+        groups.append(("B_r", n_joints * n_actuated, config.bilinear_order))
+    if config.regressors == 3:
+        groups.append(("D_rr", n_joints * (n_joints + 1) // 2, config.bilinear_order))
+        groups.append(("D_aa", n_actuated * (n_actuated + 1) // 2, config.bilinear_order))
+    return FeatureLayout(tuple(groups))
+
+
+def design_matrix(
+    config: SudsConfig, phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray
+) -> FloatArray:
+    """SUDS design matrix (n, p) for phases (n,), δ (n, nj) and δ̇_a (n, na)."""
+    n = phase.shape[0]
+    feats: dict[str, FloatArray] = {
+        "C": np.ones((n, 1)),
+        "C_r": delta,
+        "B": ddelta_a,
+    }
+    if config.regressors >= 2:
+        feats["B_r"] = (delta[:, :, None] * ddelta_a[:, None, :]).reshape(n, -1)
+    if config.regressors == 3:
+        feats["D_rr"] = _upper_products(delta)
+        feats["D_aa"] = _upper_products(ddelta_a)
+    layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
+    cols = []
+    bases: dict[int, FloatArray] = {}
+    for name, _, order in layout.groups:
+        if order not in bases:
+            bases[order] = fourier_basis(phase, order)
+        F = feats[name]
+        cols.append((F[:, :, None] * bases[order][:, None, :]).reshape(n, -1))
+    return np.concatenate(cols, axis=1)
+
+
+class SudsRegressor:
+    """Phase-varying SUDS regression fitted from accumulated normal equations.
+
+    ``X`` passed to :meth:`fit`, :meth:`partial_fit`, :meth:`predict` is (n, 1 + nj + na):
+    column 0 the phase φ (rad), then δ (nj columns), then δ̇_a (na columns).
+    ``y`` is (n, n_out): the outputs (body velocity components, passive velocities, …).
+
+    Parameters
+    ----------
+    n_joints, n_actuated : int
+        nj and na.
+    config : SudsConfig
+        Hyperparameters.
+
+    Attributes
+    ----------
+    coef_ : (p, n_out) fitted coefficients.
+    n_samples_seen_ : int
+    gram_, moment_ : accumulated XᵀX (p, p) and XᵀY (p, n_out).
+    layout_ : FeatureLayout
+    """
+
+    def __init__(self, n_joints: int, n_actuated: int, config: SudsConfig = SudsConfig()) -> None:
+        self.n_joints = n_joints
+        self.n_actuated = n_actuated
+        self.config = config
+
+    # -------------------------------------------------------------- helpers
+    def _split(self, X: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        X = np.asarray(X, dtype=float)
+        want = 1 + self.n_joints + self.n_actuated
+        if X.ndim != 2 or X.shape[1] != want:
+            raise SudsDataError(
+                f"X: expected shape (n, {want}) = [phase, δ ({self.n_joints}), δ̇_a ({self.n_actuated})], "
+                f"got {X.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            raise SudsDataError("X contains NaN or Inf")
+        nj = self.n_joints
+        return X[:, 0], X[:, 1 : 1 + nj], X[:, 1 + nj :]
+
+    def _design(self, X: FloatArray) -> FloatArray:
+        phase, delta, dda = self._split(X)
+        return design_matrix(self.config, phase, delta, dda)
+
+    @property
+    def n_parameters(self) -> int:
+        """Parameters per output."""
+        return feature_layout(self.config, self.n_joints, self.n_actuated).n_columns
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "coef_"):
+            raise NotFittedError(
+                f"this {type(self).__name__} is not fitted yet; call fit or partial_fit first"
+            )
+
+    # ----------------------------------------------------------------- API
+    def fit(self, X: FloatArray, y: FloatArray) -> "SudsRegressor":
+        """Fit from scratch on (X, y) (resets any accumulated statistics)."""
+        for attr in ("coef_", "gram_", "moment_", "n_samples_seen_", "layout_", "n_outputs_"):
+            if hasattr(self, attr):
+                delattr(self, attr)
+        return self.partial_fit(X, y)
+
+    def partial_fit(self, X: FloatArray, y: FloatArray) -> "SudsRegressor":
+        """Add a chunk of samples to the sufficient statistics and re-solve."""
+        A = self._design(X)
+        y = np.asarray(y, dtype=float)
+        if y.ndim == 1:
+            y = y[:, None]
+        if y.shape[0] != A.shape[0]:
+            raise SudsDataError(f"y: expected {A.shape[0]} rows like X, got {y.shape[0]}")
+        if not np.all(np.isfinite(y)):
+            raise SudsDataError("y contains NaN or Inf")
+        first = not hasattr(self, "gram_")
+        if not first and y.shape[1] != self.n_outputs_:
+            raise SudsDataError(f"y: expected {self.n_outputs_} outputs as before, got {y.shape[1]}")
+        lam = self.config.forgetting
+        m = A.shape[0]
+        if lam < 1.0:
+            w = lam ** np.arange(m - 1, -1, -1, dtype=float)
+            Aw = A * w[:, None]
+            decay = lam**m
+        else:
+            Aw = A
+            decay = 1.0
+        G = Aw.T @ A
+        h = Aw.T @ y
+        if first:
+            self.layout_ = feature_layout(self.config, self.n_joints, self.n_actuated)
+            self.n_outputs_ = y.shape[1]
+            self.gram_ = G
+            self.moment_ = h
+            self.n_samples_seen_ = m
+        else:
+            self.gram_ = decay * self.gram_ + G
+            self.moment_ = decay * self.moment_ + h
+            self.n_samples_seen_ += m
+        self.coef_ = self._solve()
+        return self
+
+    def _solve(self) -> FloatArray:
+        G = self.gram_
+        p = G.shape[0]
+        scale = float(np.mean(np.diag(G))) or 1.0
+        reg = G + (self.config.ridge * scale) * np.eye(p)
+        try:
+            c, low = scipy.linalg.cho_factor(reg, check_finite=False)
+            return scipy.linalg.cho_solve((c, low), self.moment_, check_finite=False)
+        except np.linalg.LinAlgError:
+            return np.linalg.lstsq(reg, self.moment_, rcond=None)[0]
+
+    def predict(self, X: FloatArray) -> FloatArray:
+        """Predicted outputs (n, n_out)."""
+        self._check_fitted()
+        return self._design(X) @ self.coef_
+
+    def score(self, X: FloatArray, y: FloatArray) -> float:
+        """Coefficient of determination R², averaged over outputs."""
+        pred = self.predict(X)
+        y = np.asarray(y, dtype=float).reshape(pred.shape)
+        ss_res = ((y - pred) ** 2).sum(axis=0)
+        ss_tot = ((y - y.mean(axis=0)) ** 2).sum(axis=0)
+        return float(np.mean(1.0 - ss_res / np.where(ss_tot > 0, ss_tot, 1.0)))
+
+    def coefficients(self, phase: FloatArray) -> dict[str, FloatArray]:
+        """Coefficients evaluated at ``phase`` (k,): C (k, n_out), C_r (k, n_out, nj),
+        B (k, n_out, na), B_r (k, n_out, nj, na), and for set 3 D_rr, D_aa (packed upper triangles)."""
+        self._check_fitted()
+        phase = np.asarray(phase, dtype=float)
+        out: dict[str, FloatArray] = {}
+        sl = self.layout_.slices()
+        for name, f, order in self.layout_.groups:
+            basis = fourier_basis(phase, order)  # (k, 2M+1)
+            coef = self.coef_[sl[name]].reshape(f, 2 * order + 1, -1)  # (f, 2M+1, n_out)
+            val = np.einsum("kb,fbo->kof", basis, coef)
+            if name == "C":
+                val = val[:, :, 0]
+            elif name == "B_r":
+                val = val.reshape(phase.size, -1, self.n_joints, self.n_actuated)
+            out[name] = val
+        return out
+
+
+def gamma(pred: FloatArray, template: FloatArray, truth: FloatArray) -> float:
+    """Γ = 1 − Σ|pred − truth| / Σ|template − truth| over all samples and channels given."""
+    num = float(np.abs(pred - truth).sum())
+    den = float(np.abs(template - truth).sum())
+    if den == 0:
+        raise SudsDataError("Γ undefined: the template reproduces the truth exactly")
+    return 1.0 - num / den
