@@ -536,3 +536,85 @@ def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> Onli
             est.add_shape(float(t), rec.joint_names, rec.r[k])
     est.flush()
     return est
+
+
+class ModelTemplate:
+    """θ(φ) of a :class:`SudsModel` with the ``predict``/``derivative`` interface of FourierTemplate."""
+
+    def __init__(self, model: SudsModel) -> None:
+        self.model = model
+        self.order = model.template_order
+
+    def predict(self, phase: FloatArray) -> FloatArray:
+        """θ(φ), shape (n, nj)."""
+        return self.model._theta(np.atleast_1d(np.asarray(phase, dtype=float)))[0]
+
+    def derivative(self, phase: FloatArray, k: int = 1) -> FloatArray:
+        """dθ/dφ (k = 1 only), shape (n, nj)."""
+        if k != 1:
+            raise SudsConfigError(f"`k`: only the first derivative is available, got {k}")
+        return self.model._theta(np.atleast_1d(np.asarray(phase, dtype=float)))[1]
+
+
+def nearest_phase(template: object, r: FloatArray, n_grid: int = 720) -> float:
+    """Phase in [0, 2π) whose θ(φ) is closest to the shape ``r`` (nj,) (grid search)."""
+    grid = np.linspace(0.0, 2 * np.pi, n_grid, endpoint=False)
+    theta = template.predict(grid)  # type: ignore[attr-defined]
+    scale = theta.std(axis=0)
+    scale = np.where(scale > 1e-9, scale, 1.0)
+    d = (((theta - r) / scale) ** 2).sum(axis=1)
+    return float(grid[int(np.argmin(d))])
+
+
+class StreamingPredictor:
+    """Live predictions of (ξ, ṙ_p) from shape samples with an identified :class:`SudsModel`.
+
+    Each shape sample closes the interval from the previous one; the prediction is the
+    model's output for that interval (midpoint state and phase, forward-difference rate),
+    i.e. the mean body and passive velocity over the interval ending at the sample.
+    The phase is initialised at the template point nearest the first sample and then tracked.
+    """
+
+    def __init__(self, model: SudsModel) -> None:
+        self.model = model
+        self.template = ModelTemplate(model)
+        self.passive = model.passive
+        self._act = np.array([model.joint_names.index(j) for j in model.actuated])
+        self._tracker = None
+        self._prev: tuple[float, FloatArray, float] | None = None
+        self.last_stamp = -np.inf
+
+    def update(self, t: float, names: tuple[str, ...], position: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """Predicted ξ (3,) and ṙ_p (np,) for the interval ending at ``t``; None for the first sample.
+
+        Raises
+        ------
+        SudsDataError
+            Wrong joint names or count, NaN, duplicate or out-of-order stamp.
+        """
+        names = tuple(names)
+        r = np.asarray(position, dtype=float)
+        if names != self.model.joint_names:
+            raise SudsDataError(f"shape sample at {t:.6f} s has joints {list(names)}; expected {list(self.model.joint_names)}")
+        if r.shape != (len(names),):
+            raise SudsDataError(f"shape sample at {t:.6f} s has {r.size} positions for {len(names)} joints")
+        if not (np.isfinite(t) and np.all(np.isfinite(r))):
+            raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf")
+        if t <= self.last_stamp:
+            kind = "duplicate" if t == self.last_stamp else "out-of-order"
+            raise SudsDataError(f"{kind} shape stamp {t:.6f} s (last {self.last_stamp:.6f} s)")
+        self.last_stamp = t
+        if self._tracker is None:
+            from suds_ros.core.phase_tracker import PhaseTracker
+
+            phase = nearest_phase(self.template, r)
+            self._tracker = PhaseTracker(self.template, self.model.omega, phase, t)
+        else:
+            phase = float(self._tracker.update(t, r))
+        prev = self._prev
+        self._prev = (t, r, phase)
+        if prev is None:
+            return None
+        tp, rp, php = prev
+        out = self.model.predict(np.array([0.5 * (php + phase)]), (0.5 * (rp + r))[None], ((r - rp) / (t - tp))[None])[0]
+        return out[:3], out[3 : 3 + len(self.passive)]
