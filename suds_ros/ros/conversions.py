@@ -1,0 +1,385 @@
+"""The one module that reads and writes ROS message fields.
+
+Pure ``*_to_msg`` / ``*_from_msg`` pairs, in the style of
+``sensor_msgs_py.point_cloud2``.  Fields are accessed by name, so the
+``*_from_msg`` functions accept rclpy messages and rosbags typestore messages
+alike; the ``*_to_msg`` functions build rclpy messages, or typestore messages
+when given ``typestore=`` (a :class:`rosbags.typesys.store.Typestore`).
+
+Stamps are float seconds (absolute, e.g. epoch).  The float ↔
+``builtin_interfaces/msg/Time`` conversion goes through integer nanoseconds:
+:func:`float_to_ns` rounds the exact binary value of the float to the nearest
+nanosecond, :func:`ns_to_float` is the correctly rounded quotient, so
+``ns_to_float(float_to_ns(s)) == s`` for every stamp with at least nanosecond
+spacing between neighbouring floats (|s| ≥ 2²³ s, i.e. any epoch stamp), and
+``float_to_ns(ns_to_float(n)) == n`` for |n| < 2²² s.
+
+Malformed messages (length mismatches, NaN/Inf, bad stamps, a zero quaternion)
+raise :class:`~suds_ros.core.errors.SudsDataError`.
+"""
+
+from __future__ import annotations
+
+import array
+import importlib
+import math
+from collections.abc import Mapping, Sequence
+from fractions import Fraction
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import SudsDataError
+
+_NS = 10**9
+_INT32 = (-(2**31), 2**31 - 1)
+LEVELS = {"OK": 0, "WARN": 1, "ERROR": 2, "STALE": 3}
+
+
+class JointSample(NamedTuple):
+    """One ``sensor_msgs/msg/JointState``: stamp (s), joint names, values (rad or m, rad/s, N·m).
+
+    ``position`` has shape (n,) (or (0,) for a velocity-only message); ``velocity``
+    and ``effort`` are (n,) arrays or None when the message leaves them empty.
+    """
+
+    stamp: float
+    names: tuple[str, ...]
+    position: FloatArray
+    velocity: FloatArray | None
+    effort: FloatArray | None
+
+
+class PlanarPose(NamedTuple):
+    """Planar pose of a ``geometry_msgs/msg/PoseStamped``: stamp (s), x, y (m), yaw (rad)."""
+
+    stamp: float
+    x: float
+    y: float
+    yaw: float
+
+
+class BodyTwist(NamedTuple):
+    """Planar body-frame velocity of a ``TwistStamped``: stamp (s), vx, vy (m/s), wz (rad/s)."""
+
+    stamp: float
+    vx: float
+    vy: float
+    wz: float
+
+
+class DiagnosticReport(NamedTuple):
+    """One ``diagnostic_msgs/msg/DiagnosticStatus`` with the array's stamp (s)."""
+
+    stamp: float
+    name: str
+    level: int
+    message: str
+    hardware_id: str
+    values: dict[str, str]
+
+
+# ------------------------------------------------------------------ backends
+def _msg_class(type_name: str, typestore: Any) -> Any:
+    if typestore is not None:
+        try:
+            return typestore.types[type_name]
+        except KeyError:
+            raise SudsDataError(f"typestore has no message type {type_name!r}") from None
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def message_class(type_name: str) -> Any:
+    """The rclpy message class of ``type_name`` (``pkg/msg/Type``), imported from ``pkg.msg``.
+
+    Raises
+    ------
+    SudsDataError
+        If the name is malformed or the package/type is not installed.
+    """
+    parts = type_name.split("/")
+    if len(parts) != 3 or parts[1] != "msg" or not all(parts):
+        raise SudsDataError(f"message type: expected 'pkg/msg/Type', got {type_name!r}")
+    try:
+        return _msg_class(type_name, None)
+    except (ImportError, AttributeError):
+        msg = f"message type {type_name!r} is not installed (no {parts[0]}.msg.{parts[2]})"
+        raise SudsDataError(msg) from None
+
+
+def _floats(values: FloatArray, typestore: Any) -> Any:
+    a = np.ascontiguousarray(values, dtype=np.float64)
+    if typestore is not None:
+        return a.copy()
+    out = array.array("d")
+    out.frombytes(a.tobytes())
+    return out
+
+
+def _vector(name: str, values: Any, n: int | None) -> FloatArray:
+    a = np.asarray(values, dtype=float).reshape(-1) if values is not None else np.empty(0)
+    if n is not None and a.size != n:
+        raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}")
+    if not np.all(np.isfinite(a)):
+        bad = int(np.flatnonzero(~np.isfinite(a))[0])
+        raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})")
+    return a
+
+
+def _finite(name: str, value: Any) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise SudsDataError(f"`{name}`: expected a finite number, got {v!r}")
+    return v
+
+
+# ------------------------------------------------------------------ stamps
+def float_to_ns(stamp: float) -> int:
+    """Float seconds → integer nanoseconds, rounding the exact float value (half to even)."""
+    s = float(stamp)
+    if not math.isfinite(s):
+        raise SudsDataError(f"`stamp`: expected finite seconds, got {s!r}")
+    return round(Fraction(s) * _NS)
+
+
+def ns_to_float(ns: int) -> float:
+    """Integer nanoseconds → float seconds, correctly rounded."""
+    return int(ns) / _NS
+
+
+def ns_to_time(ns: int, *, typestore: Any = None) -> Any:
+    """Integer nanoseconds → ``builtin_interfaces/msg/Time`` (``sec`` floored, ``0 ≤ nanosec < 1e9``)."""
+    sec, nanosec = divmod(int(ns), _NS)
+    if not _INT32[0] <= sec <= _INT32[1]:
+        raise SudsDataError(f"`stamp`: {ns} ns is outside the int32 seconds range of a ROS Time")
+    return _msg_class("builtin_interfaces/msg/Time", typestore)(sec=sec, nanosec=nanosec)
+
+
+def time_to_ns(msg: Any) -> int:
+    """``builtin_interfaces/msg/Time`` → integer nanoseconds (exact)."""
+    sec, nanosec = int(msg.sec), int(msg.nanosec)
+    if not 0 <= nanosec < _NS:
+        raise SudsDataError(f"`stamp.nanosec`: expected 0 ≤ nanosec < 1e9, got {nanosec}")
+    return sec * _NS + nanosec
+
+
+def float_to_time(stamp: float, *, typestore: Any = None) -> Any:
+    """Float seconds → ``builtin_interfaces/msg/Time``."""
+    return ns_to_time(float_to_ns(stamp), typestore=typestore)
+
+
+def time_to_float(msg: Any) -> float:
+    """``builtin_interfaces/msg/Time`` → float seconds (correctly rounded)."""
+    return ns_to_float(time_to_ns(msg))
+
+
+def _header(stamp: float, frame_id: str, typestore: Any) -> Any:
+    return _msg_class("std_msgs/msg/Header", typestore)(
+        stamp=float_to_time(stamp, typestore=typestore), frame_id=str(frame_id)
+    )
+
+
+# ------------------------------------------------------------------ JointState
+def _names(names: Sequence[str]) -> tuple[str, ...]:
+    out = tuple(names)
+    if not all(isinstance(n, str) for n in out):
+        raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}")
+    if len(set(out)) != len(out):
+        raise SudsDataError(f"`name`: joint names are not unique: {list(out)}")
+    return out
+
+
+def joint_state_to_msg(
+    stamp: float,
+    names: Sequence[str],
+    position: FloatArray,
+    velocity: FloatArray | None = None,
+    effort: FloatArray | None = None,
+    *,
+    frame_id: str = "",
+    typestore: Any = None,
+) -> Any:
+    """Build a ``sensor_msgs/msg/JointState``; velocity/effort None → empty fields.
+
+    Parameters
+    ----------
+    stamp : float
+        Sample time, s.
+    names : sequence of str
+        Joint names, head to tail.
+    position, velocity, effort : (n,) float
+        Joint values (rad or m), rates (rad/s or m/s), efforts (N·m or N).
+    """
+    nm = _names(names)
+    n = len(nm)
+    pos = _vector("position", position, n)
+    vel = _vector("velocity", velocity, n) if velocity is not None else np.empty(0)
+    eff = _vector("effort", effort, n) if effort is not None else np.empty(0)
+    return _msg_class("sensor_msgs/msg/JointState", typestore)(
+        header=_header(stamp, frame_id, typestore),
+        name=list(nm),
+        position=_floats(pos, typestore),
+        velocity=_floats(vel, typestore),
+        effort=_floats(eff, typestore),
+    )
+
+
+def joint_state_from_msg(msg: Any, *, require_position: bool = True) -> JointSample:
+    """Read a ``JointState``: every non-empty value field must have one value per name."""
+    nm = _names(msg.name)
+    n = len(nm)
+    fields = {}
+    for key in ("position", "velocity", "effort"):
+        raw = np.asarray(getattr(msg, key), dtype=float).reshape(-1)
+        fields[key] = None if raw.size == 0 else _vector(key, raw, n)
+    if fields["position"] is None:
+        if require_position and n:
+            raise SudsDataError(f"`position`: expected {n} values (one per joint name), got 0")
+        fields["position"] = np.empty(0)
+    return JointSample(
+        time_to_float(msg.header.stamp), nm, fields["position"], fields["velocity"], fields["effort"]
+    )
+
+
+def joint_velocity_to_msg(
+    stamp: float, names: Sequence[str], velocity: FloatArray, *, typestore: Any = None
+) -> Any:
+    """Velocity-only ``JointState`` (empty position and effort), e.g. the passive joint rates (rad/s)."""
+    nm = _names(names)
+    vel = _vector("velocity", velocity, len(nm))
+    return _msg_class("sensor_msgs/msg/JointState", typestore)(
+        header=_header(stamp, "", typestore),
+        name=list(nm),
+        position=_floats(np.empty(0), typestore),
+        velocity=_floats(vel, typestore),
+        effort=_floats(np.empty(0), typestore),
+    )
+
+
+def joint_velocity_from_msg(msg: Any) -> tuple[float, tuple[str, ...], FloatArray]:
+    """Read a velocity-only ``JointState``: (stamp s, names, velocity (n,))."""
+    sample = joint_state_from_msg(msg, require_position=False)
+    if sample.velocity is None and sample.names:
+        raise SudsDataError(
+            f"`velocity`: expected {len(sample.names)} values (one per joint name), got 0"
+        )
+    vel = sample.velocity if sample.velocity is not None else np.empty(0)
+    return sample.stamp, sample.names, vel
+
+
+# ------------------------------------------------------------------ PoseStamped
+def pose_to_msg(
+    stamp: float, x: float, y: float, yaw: float, *, frame_id: str = "world", typestore: Any = None
+) -> Any:
+    """Planar ``geometry_msgs/msg/PoseStamped``: position (x, y, 0) m, yaw-only quaternion."""
+    x, y, yaw = _finite("x", x), _finite("y", y), _finite("yaw", yaw)
+    point = _msg_class("geometry_msgs/msg/Point", typestore)(x=x, y=y, z=0.0)
+    quat = _msg_class("geometry_msgs/msg/Quaternion", typestore)(
+        x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0)
+    )
+    pose = _msg_class("geometry_msgs/msg/Pose", typestore)(position=point, orientation=quat)
+    return _msg_class("geometry_msgs/msg/PoseStamped", typestore)(
+        header=_header(stamp, frame_id, typestore), pose=pose
+    )
+
+
+def pose_from_msg(msg: Any) -> PlanarPose:
+    """Read a ``PoseStamped`` as a planar pose; yaw is the Z angle of the (normalised) quaternion."""
+    p, q = msg.pose.position, msg.pose.orientation
+    x, y = _finite("pose.position.x", p.x), _finite("pose.position.y", p.y)
+    qx, qy, qz, qw = (_finite(f"pose.orientation.{k}", getattr(q, k)) for k in "xyzw")
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if norm < 1e-9:
+        raise SudsDataError("`pose.orientation`: the quaternion is zero, not a rotation")
+    qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return PlanarPose(time_to_float(msg.header.stamp), x, y, yaw)
+
+
+# ------------------------------------------------------------------ TwistStamped
+def twist_to_msg(
+    stamp: float, vx: float, vy: float, wz: float, *, frame_id: str = "body", typestore: Any = None
+) -> Any:
+    """Planar body-frame ``geometry_msgs/msg/TwistStamped``: linear (vx, vy, 0), angular (0, 0, wz)."""
+    vec = _msg_class("geometry_msgs/msg/Vector3", typestore)
+    twist = _msg_class("geometry_msgs/msg/Twist", typestore)(
+        linear=vec(x=_finite("vx", vx), y=_finite("vy", vy), z=0.0),
+        angular=vec(x=0.0, y=0.0, z=_finite("wz", wz)),
+    )
+    return _msg_class("geometry_msgs/msg/TwistStamped", typestore)(
+        header=_header(stamp, frame_id, typestore), twist=twist
+    )
+
+
+def twist_from_msg(msg: Any) -> BodyTwist:
+    """Read the planar part of a ``TwistStamped`` (vx, vy m/s, wz rad/s)."""
+    lin, ang = msg.twist.linear, msg.twist.angular
+    return BodyTwist(
+        time_to_float(msg.header.stamp),
+        _finite("twist.linear.x", lin.x),
+        _finite("twist.linear.y", lin.y),
+        _finite("twist.angular.z", ang.z),
+    )
+
+
+# ------------------------------------------------------------------ diagnostics
+def _level(level: int | str) -> int:
+    if isinstance(level, str):
+        if level.upper() not in LEVELS:
+            raise SudsDataError(f"`level`: expected one of {sorted(LEVELS)}, got {level!r}")
+        return LEVELS[level.upper()]
+    if isinstance(level, (bytes, bytearray)):
+        level = level[0] if len(level) == 1 else -1
+    if int(level) not in LEVELS.values():
+        raise SudsDataError(f"`level`: expected 0 (OK) … 3 (STALE), got {level!r}")
+    return int(level)
+
+
+def diagnostics_to_msg(
+    stamp: float,
+    name: str,
+    values: Mapping[str, str],
+    *,
+    level: int | str = "OK",
+    message: str = "",
+    hardware_id: str = "",
+    typestore: Any = None,
+) -> Any:
+    """``diagnostic_msgs/msg/DiagnosticArray`` with one status holding ``values`` as key/value pairs."""
+    lvl = _level(level)
+    kv = _msg_class("diagnostic_msgs/msg/KeyValue", typestore)
+    pairs = []
+    for key, value in values.items():
+        if not isinstance(key, str) or not isinstance(value, str):
+            raise SudsDataError(
+                f"`values`: expected str keys and values, got {key!r}: {type(value).__name__}"
+            )
+        pairs.append(kv(key=key, value=value))
+    status = _msg_class("diagnostic_msgs/msg/DiagnosticStatus", typestore)(
+        level=lvl if typestore is not None else bytes([lvl]),
+        name=str(name),
+        message=str(message),
+        hardware_id=str(hardware_id),
+        values=pairs,
+    )
+    return _msg_class("diagnostic_msgs/msg/DiagnosticArray", typestore)(
+        header=_header(stamp, "", typestore), status=[status]
+    )
+
+
+def diagnostics_from_msg(msg: Any) -> list[DiagnosticReport]:
+    """Read every status of a ``DiagnosticArray``; level as int 0..3."""
+    stamp = time_to_float(msg.header.stamp)
+    return [
+        DiagnosticReport(
+            stamp,
+            str(s.name),
+            _level(s.level),
+            str(s.message),
+            str(s.hardware_id),
+            {str(kv.key): str(kv.value) for kv in s.values},
+        )
+        for s in msg.status
+    ]

@@ -1,0 +1,205 @@
+"""``pipeline``: run simulator, estimator, predictor (and recorder) as separate processes.
+
+A small supervisor for installs without the ``launch`` package.  Each node runs
+as ``python -m suds_ros.ros.<module> --ros-args -p ...``; its output is
+printed prefixed with ``[name]``.  When the simulator has finished its cycles,
+on Ctrl-C or on SIGTERM, every child is stopped (SIGINT, then SIGTERM, then
+SIGKILL, each after a timeout).  The exit code is 0 only if every child ended
+cleanly; a child that fails stops the others.
+
+Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
+``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
+``system``, ``actuated``, ``passive`` (the recorder runs only with ``--output``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from typing import IO
+
+from suds_ros.core.errors import SudsError
+
+NODES = {
+    "simulator": "suds_ros.ros.simulator_node",
+    "estimator": "suds_ros.ros.estimator_node",
+    "predictor": "suds_ros.ros.predictor_node",
+    "recorder": "suds_ros.ros.recorder_node",
+}
+#: exit codes that count as a clean stop after we asked a child to stop
+_STOPPED_OK = {0, -signal.SIGINT, -signal.SIGTERM, 130, 143}
+
+
+def _pump(name: str, stream: IO[bytes], out: IO[str], lock: threading.Lock) -> None:
+    for raw in iter(stream.readline, b""):
+        line = raw.decode(errors="replace").rstrip("\n")
+        with lock:
+            print(f"[{name}] {line}", file=out, flush=True)
+    stream.close()
+
+
+def stop_children(procs: Mapping[str, subprocess.Popen], timeouts: tuple[float, float] = (5.0, 3.0)
+                  ) -> set[str]:
+    """Stop every running child: SIGINT, SIGTERM, then SIGKILL; returns the names that needed SIGKILL."""
+    for sig, timeout in ((signal.SIGINT, timeouts[0]), (signal.SIGTERM, timeouts[1])):
+        running = [p for p in procs.values() if p.poll() is None]
+        for p in running:
+            p.send_signal(sig)
+        deadline = time.monotonic() + timeout
+        for p in running:
+            try:
+                p.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+    killed = {n for n, p in procs.items() if p.poll() is None}
+    for name in killed:
+        try:
+            os.killpg(procs[name].pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        procs[name].wait()
+    return killed
+
+
+def supervise(commands: Mapping[str, Sequence[str]], *, main: str | None = "simulator",
+              env: Mapping[str, str] | None = None, timeouts: tuple[float, float] = (5.0, 3.0),
+              out: IO[str] = sys.stdout) -> int:
+    """Run ``commands`` (name → argv) until ``main`` exits, a child fails or we are interrupted.
+
+    Returns 0 when every child ended cleanly, else 1 (each failure is reported).
+    """
+    procs: dict[str, subprocess.Popen] = {}
+    lock, pumps = threading.Lock(), []
+    interrupted = False
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        for name, cmd in commands.items():
+            procs[name] = subprocess.Popen(
+                list(cmd), env=None if env is None else dict(env), stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, start_new_session=True)  # we forward Ctrl-C ourselves
+            t = threading.Thread(target=_pump, args=(name, procs[name].stdout, out, lock), daemon=True)
+            t.start()
+            pumps.append(t)
+        while True:
+            done = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
+            if any(code != 0 for code in done.values()) or (main in done) or len(done) == len(procs):
+                break
+            time.sleep(0.1)
+    except KeyboardInterrupt:
+        interrupted = True
+        with lock:
+            print("[pipeline] interrupted: stopping the nodes", file=out, flush=True)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        ended_alone = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
+        killed = stop_children(procs, timeouts)
+        for t in pumps:
+            t.join(timeout=2.0)
+    failed = []
+    for name, p in procs.items():
+        code = p.returncode
+        if name in killed:
+            failed.append(f"{name} did not stop and was killed")
+        elif name in ended_alone and code != 0 and not (interrupted and code in _STOPPED_OK):
+            failed.append(f"{name} exited with code {code}")
+        elif name not in ended_alone and code not in _STOPPED_OK:
+            failed.append(f"{name} exited with code {code} when stopped")
+    for msg in failed:
+        print(f"[pipeline] ERROR: {msg}", file=out, flush=True)
+    return 1 if failed else 0
+
+
+def _param(name: str, value: object) -> list[str]:
+    text = repr(value) if isinstance(value, float) else str(value)
+    return ["-p", f"{name}:={text}"]
+
+
+def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
+    """argv of every node to start, from the parsed pipeline options."""
+    sim = _param("system", args.system)
+    for opt, pname in (("cycles", "cycles"), ("rate", "rate"), ("seed", "seed"),
+                       ("realtime_factor", "real_time_factor")):
+        if getattr(args, opt) is not None:
+            sim += _param(pname, getattr(args, opt))
+    params = {"simulator": sim, "estimator": _param("system", args.system),
+              "predictor": _param("system", args.system)}
+    if args.output:
+        from suds_ros.core.systems import make_system
+
+        system = make_system(args.system)
+        names = system.joint_names
+        params["recorder"] = (
+            _param("output", os.path.abspath(args.output)) + _param("system", args.system)
+            + _param("actuated", ",".join(names[i] for i in system.actuated))
+            + _param("passive", ",".join(names[i] for i in system.passive))
+            + _param("overwrite", "true" if args.overwrite else "false"))
+    nodes = [n for n in args.nodes.split(",") if n]
+    unknown = [n for n in nodes if n not in NODES]
+    if unknown:
+        raise SudsError(f"--nodes: unknown node(s) {unknown}; expected some of {list(NODES)}")
+    return {
+        n: [sys.executable, "-m", NODES[n], "--ros-args", *params[n], *args.ros_args]
+        for n in nodes if n in params
+    }
+
+
+def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
+    """Names of the nodes whose module cannot be found."""
+    return [n for n in commands if importlib.util.find_spec(NODES[n]) is None]
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0])
+    p.add_argument("--system", default="purcell3", help="system id (default purcell3)")
+    p.add_argument("--cycles", type=int, help="gait cycles the simulator runs before the pipeline stops")
+    p.add_argument("--rate", type=float, help="simulator sample rate, Hz")
+    p.add_argument("--seed", type=int, help="simulator seed")
+    p.add_argument("--realtime-factor", "--real-time-factor", dest="realtime_factor", type=float,
+                   help="simulated seconds per wall-clock second")
+    p.add_argument("--output", metavar="BAG", help="record to this .mcap (starts the recorder)")
+    p.add_argument("--overwrite", action="store_true", help="let the recorder replace BAG")
+    p.add_argument("--nodes", default="simulator,estimator,predictor,recorder",
+                   help="comma-separated nodes to start (the recorder needs --output)")
+    p.add_argument("--stop-timeout", type=float, default=5.0,
+                   help="s to wait after SIGINT (and again after SIGTERM) before escalating")
+    p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
+                   help="extra ROS arguments for every node (e.g. -p use_sim_time:=true)")
+    args = p.parse_args(argv)
+    for opt in ("cycles", "rate", "realtime_factor", "stop_timeout"):
+        v = getattr(args, opt)
+        if v is not None and not v > 0:
+            p.error(f"--{opt.replace('_', '-')}: expected a value > 0, got {v}")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Start the nodes and supervise them; see the module doc."""
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        commands = build_commands(args)
+    except SudsError as exc:
+        print(f"ERROR: {exc}", file=sys.stderr)
+        return 2
+    missing = missing_modules(commands)
+    if missing:
+        mods = ", ".join(NODES[n] for n in missing)
+        print(f"ERROR: node module(s) not installed: {mods}; start the others with "
+              f"--nodes {','.join(n for n in commands if n not in missing) or '...'}",
+              file=sys.stderr)
+        return 2
+    if "recorder" not in commands and "recorder" in args.nodes.split(","):
+        print("[pipeline] no --output given: not recording", flush=True)
+    print(f"[pipeline] starting {', '.join(commands)}", flush=True)
+    return supervise(commands, main="simulator" if "simulator" in commands else None,
+                     timeouts=(args.stop_timeout, args.stop_timeout))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

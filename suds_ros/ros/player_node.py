@@ -1,0 +1,133 @@
+"""``player``: replay a bag's topics, publishing the recorded CDR bytes with the original timing.
+
+Parameters: ``bag``, ``rate`` (> 0, playback speed factor), ``loop``,
+``start_offset`` (s into the bag), ``topics`` (empty: all), ``clock``
+(publish ``/clock`` with the bag log time before each message) and ``delay``
+(s to wait after creating the publishers, so subscribers can match).
+Exits when the bag is done unless ``loop`` is set.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from suds_ros.core.errors import SudsBagError, SudsConfigError, SudsError
+from suds_ros.io.bags import bag_info, iter_raw_messages
+from suds_ros.ros.conversions import message_class, ns_to_time
+from suds_ros.ros.params import config_from_parameters, parameters_help, wants_help
+from suds_ros.ros.qos import replay_qos
+
+
+@dataclass(frozen=True)
+class PlayerConfig:
+    """Player parameters (all read-only)."""
+
+    bag: str = field(default="", metadata={"description": "the .mcap bag to play (required)"})
+    rate: float = field(default=1.0, metadata={
+        "description": "playback speed factor (> 0; 2.0 plays twice as fast)",
+        "range": (1e-3, 1e3)})
+    loop: bool = field(default=False, metadata={"description": "restart at the end, forever"})
+    start_offset: float = field(default=0.0, metadata={
+        "description": "s into the bag (log time) where playback starts", "range": (0.0, 1e9)})
+    topics: tuple[str, ...] = field(default=(), metadata={
+        "description": "topics to play (empty: all)"})
+    clock: bool = field(default=False, metadata={
+        "description": "publish /clock (bag log time) before each message"})
+    delay: float = field(default=0.0, metadata={
+        "description": "s to wait before the first message, for subscribers to match",
+        "range": (0.0, 3600.0)})
+
+    def __post_init__(self) -> None:
+        if not self.bag:
+            raise SudsConfigError("`bag`: expected the path of an .mcap bag, got ''")
+        if not self.rate > 0:
+            raise SudsConfigError(f"`rate`: expected a factor > 0, got {self.rate!r}")
+
+
+class PlayerNode(Node):
+    """Publishers for the bag's topics; :meth:`play` sends the messages."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("player", **kwargs)
+        self.config = config_from_parameters(self, PlayerConfig)
+        info = bag_info(self.config.bag)
+        wanted = set(self.config.topics) or set(info["topics"])
+        missing = wanted - set(info["topics"])
+        if missing:
+            msg = f"`topics`: {sorted(missing)} not in {self.config.bag}; it has {sorted(info['topics'])}"
+            raise SudsBagError(msg)
+        if info["start_ns"] is None:
+            raise SudsBagError(f"{self.config.bag}: the bag holds no message")
+        self._start_ns = int(info["start_ns"]) + round(self.config.start_offset * 1e9)
+        self._pubs = {
+            topic: self.create_publisher(
+                message_class(info["topics"][topic]["type"]), topic, replay_qos(topic))
+            for topic in sorted(wanted)
+        }
+        self._clock_cls = message_class("rosgraph_msgs/msg/Clock")
+        self._clock = self.create_publisher(self._clock_cls, "/clock", 10) if self.config.clock else None
+
+    def _sleep_until(self, deadline: float) -> bool:
+        while rclpy.ok(context=self.context):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return True
+            time.sleep(min(left, 0.05))
+        return False
+
+    def play(self) -> int:
+        """Publish the bag once (or forever with ``loop``); returns the number of messages sent."""
+        cfg = self.config
+        if not self._sleep_until(time.monotonic() + cfg.delay):
+            return 0
+        sent = 0
+        while True:
+            t0 = time.monotonic()
+            for m in iter_raw_messages(cfg.bag, topics=list(self._pubs)):
+                if m.log_time_ns < self._start_ns:
+                    continue
+                if not self._sleep_until(t0 + (m.log_time_ns - self._start_ns) * 1e-9 / cfg.rate):
+                    return sent
+                if self._clock is not None:
+                    self._clock.publish(self._clock_cls(clock=ns_to_time(m.log_time_ns)))
+                self._pubs[m.topic].publish(m.data)
+                sent += 1
+            if not cfg.loop:
+                for pub in self._pubs.values():  # let reliable subscribers receive the tail
+                    pub.wait_for_all_acked(Duration(seconds=2.0))
+                return sent
+
+
+def main(args: list[str] | None = None) -> int:
+    """Play the bag; 0 when done (or interrupted), 1 with the reason if it cannot start."""
+    if wants_help(args):
+        print(parameters_help("player", __doc__.strip().splitlines()[0], PlayerConfig))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PlayerNode()
+        sent = node.play()
+        node.get_logger().info(f"played {sent} messages from {node.config.bag}")
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except SudsError as exc:
+        print(f"ERROR: player: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

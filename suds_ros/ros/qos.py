@@ -1,0 +1,99 @@
+"""QoS profiles of the suds topics (STYLE.md §4) and their rosbag2 YAML form.
+
+* high-rate state (``/suds/shape``, ``/suds/body_pose``) → :data:`STATE_QOS`
+  (``qos_profile_sensor_data``: best effort, keep last 5);
+* estimates and predictions → :data:`ESTIMATE_QOS` (reliable, depth 10);
+* the identified model → :data:`MODEL_QOS` (reliable, depth 1, transient local,
+  so a late subscriber still gets the last model);
+* status / diagnostics → :data:`STATUS_QOS` (reliable, depth 10).
+
+A RELIABLE subscriber does not match a BEST_EFFORT publisher: subscribe to
+state topics with :data:`STATE_QOS` (or best effort) too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from rclpy.duration import Duration
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rclpy.qos_overriding_options import QoSOverridingOptions
+
+STATE_QOS: QoSProfile = qos_profile_sensor_data
+ESTIMATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+MODEL_QOS = QoSProfile(
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Publisher QoS of the player: reliable matches both reliable and best-effort subscribers.
+REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def overriding_options() -> QoSOverridingOptions:
+    """QoS overriding options every suds publisher/subscription accepts (``qos_overrides.<topic>...``)."""
+    return QoSOverridingOptions.with_default_policies()
+
+
+def replay_qos(topic: str) -> QoSProfile:
+    """Publisher QoS for replaying ``topic``: the model keeps transient-local durability."""
+    if topic == "/suds/model":
+        return MODEL_QOS
+    return REPLAY_QOS
+
+
+def _duration_yaml(d: Duration, indent: str) -> list[str]:
+    ns = int(d.nanoseconds)
+    if ns <= 0 or ns >= 2**63 - 1:  # "infinite"/default, as rosbag2 writes it
+        sec, nsec = 9223372036, 854775807
+    else:
+        sec, nsec = divmod(ns, 10**9)
+    return [f"{indent}  sec: {sec}", f"{indent}  nsec: {nsec}"]
+
+
+def qos_to_yaml(profiles: Iterable[QoSProfile]) -> str:
+    """``offered_qos_profiles`` text as rosbag2 (Jazzy) writes it into the MCAP channel metadata.
+
+    Returns ``"[]"`` for no profile.
+    """
+    lines: list[str] = []
+    for q in profiles:
+        lines += [
+            f"- history: {HistoryPolicy(q.history).name.lower()}",
+            f"  depth: {int(q.depth)}",
+            f"  reliability: {ReliabilityPolicy(q.reliability).name.lower()}",
+            f"  durability: {DurabilityPolicy(q.durability).name.lower()}",
+            "  deadline:",
+            *_duration_yaml(q.deadline, "  "),
+            "  lifespan:",
+            *_duration_yaml(q.lifespan, "  "),
+            f"  liveliness: {q.liveliness.name.lower()}",
+            "  liveliness_lease_duration:",
+            *_duration_yaml(q.liveliness_lease_duration, "  "),
+            f"  avoid_ros_namespace_conventions: {str(bool(q.avoid_ros_namespace_conventions)).lower()}",
+        ]
+    return "\n".join(lines) + "\n" if lines else "[]"
+
+
+def subscription_qos_for(offered: Iterable[QoSProfile], depth: int = 100) -> QoSProfile:
+    """A subscription QoS that matches every offered publisher QoS, as ``ros2 bag record`` adapts it.
+
+    Reliable only if all publishers are reliable; transient local only if all are.
+    """
+    offered = list(offered)
+    reliable = bool(offered) and all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = bool(offered) and all(
+        q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered
+    )
+    return QoSProfile(
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )

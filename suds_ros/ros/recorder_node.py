@@ -1,0 +1,155 @@
+"""``recorder``: record suds topics, serialized as received, into an MCAP bag like rosbag2.
+
+Topics (parameter ``topics``, shell-style patterns) are discovered from the
+graph as their publishers appear; each is subscribed with ``raw=True`` and a
+QoS matching its publishers, and its CDR bytes are written unchanged
+(log time = receive time on the node clock, channel metadata
+``offered_qos_profiles`` from the publishers).  The bag is flushed every
+``flush_period`` s, so a killed recorder leaves a file readable up to the last
+flush; SIGINT/SIGTERM close it with its summary.  An existing output is never
+overwritten unless ``overwrite`` is true.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from fnmatch import fnmatchcase
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.io.bags import BagWriter
+from suds_ros.ros.conversions import message_class
+from suds_ros.ros.params import config_from_parameters, parameters_help, wants_help
+from suds_ros.ros.qos import qos_to_yaml, subscription_qos_for
+
+DEFAULT_TOPICS = (
+    "/suds/shape", "/suds/body_pose", "/suds/system", "/suds/predicted/*", "/suds/model",
+    "/suds/status",
+)
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    """Recorder parameters (all read-only)."""
+
+    output: str = field(default="", metadata={"description": "output .mcap file (required)"})
+    topics: tuple[str, ...] = field(default=DEFAULT_TOPICS, metadata={
+        "description": "topics to record; shell-style patterns such as /suds/predicted/*"})
+    overwrite: bool = field(default=False, metadata={
+        "description": "replace an existing output file"})
+    compression: str = field(default="zstd", metadata={
+        "description": "chunk compression: zstd, lz4 or none"})
+    flush_period: float = field(default=1.0, metadata={
+        "description": "s between flushes (data older than this survive a crash)",
+        "range": (0.01, 3600.0)})
+    discovery_period: float = field(default=0.25, metadata={
+        "description": "s between looks for new topics", "range": (0.01, 60.0)})
+    system: str = field(default="", metadata={"description": "suds metadata: system id"})
+    actuated: str = field(default="", metadata={
+        "description": "suds metadata: comma-separated actuated joints"})
+    passive: str = field(default="", metadata={
+        "description": "suds metadata: comma-separated passive joints"})
+    gait_hz: float = field(default=0.0, metadata={
+        "description": "suds metadata: nominal gait frequency, Hz (0: unknown)",
+        "range": (0.0, 1000.0)})
+
+    def __post_init__(self) -> None:
+        if not self.output:
+            raise SudsConfigError("`output`: expected the path of the .mcap file to write, got ''")
+        if not self.topics:
+            raise SudsConfigError("`topics`: expected at least one topic or pattern, got []")
+
+    def suds_metadata(self) -> dict[str, str]:
+        """The ``suds`` metadata record (empty when no system/joint roles are given)."""
+        meta = {"system": self.system, "actuated": self.actuated, "passive": self.passive}
+        meta = {k: v for k, v in meta.items() if v}
+        if meta and self.gait_hz > 0:
+            meta["gait_hz"] = repr(self.gait_hz)
+        return meta
+
+
+class RecorderNode(Node):
+    """Write every matching topic's serialized messages to ``output``."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("recorder", **kwargs)
+        self.config = config_from_parameters(self, RecorderConfig)
+        cfg = self.config
+        self._writer = BagWriter(cfg.output, overwrite=cfg.overwrite, compression=cfg.compression)
+        if cfg.suds_metadata():
+            self._writer.write_metadata("suds", cfg.suds_metadata())
+        self._subs: dict[str, Any] = {}
+        self._skipped: set[str] = set()
+        self.create_timer(cfg.discovery_period, self._discover)
+        self.create_timer(cfg.flush_period, self._writer.flush)
+        self.get_logger().info(f"recording {list(cfg.topics)} to {cfg.output}")
+        self._discover()
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or topic in self._skipped:
+                continue
+            if not any(fnmatchcase(topic, p) for p in self.config.topics):
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos:
+                continue  # only subscribers so far
+            if len(types) != 1:
+                self._skip(topic, f"it has several types {types}")
+                continue
+            offered = [i.qos_profile for i in infos]
+            try:
+                cls = message_class(types[0])
+                self._writer.add_topic(topic, types[0], qos_yaml=qos_to_yaml(offered))
+            except SudsError as exc:
+                self._skip(topic, str(exc))
+                continue
+            self._subs[topic] = self.create_subscription(
+                cls, topic, self._callback(topic), subscription_qos_for(offered), raw=True)
+            self.get_logger().info(f"recording {topic} ({types[0]})")
+
+    def _skip(self, topic: str, why: str) -> None:
+        self._skipped.add(topic)
+        self.get_logger().warning(f"not recording {topic}: {why}")
+
+    def _callback(self, topic: str) -> Any:
+        def on_message(data: bytes, info: dict[str, int]) -> None:
+            now = self.get_clock().now().nanoseconds
+            self._writer.write_raw(topic, data, now, info.get("source_timestamp") or now)
+        return on_message
+
+    def close(self) -> None:
+        """Write the summary and close the bag (idempotent)."""
+        self._writer.close()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the recorder until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
+    if wants_help(args):
+        print(parameters_help("recorder", __doc__.strip().splitlines()[0], RecorderConfig))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = RecorderNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except SudsError as exc:
+        print(f"ERROR: recorder: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,180 @@
+"""Roundtrips of every to_msg/from_msg pair, with rclpy messages and rosbags typestore messages."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsDataError
+from suds_ros.ros import conversions as cv
+
+pytestmark = pytest.mark.ros
+
+rosbags_typesys = pytest.importorskip("rosbags.typesys")
+STORE = rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_JAZZY)
+NAMES = ["joint_1", "joint_2", "joint_3"]
+
+
+@pytest.fixture(params=["rclpy", "typestore", "cdr"])
+def build(request):
+    """Build with rclpy classes, with typestore classes, or typestore → CDR (rosbags) → rclpy."""
+    if request.param == "rclpy":
+        return lambda fn, *a, **k: fn(*a, **k)
+    if request.param == "typestore":
+        return lambda fn, *a, **k: fn(*a, typestore=STORE, **k)
+
+    from rclpy.serialization import deserialize_message
+
+    def via_cdr(fn, *a, **k):
+        msg = fn(*a, typestore=STORE, **k)
+        data = STORE.serialize_cdr(msg, msg.__msgtype__)
+        return deserialize_message(bytes(data), cv.message_class(msg.__msgtype__))
+    return via_cdr
+
+
+@pytest.mark.parametrize("stamp", [0.0, 1.5, 1.7e9 + 0.123456789, 1712345678.000000001, -2.25])
+def test_float_stamp_roundtrip_is_exact(stamp):
+    t = cv.float_to_time(stamp)
+    assert 0 <= t.nanosec < 10**9
+    assert cv.time_to_float(t) == stamp
+
+
+@pytest.mark.parametrize("ns", [0, 1, 999_999_999, 1_700_000_000_123_456_789, -1, 2**31 * 10**9 - 1])
+def test_ns_time_roundtrip_is_exact(ns):
+    assert cv.time_to_ns(cv.ns_to_time(ns)) == ns
+    assert cv.time_to_ns(cv.ns_to_time(ns, typestore=STORE)) == ns
+
+
+def test_stamp_to_ns_uses_exact_float_value():
+    assert cv.float_to_ns(0.1) == 100_000_000
+    assert cv.float_to_ns(1.7e9 + 0.5) == 1_700_000_000_500_000_000
+    assert cv.ns_to_float(cv.float_to_ns(1234.5678)) == 1234.5678
+    n = 4_000_000 * 10**9 + 123_456_789  # below 2**22 s: ns survive a float roundtrip
+    assert cv.float_to_ns(cv.ns_to_float(n)) == n
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_non_finite_stamp_raises(bad):
+    with pytest.raises(SudsDataError, match="stamp"):
+        cv.float_to_time(bad)
+
+
+def test_out_of_range_stamp_raises():
+    with pytest.raises(SudsDataError, match="int32"):
+        cv.ns_to_time(2**31 * 10**9)
+
+
+def test_joint_state_roundtrip(build):
+    pos, vel, eff = np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, 3.0]), np.array([4.0, 5, 6])
+    msg = build(cv.joint_state_to_msg, 1.7e9 + 0.01, NAMES, pos, vel, eff)
+    s = cv.joint_state_from_msg(msg)
+    assert s.stamp == 1.7e9 + 0.01 and s.names == tuple(NAMES)
+    np.testing.assert_array_equal(s.position, pos)
+    np.testing.assert_array_equal(s.velocity, vel)
+    np.testing.assert_array_equal(s.effort, eff)
+
+
+def test_joint_state_optional_fields_empty(build):
+    s = cv.joint_state_from_msg(build(cv.joint_state_to_msg, 2.0, NAMES[:2], [0.5, 0.25]))
+    assert s.velocity is None and s.effort is None
+    np.testing.assert_array_equal(s.position, [0.5, 0.25])
+
+
+def test_joint_velocity_roundtrip(build):
+    msg = build(cv.joint_velocity_to_msg, 3.0, NAMES[1:], [0.7, -0.7])
+    assert len(msg.position) == 0
+    stamp, names, vel = cv.joint_velocity_from_msg(msg)
+    assert (stamp, names) == (3.0, tuple(NAMES[1:]))
+    np.testing.assert_array_equal(vel, [0.7, -0.7])
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.5, -3.0, math.pi - 1e-9])
+def test_pose_roundtrip(build, yaw):
+    p = cv.pose_from_msg(build(cv.pose_to_msg, 1.7e9, 1.25, -2.5, yaw))
+    assert (p.stamp, p.x, p.y) == (1.7e9, 1.25, -2.5)
+    assert p.yaw == pytest.approx(yaw, abs=1e-12)
+
+
+def test_pose_frame_id(build):
+    assert build(cv.pose_to_msg, 0.0, 0, 0, 0).header.frame_id == "world"
+
+
+def test_twist_roundtrip(build):
+    t = cv.twist_from_msg(build(cv.twist_to_msg, 5.5, 0.1, -0.2, 0.3))
+    assert t == cv.BodyTwist(5.5, 0.1, -0.2, 0.3)
+
+
+@pytest.mark.parametrize("level", [0, 1, 2, 3, "WARN"])
+def test_diagnostics_roundtrip(build, level):
+    values = {"r2": "0.98", "n_samples": "1200"}
+    msg = build(cv.diagnostics_to_msg, 7.0, "suds/estimator", values, level=level,
+                message="fit ok", hardware_id="sim")
+    (rep,) = cv.diagnostics_from_msg(msg)
+    assert rep == cv.DiagnosticReport(7.0, "suds/estimator", 1 if level == "WARN" else level,
+                                      "fit ok", "sim", values)
+
+
+def test_message_class_resolves_and_rejects():
+    from sensor_msgs.msg import JointState
+
+    assert cv.message_class("sensor_msgs/msg/JointState") is JointState
+    with pytest.raises(SudsDataError, match="not installed"):
+        cv.message_class("nope_msgs/msg/Nothing")
+    with pytest.raises(SudsDataError, match="pkg/msg/Type"):
+        cv.message_class("JointState")
+
+
+# ------------------------------------------------------------------ malformed input
+def test_joint_state_length_mismatch_raises():
+    with pytest.raises(SudsDataError, match=r"`position`: expected 3 values .* got 2"):
+        cv.joint_state_to_msg(0.0, NAMES, [1.0, 2.0])
+    msg = cv.joint_state_to_msg(0.0, NAMES, [1.0, 2.0, 3.0])
+    msg.position = [1.0, 2.0]
+    with pytest.raises(SudsDataError, match=r"`position`: expected 3 values"):
+        cv.joint_state_from_msg(msg)
+    header = STORE.types["std_msgs/msg/Header"](
+        stamp=STORE.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="")
+    msg = STORE.types["sensor_msgs/msg/JointState"](
+        header=header, name=NAMES,
+        position=np.zeros(3), velocity=np.zeros(1), effort=np.zeros(0))
+    with pytest.raises(SudsDataError, match=r"`velocity`: expected 3 values .* got 1"):
+        cv.joint_state_from_msg(msg)
+
+
+def test_nan_is_rejected():
+    msg = cv.joint_state_to_msg(0.0, NAMES, [1.0, 2.0, 3.0])
+    msg.position[1] = math.nan
+    with pytest.raises(SudsDataError, match=r"`position`: value 1 is not finite"):
+        cv.joint_state_from_msg(msg)
+    with pytest.raises(SudsDataError, match="`yaw`"):
+        cv.pose_to_msg(0.0, 0.0, 0.0, math.nan)
+    msg = cv.twist_to_msg(0.0, 0.0, 0.0, 0.0)
+    msg.twist.linear.x = math.inf
+    with pytest.raises(SudsDataError, match="twist.linear.x"):
+        cv.twist_from_msg(msg)
+
+
+def test_missing_position_and_duplicate_names_raise():
+    msg = cv.joint_velocity_to_msg(0.0, NAMES, [1.0, 2.0, 3.0])
+    with pytest.raises(SudsDataError, match=r"`position`: expected 3 values .* got 0"):
+        cv.joint_state_from_msg(msg)
+    with pytest.raises(SudsDataError, match="not unique"):
+        cv.joint_state_to_msg(0.0, ["a", "a"], [1.0, 2.0])
+    with pytest.raises(SudsDataError, match=r"`velocity`: expected 2 values .* got 0"):
+        cv.joint_velocity_from_msg(cv.joint_state_to_msg(0.0, ["a", "b"], [1.0, 2.0]))
+
+
+def test_bad_quaternion_stamp_and_level_raise():
+    msg = cv.pose_to_msg(0.0, 0.0, 0.0, 0.0)
+    msg.pose.orientation.w = 0.0
+    with pytest.raises(SudsDataError, match="quaternion is zero"):
+        cv.pose_from_msg(msg)
+    t = STORE.types["builtin_interfaces/msg/Time"](sec=1, nanosec=10**9)
+    with pytest.raises(SudsDataError, match="nanosec"):
+        cv.time_to_ns(t)
+    with pytest.raises(SudsDataError, match="`level`"):
+        cv.diagnostics_to_msg(0.0, "x", {}, level=7)
+    with pytest.raises(SudsDataError, match="str keys and values"):
+        cv.diagnostics_to_msg(0.0, "x", {"a": 1})  # type: ignore[dict-item]

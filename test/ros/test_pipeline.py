@@ -1,0 +1,93 @@
+"""The pipeline supervisor: stop order, exit codes, missing modules, Ctrl-C."""
+
+from __future__ import annotations
+
+import io
+import signal
+import sys
+import time
+
+import pytest
+
+from suds_ros.io.bags import bag_info
+from suds_ros.ros import pipeline
+
+pytestmark = pytest.mark.ros
+
+POLITE = ("import signal, sys, time\n"
+          "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
+          "print('up', flush=True)\n"
+          "time.sleep(60)\n")
+STUBBORN = ("import signal, time\n"
+            "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+            "signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+            "print('up', flush=True)\n"
+            "time.sleep(60)\n")
+
+
+def py(code: str) -> list[str]:
+    return [sys.executable, "-c", code]
+
+
+def test_main_child_finishing_stops_the_others():
+    out = io.StringIO()
+    rc = pipeline.supervise({"simulator": py("import time; print('sim'); time.sleep(0.5)"),
+                             "estimator": py(POLITE)}, out=out, timeouts=(3.0, 1.0))
+    assert rc == 0, out.getvalue()
+    assert "[simulator] sim" in out.getvalue() and "[estimator] up" in out.getvalue()
+
+
+def test_failing_child_stops_everything_and_fails():
+    out = io.StringIO()
+    t0 = time.monotonic()
+    rc = pipeline.supervise({"simulator": py(POLITE), "estimator": py("import sys; sys.exit(3)")},
+                            out=out, timeouts=(3.0, 1.0))
+    assert rc == 1
+    assert "estimator exited with code 3" in out.getvalue()
+    assert time.monotonic() - t0 < 10
+
+
+def test_stubborn_child_is_killed_and_reported():
+    out = io.StringIO()
+    rc = pipeline.supervise({"simulator": py("import time; time.sleep(1.0)"),
+                             "estimator": py(STUBBORN)}, out=out, timeouts=(0.5, 0.5))
+    assert rc == 1
+    assert "estimator did not stop and was killed" in out.getvalue()
+
+
+def test_missing_node_module_is_a_clear_error(monkeypatch, capsys):
+    monkeypatch.setitem(pipeline.NODES, "estimator", "suds_ros.ros.no_such_node")
+    assert pipeline.main(["--nodes", "estimator"]) == 2
+    err = capsys.readouterr().err
+    assert "not installed: suds_ros.ros.no_such_node" in err
+
+
+def test_bad_options_are_rejected(capsys):
+    with pytest.raises(SystemExit, match="2"):
+        pipeline.main(["--rate", "0"])
+    assert "--rate: expected a value > 0" in capsys.readouterr().err
+    assert pipeline.main(["--nodes", "recorder,bogus"]) == 2
+
+
+def test_recorder_command_gets_joint_roles(tmp_path):
+    args = pipeline.parse_args(["--system", "purcell3", "--output", str(tmp_path / "x.mcap"),
+                                "--cycles", "3", "--seed", "4"])
+    cmds = pipeline.build_commands(args)
+    assert set(cmds) == {"simulator", "estimator", "predictor", "recorder"}
+    rec = " ".join(cmds["recorder"])
+    assert "actuated:=joint_1" in rec and "passive:=joint_2" in rec
+    assert "cycles:=3" in " ".join(cmds["simulator"]) and "seed:=4" in " ".join(cmds["simulator"])
+
+
+def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
+    out = tmp_path / "p.mcap"
+    proc = start_process([sys.executable, "-m", "suds_ros.ros.pipeline", "--nodes", "recorder",
+                          "--output", out], "pipeline")
+    deadline = time.monotonic() + 30
+    while "[recorder]" not in proc.output():
+        assert time.monotonic() < deadline, proc.output()
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(30) == 0, proc.output()
+    assert bag_info(out)["has_summary"]
+    assert bag_info(out)["metadata"]["suds"]["actuated"] == "joint_1"

@@ -1,0 +1,163 @@
+"""End to end: publisher / player → recorder → MCAP, each node in its own process."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from suds_ros.io.bags import BagWriter, bag_info, iter_raw_messages, read_recording
+
+pytestmark = pytest.mark.ros
+
+PUBLISHER = Path(__file__).with_name("_publisher.py")
+META = ("system:=purcell3", "actuated:=joint_1", "passive:=joint_2")
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def record(start_process, node_command, out: Path, count: int, *params: str):
+    rec = start_process(node_command("recorder_node", f"output:={out}", *META, *params), "recorder")
+    pub = start_process([sys.executable, PUBLISHER, str(count), "100", "--wait"], "publisher")
+    return rec, pub
+
+
+def test_record_then_read_with_suds_and_rosbags(start_process, node_command, tmp_path):
+    out = tmp_path / "run.mcap"
+    rec, pub = record(start_process, node_command, out, 40)
+    assert pub.wait(60) == 0, pub.output()
+    rec.send_signal(signal.SIGINT)
+    assert rec.wait(20) == 0, rec.output()
+
+    info = bag_info(out)
+    assert info["has_summary"] and not info["truncated"]
+    assert {t: v["count"] for t, v in info["topics"].items()} == {
+        "/suds/shape": 40, "/suds/body_pose": 40}
+    assert info["metadata"]["suds"] == {
+        "system": "purcell3", "actuated": "joint_1", "passive": "joint_2"}
+    rec_ = read_recording(out)
+    i = np.arange(40)
+    np.testing.assert_allclose(rec_.t, 1.7e9 + i / 100.0)
+    np.testing.assert_allclose(rec_.r, np.stack([np.sin(i / 10), np.cos(i / 10)], axis=1))
+    np.testing.assert_allclose(rec_.pose, np.stack([i / 1000, -i / 1000, i / 100], axis=1),
+                               atol=1e-12)
+
+    # the strict rosbags MCAP reader: schemas, QoS metadata and CDR must all parse
+    from rosbags.rosbag2.storage_mcap import McapReader
+    from rosbags.typesys import Stores, get_typestore
+
+    from suds_ros.ros.conversions import joint_state_from_msg, pose_from_msg
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    reader = McapReader(out)
+    reader.open()
+    try:
+        conns = {c.topic: c for c in reader.connections}
+        assert conns["/suds/shape"].msgtype == "sensor_msgs/msg/JointState"
+        qos = {t: c.ext.offered_qos_profiles for t, c in conns.items()}
+        assert qos["/suds/shape"][0].reliability.name.lower() == "best_effort"
+        assert qos["/suds/body_pose"][0].reliability.name.lower() == "reliable"
+        shapes, poses = [], []
+        for conn, _, data in reader.messages(reader.connections):
+            msg = store.deserialize_cdr(data, conn.msgtype)
+            (shapes if conn.topic == "/suds/shape" else poses).append(msg)
+    finally:
+        reader.close()
+    assert len(shapes) == len(poses) == 40
+    assert joint_state_from_msg(shapes[5]).names == ("joint_1", "joint_2")
+    assert pose_from_msg(poses[7]).yaw == pytest.approx(0.07)
+
+
+def test_sigkilled_recorder_leaves_readable_file(start_process, node_command, tmp_path):
+    out = tmp_path / "killed.mcap"
+    rec, pub = record(start_process, node_command, out, 0, "flush_period:=0.2")
+    wait_for(lambda: "publishing" in pub.output(), 30, "the publisher to start")
+    time.sleep(1.5)
+    rec.send_signal(signal.SIGKILL)
+    assert rec.wait(10) == -signal.SIGKILL
+
+    info = bag_info(out)
+    assert not info["has_summary"]
+    shapes = [m for m in iter_raw_messages(out) if m.topic == "/suds/shape"]
+    assert len(shapes) >= 20, info  # ~1.5 s at 100 Hz, minus at most one flush period
+    rec_ = read_recording(out)  # metadata written at start, data up to the last flush
+    assert rec_.n_samples == len(shapes)
+    assert np.all(np.diff(rec_.t) > 0)
+
+
+def test_recorder_refuses_to_overwrite(start_process, node_command, tmp_path):
+    out = tmp_path / "exists.mcap"
+    out.write_bytes(b"precious")
+    rec = start_process(node_command("recorder_node", f"output:={out}"), "recorder")
+    assert rec.wait(30) == 1
+    assert "refusing to overwrite" in rec.output()
+    assert out.read_bytes() == b"precious"
+
+
+def test_recorder_without_output_stops_with_reason(start_process, node_command):
+    rec = start_process(node_command("recorder_node"), "recorder")
+    assert rec.wait(30) == 1
+    assert "`output`" in rec.output()
+
+
+def _make_bag(path: Path, n: int = 30) -> list[bytes]:
+    from rclpy.serialization import serialize_message
+
+    from suds_ros.ros.conversions import joint_state_to_msg, pose_to_msg
+
+    datas = []
+    with BagWriter(path) as w:
+        w.add_topic("/suds/shape", "sensor_msgs/msg/JointState")
+        w.add_topic("/suds/body_pose", "geometry_msgs/msg/PoseStamped")
+        w.write_metadata("suds", {"system": "purcell3", "actuated": "joint_1", "passive": "joint_2"})
+        for i in range(n):
+            t = 1.7e9 + i * 0.02
+            data = serialize_message(joint_state_to_msg(t, ["joint_1", "joint_2"], [i, -i]))
+            datas.append(data)
+            w.write_raw("/suds/shape", data, 10**18 + i * 20_000_000)
+            w.write_raw("/suds/body_pose", serialize_message(pose_to_msg(t, i, 0.0, 0.0)),
+                        10**18 + i * 20_000_000 + 1)
+    return datas
+
+
+def test_player_replays_bytes_with_timing(start_process, node_command, tmp_path):
+    src, out = tmp_path / "src.mcap", tmp_path / "replayed.mcap"
+    datas = _make_bag(src)
+    rec = start_process(node_command("recorder_node", f"output:={out}", "topics:=['/suds/shape']"),
+                        "recorder")
+    wait_for(lambda: "recording [" in rec.output(), 30, "the recorder to start")
+    player = start_process(node_command("player_node", f"bag:={src}", "rate:=2.0", "delay:=2.0",
+                                        "topics:=['/suds/shape']", "start_offset:=0.1"), "player")
+    assert player.wait(60) == 0, player.output()
+    rec.send_signal(signal.SIGTERM)
+    assert rec.wait(20) == 0, rec.output()
+
+    got = list(iter_raw_messages(out))
+    assert bag_info(out)["has_summary"]
+    assert [m.data for m in got] == datas[5:]  # start_offset 0.1 s skips 5 samples at 50 Hz
+    assert {m.topic for m in got} == {"/suds/shape"}
+    span = (got[-1].log_time_ns - got[0].log_time_ns) * 1e-9
+    assert span == pytest.approx(24 * 0.02 / 2.0, abs=0.1)  # rate 2: twice as fast
+
+
+@pytest.mark.parametrize(
+    ("params", "reason"),
+    [(("rate:=0.0",), "rate"), (("topics:=['/nope']",), "/nope"), ((), "`bag`")],
+)
+def test_player_rejects_bad_parameters(start_process, node_command, tmp_path, params, reason):
+    src = tmp_path / "src.mcap"
+    _make_bag(src, 3)
+    bag = () if reason == "`bag`" else (f"bag:={src}",)
+    player = start_process(node_command("player_node", *bag, *params), "player")
+    assert player.wait(30) == 1, player.output()
+    assert reason in player.output()
