@@ -92,6 +92,7 @@ class SudsModel:
     ----------
     joint_names, actuated, passive : joint bookkeeping.
     template_coef : (2·To + 1, nj) Fourier coefficients of θ(φ).
+    template_residual_var : (nj,) residual variance of the shape about θ (phase-tracking weights).
     template_order : int
     omega : mean phase rate ω̄, rad/s.
     suds : SudsConfig
@@ -105,6 +106,7 @@ class SudsModel:
     actuated: tuple[str, ...]
     passive: tuple[str, ...]
     template_coef: FloatArray
+    template_residual_var: FloatArray
     template_order: int
     omega: float
     suds: SudsConfig
@@ -149,6 +151,7 @@ class SudsModel:
             "passive": list(self.passive),
             "template_order": self.template_order,
             "template_coef": self.template_coef.tolist(),
+            "template_residual_var": self.template_residual_var.tolist(),
             "omega": self.omega,
             "suds": {
                 "regressors": self.suds.regressors,
@@ -173,6 +176,7 @@ class SudsModel:
             actuated=tuple(d["actuated"]),  # type: ignore[arg-type]
             passive=tuple(d["passive"]),  # type: ignore[arg-type]
             template_coef=np.asarray(d["template_coef"], dtype=float),
+            template_residual_var=np.asarray(d["template_residual_var"], dtype=float),
             template_order=int(d["template_order"]),  # type: ignore[call-overload]
             omega=float(d["omega"]),  # type: ignore[arg-type]
             suds=SudsConfig(**s),
@@ -444,6 +448,7 @@ class OnlineSudsEstimator:
             actuated=self.actuated,
             passive=self.passive,
             template_coef=np.asarray(self.template.coef_, dtype=float),  # type: ignore[union-attr]
+            template_residual_var=np.asarray(self.template.residual_var_, dtype=float),  # type: ignore[union-attr]
             template_order=self.config.template_order,
             omega=self.omega,
             suds=self.regressor.config,
@@ -538,22 +543,15 @@ def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> Onli
     return est
 
 
-class ModelTemplate:
-    """θ(φ) of a :class:`SudsModel` with the ``predict``/``derivative`` interface of FourierTemplate."""
+def model_template(model: SudsModel):  # type: ignore[no-untyped-def]
+    """The fitted :class:`FourierTemplate` θ(φ) stored in a :class:`SudsModel`."""
+    from suds_ros.core.template import FourierTemplate, FourierTemplateConfig
 
-    def __init__(self, model: SudsModel) -> None:
-        self.model = model
-        self.order = model.template_order
-
-    def predict(self, phase: FloatArray) -> FloatArray:
-        """θ(φ), shape (n, nj)."""
-        return self.model._theta(np.atleast_1d(np.asarray(phase, dtype=float)))[0]
-
-    def derivative(self, phase: FloatArray, k: int = 1) -> FloatArray:
-        """dθ/dφ (k = 1 only), shape (n, nj)."""
-        if k != 1:
-            raise SudsConfigError(f"`k`: only the first derivative is available, got {k}")
-        return self.model._theta(np.atleast_1d(np.asarray(phase, dtype=float)))[1]
+    tmpl = FourierTemplate(FourierTemplateConfig(order=model.template_order))
+    tmpl.coef_ = np.asarray(model.template_coef, dtype=float)
+    tmpl.residual_var_ = np.asarray(model.template_residual_var, dtype=float)
+    tmpl.n_features_in_ = tmpl.coef_.shape[1]
+    return tmpl
 
 
 def nearest_phase(template: object, r: FloatArray, n_grid: int = 720) -> float:
@@ -577,7 +575,7 @@ class StreamingPredictor:
 
     def __init__(self, model: SudsModel) -> None:
         self.model = model
-        self.template = ModelTemplate(model)
+        self.template = model_template(model)
         self.passive = model.passive
         self._act = np.array([model.joint_names.index(j) for j in model.actuated])
         self._tracker = None
@@ -613,8 +611,40 @@ class StreamingPredictor:
             phase = float(self._tracker.update(t, r))
         prev = self._prev
         self._prev = (t, r, phase)
+        self.last_phase = phase
         if prev is None:
             return None
         tp, rp, php = prev
+        self.last_mid_phase = 0.5 * (php + phase)
         out = self.model.predict(np.array([0.5 * (php + phase)]), (0.5 * (rp + r))[None], ((r - rp) / (t - tp))[None])[0]
         return out[:3], out[3 : 3 + len(self.passive)]
+
+
+def evaluate_model(model: SudsModel, rec: Recording):  # type: ignore[no-untyped-def]
+    """Run :class:`StreamingPredictor` over a recording and compare with its measured velocities.
+
+    Returns a :class:`~suds_ros.core.identify.Prediction` whose ``template`` column is the model's
+    phase-only template at the tracked phases (score it with ``score_prediction``).
+    """
+    from suds_ros.core.identify import Prediction
+    from suds_ros.core.intervals import make_intervals
+
+    if rec.joint_names != model.joint_names or rec.actuated != model.actuated:
+        raise SudsDataError(
+            f"recording joints {list(rec.joint_names)} (actuated {list(rec.actuated)}) differ from the "
+            f"model's {list(model.joint_names)} (actuated {list(model.actuated)})"
+        )
+    pred = StreamingPredictor(model)
+    out, phases = [], []
+    for k in range(rec.n_samples):
+        o = pred.update(float(rec.t[k]), rec.joint_names, rec.r[k])
+        if o is not None:
+            out.append(np.concatenate(o))
+            phases.append(pred.last_mid_phase)
+    iv = make_intervals(rec)
+    ph = np.asarray(phases)
+    truth = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
+    return Prediction(
+        t=iv.t, phase=ph, channels=model.channels, truth=truth,
+        model=np.asarray(out), template=model.template(ph),
+    )

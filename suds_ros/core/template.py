@@ -1,0 +1,275 @@
+"""Phase-averaged gait template: a truncated Fourier series θ(φ) fitted by least squares.
+
+The template of a gait is the average shape as a function of the asymptotic
+phase φ (rad).  Each output channel is modelled as
+
+    θ_j(φ) = a_0j + Σ_{k=1..M} (a_kj cos kφ + b_kj sin kφ),
+
+which is periodic in φ by construction, so the phase may be given wrapped or
+unwrapped.  The sufficient statistics are the weighted normal equations
+BᵀWB, BᵀWY (B the design of :meth:`FourierTemplate.basis`), so ``partial_fit``
+on chunks reproduces ``fit`` on the whole data up to rounding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+
+#: Smallest accepted eigenvalue ratio λ_min/λ_max of the normal matrix.
+_RCOND = 1e-12
+
+
+@dataclass(frozen=True)
+class FourierTemplateConfig:
+    """Hyperparameters of :class:`FourierTemplate`.
+
+    Parameters
+    ----------
+    order : int
+        Number of harmonics M ≥ 0; the template has 2·M + 1 coefficients per channel.
+    """
+
+    order: int = 8
+
+    def __post_init__(self) -> None:
+        if isinstance(self.order, bool) or not isinstance(self.order, (int, np.integer)) or self.order < 0:
+            raise SudsConfigError(f"`order`: expected an integer ≥ 0, got {self.order!r}")
+
+
+def _as_phase(phase: FloatArray | float, name: str = "phase") -> FloatArray:
+    """Return ``phase`` as a finite 1-D float array (a scalar becomes shape (1,))."""
+    arr = np.atleast_1d(np.asarray(phase, dtype=float))
+    if arr.ndim != 1:
+        raise SudsDataError(f"`{name}`: expected a 1-D array of shape (n,), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise SudsDataError(f"`{name}`: expected finite values, got {float(arr[bad])!r} at index {bad}")
+    return arr
+
+
+class FourierTemplate:
+    """Least-squares Fourier series template θ(φ) of a multichannel periodic signal.
+
+    Parameters
+    ----------
+    config : FourierTemplateConfig
+        Fourier order.
+
+    Attributes
+    ----------
+    coef_ : ndarray, shape (2·order + 1, d)
+        Coefficients in the column order of :meth:`basis`: [1, cos φ, sin φ, …, cos Mφ, sin Mφ].
+    n_samples_seen_ : int
+        Number of samples accumulated since the last reset.
+    n_features_in_ : int
+        Number of output channels d.
+    residual_var_ : ndarray, shape (d,)
+        Weighted mean squared residual of each channel (units of Y squared).
+    XtX_, XtY_ : ndarray
+        Accumulated normal equations, shapes (p, p) and (p, d) with p = 2·order + 1.
+
+    Examples
+    --------
+    >>> phi = np.linspace(0, 20 * np.pi, 1000)
+    >>> tmpl = FourierTemplate(FourierTemplateConfig(order=2)).fit(phi, np.c_[np.cos(phi)])
+    >>> tmpl.predict(np.array([0.0])).round(6)
+    array([[1.]])
+    """
+
+    def __init__(self, config: FourierTemplateConfig = FourierTemplateConfig()) -> None:
+        self.config = config
+
+    # ------------------------------------------------------------ basis
+    @staticmethod
+    def basis(phase: FloatArray | float, order: int) -> FloatArray:
+        """Design matrix [1, cos φ, sin φ, …, cos Mφ, sin Mφ].
+
+        Parameters
+        ----------
+        phase : array_like, shape (n,)
+            Phase in rad.
+        order : int
+            Number of harmonics M.
+
+        Returns
+        -------
+        ndarray, shape (n, 2·M + 1)
+        """
+        return FourierTemplate.basis_derivative(phase, order, 0)
+
+    @staticmethod
+    def basis_derivative(phase: FloatArray | float, order: int, k: int = 1) -> FloatArray:
+        """k-th derivative in φ of :meth:`basis`, shape (n, 2·M + 1) (units rad⁻ᵏ)."""
+        phase = _as_phase(phase)
+        out = np.empty((phase.size, 2 * order + 1))
+        out[:, 0] = 1.0 if k == 0 else 0.0
+        if order:
+            m = np.arange(1, order + 1, dtype=float)
+            ang = phase[:, None] * m[None, :] + k * np.pi / 2  # d^k cos(x) = cos(x + kπ/2)
+            gain = m[None, :] ** k
+            out[:, 1::2] = gain * np.cos(ang)
+            out[:, 2::2] = gain * np.sin(ang)
+        return out
+
+    @property
+    def n_coefficients(self) -> int:
+        """Coefficients per channel, 2·order + 1."""
+        return 2 * self.config.order + 1
+
+    # -------------------------------------------------------------- fit
+    def _reset(self) -> None:
+        for name in ("coef_", "XtX_", "XtY_", "YtY_", "sw_", "n_samples_seen_", "n_features_in_", "residual_var_"):
+            self.__dict__.pop(name, None)
+
+    def fit(
+        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None
+    ) -> "FourierTemplate":
+        """Fit the template from scratch.
+
+        Parameters
+        ----------
+        phase : ndarray, shape (n,)
+            Phase of each sample in rad (wrapped or unwrapped).
+        Y : ndarray, shape (n, d) or (n,)
+            Samples; a 1-D ``Y`` is treated as one channel (d = 1).
+        sample_weight : ndarray, shape (n,), optional
+            Non-negative weights of the squared residuals.
+
+        Returns
+        -------
+        FourierTemplate
+            ``self``.
+
+        Raises
+        ------
+        SudsDataError
+            Malformed input, or too few samples / too narrow a spread of phases for the order.
+        """
+        self._reset()
+        self.partial_fit(phase, Y, sample_weight)
+        if not hasattr(self, "coef_"):
+            p = self.n_coefficients
+            raise SudsDataError(
+                f"`phase`: too few samples for a Fourier template of order {self.config.order}: "
+                f"need ≥ {p} samples spread over the cycle, got {self.n_samples_seen_} samples "
+                "whose phases leave the normal equations singular"
+            )
+        return self
+
+    def partial_fit(
+        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None
+    ) -> "FourierTemplate":
+        """Accumulate a chunk into the normal equations and re-solve.
+
+        Parameters are as for :meth:`fit`.  While the accumulated data cannot
+        determine every coefficient (fewer than 2·order + 1 samples, or phases
+        bunched together) the template stays unfitted and no error is raised;
+        ``fit`` raises in that case.
+
+        Returns
+        -------
+        FourierTemplate
+            ``self``.
+        """
+        phase = _as_phase(phase)
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim == 1:
+            Y = Y[:, None]
+        if Y.ndim != 2:
+            raise SudsDataError(f"`Y`: expected shape (n, d) or (n,), got shape {Y.shape}")
+        if Y.shape[0] != phase.size:
+            raise SudsDataError(
+                f"`Y`: expected {phase.size} rows to match `phase`, got shape {Y.shape}"
+            )
+        if not np.all(np.isfinite(Y)):
+            raise SudsDataError(f"`Y`: expected finite values, got {int((~np.isfinite(Y)).sum())} NaN/inf entries")
+        if sample_weight is None:
+            w = np.ones(phase.size)
+        else:
+            w = np.asarray(sample_weight, dtype=float)
+            if w.shape != phase.shape:
+                raise SudsDataError(f"`sample_weight`: expected shape {phase.shape}, got shape {w.shape}")
+            if not np.all(np.isfinite(w)) or np.any(w < 0):
+                raise SudsDataError("`sample_weight`: expected finite values ≥ 0, got negative or non-finite entries")
+
+        p = self.n_coefficients
+        if not hasattr(self, "n_samples_seen_"):
+            self.n_features_in_ = Y.shape[1]
+            self.XtX_ = np.zeros((p, p))
+            self.XtY_ = np.zeros((p, Y.shape[1]))
+            self.YtY_ = np.zeros(Y.shape[1])
+            self.sw_ = 0.0
+            self.n_samples_seen_ = 0
+        elif Y.shape[1] != self.n_features_in_:
+            raise SudsDataError(
+                f"`Y`: expected {self.n_features_in_} channels as in earlier calls, got {Y.shape[1]}"
+            )
+
+        B = self.basis(phase, self.config.order)
+        Bw = B * w[:, None]
+        self.XtX_ += Bw.T @ B
+        self.XtY_ += Bw.T @ Y
+        self.YtY_ += w @ (Y * Y)
+        self.sw_ += float(w.sum())
+        self.n_samples_seen_ += phase.size
+        self._solve()
+        return self
+
+    def _solve(self) -> None:
+        if self.n_samples_seen_ < self.n_coefficients:
+            return
+        eig = np.linalg.eigvalsh(self.XtX_)
+        if not eig[-1] > 0 or eig[0] < _RCOND * eig[-1]:
+            return
+        coef = scipy.linalg.solve(self.XtX_, self.XtY_, assume_a="pos")
+        rss = self.YtY_ - 2 * np.einsum("pd,pd->d", coef, self.XtY_) + np.einsum("pd,pq,qd->d", coef, self.XtX_, coef)
+        self.coef_ = coef
+        self.residual_var_ = np.maximum(rss, 0.0) / max(self.sw_, np.finfo(float).tiny)
+
+    # ---------------------------------------------------------- predict
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "coef_"):
+            raise NotFittedError(
+                "FourierTemplate: expected a fitted template, got one without `coef_`; call fit or partial_fit first"
+            )
+
+    def predict(self, phase: FloatArray | float) -> FloatArray:
+        """Template values θ(φ).
+
+        Parameters
+        ----------
+        phase : array_like, shape (n,)
+            Phase in rad.
+
+        Returns
+        -------
+        ndarray, shape (n, d)
+        """
+        self._check_fitted()
+        return self.basis(phase, self.config.order) @ self.coef_
+
+    def derivative(self, phase: FloatArray | float, k: int = 1) -> FloatArray:
+        """k-th phase derivative d^kθ/dφ^k.
+
+        Parameters
+        ----------
+        phase : array_like, shape (n,)
+            Phase in rad.
+        k : int
+            Derivative order ≥ 0 (0 gives :meth:`predict`).
+
+        Returns
+        -------
+        ndarray, shape (n, d)
+            In units of Y per rad^k.
+        """
+        self._check_fitted()
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+            raise SudsConfigError(f"`k`: expected an integer ≥ 0, got {k!r}")
+        return self.basis_derivative(phase, self.config.order, int(k)) @ self.coef_
