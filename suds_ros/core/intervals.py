@@ -32,7 +32,8 @@ class Intervals:
     r : (m, nj) midpoint joint values.
     rdot : (m, nj) joint velocities over the interval.
     xi : (m, 3) body velocity over the interval (body frame: m/s, m/s, rad/s).
-    effort : (m, na) or None, mean actuator effort over the interval.
+    effort : (m, na) or None, mean actuator effort over the interval (recorded effort is
+        taken as the mean over the sample period ending at its stamp).
     dt : (m,) interval durations, s.
     """
 
@@ -70,7 +71,10 @@ def make_intervals(rec: Recording, window: int = 1, pose: FloatArray | None = No
     xi = se2.body_velocity(P, dt, stride=window)
     effort = None
     if rec.effort is not None:
-        effort = 0.5 * (rec.effort[:-window] + rec.effort[window:])[:, rec.actuated_index]
+        # effort_k covers the period (k − 1, k]: the interval (k, k + w] is covered by samples k+1 … k+w
+        E = rec.effort[:, rec.actuated_index]
+        c = np.concatenate([np.zeros((1, E.shape[1])), np.cumsum(E, axis=0)])
+        effort = (c[1 + window :] - c[1:-window]) / window
     return Intervals(
         t=0.5 * (rec.t[:-window] + rec.t[window:]),
         k=np.arange(n - window, dtype=float),

@@ -291,7 +291,8 @@ def simulate(
     -------
     Recording
         Noisy measurements.  ``truth`` holds ``"r"`` (n, nj) and ``"pose"`` (n, 3) noise free,
-        ``"phase"`` (n,) gait phase 2π·f·t of the reference, rad, and ``"effort"`` (n, na).
+        ``"phase"`` (n,) gait phase 2π·f·t of the reference, rad, and ``"effort"`` (n, na): the
+        actuator effort averaged over the sample period ending at each sample, N·m.
     """
     dt = config.dt
     n = config.cycles * config.samples_per_cycle
@@ -326,7 +327,10 @@ def simulate(
     r_meas = r_true + sd * rng_noise.standard_normal(r_true.shape)
     pose_meas = pose_true + sd * rng_noise.standard_normal(pose_true.shape)
     names = system.joint_names
-    effort = _effort_at_samples(still, r_a[nw:], r_true, dt)
+    lo = max(nw - 1, 0)
+    effort = _effort_at_samples(still, r_a[lo:], traj.r[lo:], dt)
+    if nw == 0:  # no set-point before the first sample: repeat the first period's effort
+        effort = np.concatenate([effort[:1], effort], axis=0)
     truth = {
         "r": r_true,
         "pose": pose_true,
@@ -367,12 +371,18 @@ def _delay_pose(pose: FloatArray, t_all: FloatArray, tt: FloatArray, delay: floa
 
 
 def _effort_at_samples(system: SudsSystem, r_a: FloatArray, r: FloatArray, dt: float) -> FloatArray:
-    """Actuator effort (n, na) at each sample, using the set-point rate of the interval that starts there."""
-    va = np.diff(r_a, axis=0, append=r_a[-1:] + (r_a[-1:] - r_a[-2:-1])) / dt
+    """Actuator effort (n, na) at each sample: the effort over the sample period that ends there.
+
+    Evaluated at the midpoint state of the interval (k − 1, k) with its set-point rate — the
+    reading of a torque/current sensor averaged over the control period.  ``r_a`` holds one
+    set-point before the first sample: shape (n + 1, na); ``r`` (n + 1, nj) likewise.
+    """
+    va = np.diff(r_a, axis=0) / dt
+    mid = 0.5 * (r[1:] + r[:-1])
     act = list(system.actuated)
     pas = list(system.passive)
-    _, rdot_p = system.velocities(r, va)
-    rdot = np.zeros_like(r)
+    _, rdot_p = system.velocities(mid, va)
+    rdot = np.zeros_like(mid)
     rdot[:, act] = va
     rdot[:, pas] = rdot_p
-    return system.actuator_effort(r, rdot)
+    return system.actuator_effort(mid, rdot)
