@@ -152,16 +152,23 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from suds_ros.core.identify import IdentifyConfig, SudsIdentifier, split_cycles
     from suds_ros.core.sysid import SudsConfig
 
+    from suds_ros.core.identify import score_prediction
+
     rec = load_recording(args)
-    train, test = split_cycles(rec, args.train_cycles, args.test_cycles)
+    if args.test_cycles == 0:
+        train, test = rec, None
+    else:
+        train, test = split_cycles(rec, args.train_cycles, args.test_cycles)
+    if args.streaming:
+        return _identify_streaming(args, rec, train, test)
+    if test is None:
+        raise SudsConfigError("--test-cycles 0 is only supported with --streaming (nothing to score)")
     cfg = IdentifyConfig(suds=SudsConfig(regressors=args.regressors), window=args.window)
     torque = bool(args.torque)
     if torque and rec.effort is None:
         raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
     ident = SudsIdentifier(cfg, torque=torque).fit(train)
     pred = ident.predict(test)
-    from suds_ros.core.identify import score_prediction
-
     sc = score_prediction(pred)
     result = {
         "bag": str(args.bag),
@@ -198,6 +205,41 @@ def cmd_identify(args: argparse.Namespace) -> int:
         print(f"  {c:<16}{sc.rms_model[c]:>12.4g}{sc.rms_template[c]:>14.4g}")
     if args.figure:
         print(f"  figure: {args.figure}")
+    return 0
+
+
+def _identify_streaming(args: argparse.Namespace, rec, train, test) -> int:  # type: ignore[no-untyped-def]
+    """The live estimator's algorithm run offline (same model as the estimator node on this data)."""
+    from suds_ros.core.identify import score_prediction
+    from suds_ros.core.online import OnlineConfig, evaluate_model, fit_streaming
+    from suds_ros.core.sysid import SudsConfig
+
+    cfg = OnlineConfig(
+        suds=SudsConfig(regressors=args.regressors, linear_order=6, bilinear_order=3),
+        init_cycles=args.init_cycles,
+        gait_hz=rec.gait_hz or 1.0,
+    )
+    est = fit_streaming(train, cfg)
+    model = est.model()
+    result: dict[str, object] = {
+        "bag": str(args.bag),
+        "system": rec.system,
+        "mode": "streaming",
+        "samples": model.n_samples,
+        "running_gamma": est.running_gamma(),
+        "parameters_per_output": int(model.coef.shape[0]),
+    }
+    if test is not None:
+        result.update(score_prediction(evaluate_model(model, test)).as_dict())
+    if args.model_out:
+        Path(args.model_out).write_text(json.dumps(model.to_dict()))
+        result["model"] = str(args.model_out)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for k, v in result.items():
+            if k not in ("rms_model", "rms_template"):
+                print(f"{k}: {v}")
     return 0
 
 
@@ -245,11 +287,17 @@ def build_parser() -> argparse.ArgumentParser:
                        epilog=EPILOG_IDENTIFY, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("bag")
     p.add_argument("--train-cycles", type=int, default=30, help="training cycles (default 30)")
-    p.add_argument("--test-cycles", type=int, default=30, help="held-out cycles (default 30; fewer if the bag is short)")
+    p.add_argument("--test-cycles", type=int, default=30,
+                   help="held-out cycles (default 30; fewer if the bag is short; 0 with --streaming: train on everything)")
     p.add_argument("--regressors", type=int, choices=(1, 2, 3), default=2,
                    help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a] (default), 3 full second order")
     p.add_argument("--window", type=int, default=1, help="differencing window in samples (default 1)")
     p.add_argument("--torque", action="store_true", help="also identify actuator effort (needs effort in the bag)")
+    p.add_argument("--streaming", action="store_true",
+                   help="run the live estimator's algorithm (phaser on the first --init-cycles, then phase "
+                        "tracking and incremental fitting); gives the estimator node's model")
+    p.add_argument("--init-cycles", type=float, default=5.0, help="with --streaming: cycles before the phaser initialises")
+    p.add_argument("--model-out", help="with --streaming: write the model JSON (as on /suds/model) here")
     p.add_argument("--figure", help="write a Figure-1-style plot to this path (PNG)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     _add_recording_options(p)
