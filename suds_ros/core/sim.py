@@ -325,7 +325,10 @@ def simulate(
         pose_true = pose_all[nw:]
     sd = config.noise_std
     r_meas = r_true + sd * rng_noise.standard_normal(r_true.shape)
-    pose_meas = pose_true + sd * rng_noise.standard_normal(pose_true.shape)
+    pose_noise = sd * rng_noise.standard_normal(pose_true.shape)
+    if not getattr(system, "planar", True):  # motion along x only: y and yaw are not measured, stay 0
+        pose_noise[:, 1:] = 0.0
+    pose_meas = pose_true + pose_noise
     names = system.joint_names
     lo = max(nw - 1, 0)
     effort = _effort_at_samples(still, r_a[lo:], traj.r[lo:], dt)

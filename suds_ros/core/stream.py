@@ -91,10 +91,13 @@ class StreamingSimulator:
         pose[:, 0] += self._flow[0] * tt
         pose[:, 1] += self._flow[1] * tt
         sd = self.config.noise_std
+        pose_noise = sd * self._rng_noise.standard_normal(pose.shape)
+        if not getattr(self.system, "planar", True):  # 1-D swimmers: y and yaw stay exactly 0
+            pose_noise[:, 1:] = 0.0
         return Chunk(
             t=self.config.t0 + tt,
             r=r + sd * self._rng_noise.standard_normal(r.shape),
-            pose=pose + sd * self._rng_noise.standard_normal(pose.shape),
+            pose=pose + pose_noise,
             r_true=r,
             pose_true=pose,
             phase=2 * np.pi * self.config.gait_hz * tt,
