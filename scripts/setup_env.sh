@@ -41,6 +41,17 @@ for exe in simulator estimator predictor recorder player pipeline suds; do
   fi
 done
 
+# Foxglove's MCAP/CDR readers (Node) for the third-party reader test, where Node is present
+if command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1; then
+  if [ ! -d "$ROOT/test/js/node_modules/@mcap/core" ]; then
+    echo "setup_env: installing Foxglove readers for the tests (npm ci in test/js)"
+    (cd "$ROOT/test/js" && npm ci --no-audit --no-fund --loglevel=error) \
+      || echo "setup_env: WARNING: npm ci failed; the Foxglove reader tests will be skipped" >&2
+  fi
+else
+  echo "setup_env: Node.js not found; the Foxglove reader tests will be skipped"
+fi
+
 cat <<MSG
 setup_env: done.  To use the environment in a shell:
     source "$ROOT/scripts/env.sh"
