@@ -1,44 +1,175 @@
-"""Wall time of ``suds diagnose`` on a 60-cycle swimmer9 recording (not a timed test).
+"""Wall time and accuracy of ``suds diagnose`` (not a timed test; seeded).
 
-Usage: PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py [BAG.mcap]
-Default: the public ``swimmer9_real_rest_offset.mcap``; if it is absent, a 60-cycle swimmer9
-recording with a rest offset is simulated first (seeded) and timed the same way.
+Usage:
+  PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py [BAG.mcap ...]
+      wall time of the 60-cycle swimmer9 cases: the public ``swimmer9_real_rest_offset.mcap`` and
+      a simulated 60-cycle swimmer9 recording with joint Coulomb friction (joint_7, mu = 0.5,
+      seed 7, the same as ``suds simulate swimmer9 --cycles 60 --seed 7 --effect
+      joint_coulomb_friction:joint_7:mu=0.5``), or the given bags.
+  PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py --table [--out docs/results/diagnose.md]
+      the results table: both public bags, null purcell3 and swimmer9, and every catalogue effect
+      (injected value, recovered ± stderr, held-out improvement, wall time), written as Markdown.
 """
 
 from __future__ import annotations
 
+import argparse
+import platform
 import sys
 import time
 from pathlib import Path
+from typing import Any
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "bags"
+
+
+def _sim(system: str, effects: list[dict[str, Any]], cycles: int, seed: int):  # type: ignore[no-untyped-def]
+    from suds_ros.core.effects import apply_effects
+    from suds_ros.core.rft import RFTChain
+    from suds_ros.core.sim import SimConfig, simulate
+    from suds_ros.core.systems import purcell3_model, swimmer9_model
+
+    base = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}[system]()
+    model, delay = apply_effects(base, effects)
+    return simulate(RFTChain(model), SimConfig(cycles=cycles, seed=seed, pose_delay=delay))
+
+
+def _timed(rec, system: str):  # type: ignore[no-untyped-def]
+    from suds_ros.core.diagnosis import diagnose
+    from suds_ros.core.systems import purcell3_model, swimmer9_model
+
+    base = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}[system]()
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    rep = diagnose(rec, base)
+    return rep, time.perf_counter() - t0, time.process_time() - c0
+
+
+def wall_times(paths: list[str]) -> int:
+    from suds_ros.io.bags import read_recording
+
+    cases: list[tuple[str, Any]] = []
+    if paths:
+        cases = [(Path(p).name, read_recording(p)) for p in paths]
+    else:
+        bag = SHARED / "swimmer9_real_rest_offset.mcap"
+        if bag.exists():
+            cases.append((bag.name, read_recording(bag)))
+        cases.append((
+            "swimmer9 joint_coulomb_friction joint_7 mu=0.5, 60 cycles, seed 7",
+            _sim("swimmer9", [dict(name="joint_coulomb_friction", joint="joint_7", mu=0.5)], 60, 7),
+        ))
+    for label, rec in cases:
+        rep, wall, cpu = _timed(rec, rec.system or "swimmer9")
+        stages = ", ".join(f"{k} {v:.1f}s" for k, v in rep.timings.items())
+        print(f"diagnose {label}: {rec.n_samples} samples, wall {wall:.1f} s, cpu {cpu:.1f} s (cumulative: {stages})")
+        for e in rep.effects:
+            ps = ", ".join(f"{k} = {v:.5g} ± {e.stderr[k]:.2g}" for k, v in e.parameters.items())
+            print(f"  effect {e.name} {e.target or ''}: {ps}")
+        print(f"  unexplained {rep.unexplained}; improvement {rep.improvement:.3f}; "
+              f"target < 60 s on 2 cores: {'OK' if wall < 60 else 'SLOW'}")
+    return 0
+
+
+# (label, system, effects, cycles, seed) — the same cases as test/unit/test_diagnosis.py
+TABLE_CASES: list[tuple[str, str, list[dict[str, Any]], int, int]] = [
+    ("null", "purcell3", [], 20, 11),
+    ("null", "swimmer9", [], 20, 12),
+    ("", "purcell3", [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.4)], 20, 21),
+    ("", "purcell3", [dict(name="joint_viscous_damping", joint="joint_2", d=0.3)], 20, 21),
+    ("", "purcell3", [dict(name="spring_rest_offset", joint="joint_2", offset=-0.2)], 20, 21),
+    ("", "purcell3", [dict(name="spring_nonlinearity", joint="joint_2", k3=3.0)], 20, 21),
+    ("", "purcell3", [dict(name="stiffness_to_drag_error", scale=0.7)], 20, 21),
+    ("", "purcell3", [dict(name="drag_anisotropy_error", ratio=2.6)], 20, 21),
+    ("", "purcell3", [dict(name="background_flow", vx=0.1, vy=-0.05)], 20, 21),
+    ("", "purcell3", [dict(name="sensor_time_offset", dt=0.03)], 20, 21),
+    ("", "swimmer9", [dict(name="spring_rest_offset", joint="joint_8", offset=-0.15)], 20, 31),
+    ("", "swimmer9", [dict(name="background_flow", vx=-0.05, vy=0.08)], 20, 31),
+    ("", "swimmer9", [dict(name="joint_coulomb_friction", joint="joint_7", mu=0.5)], 60, 7),
+    ("", "swimmer9", [dict(name="joint_stiffness_error", joint="joint_6", scale=0.7)], 24, 32),
+]
+
+
+def _fmt_effects(effects: list[dict[str, Any]]) -> str:
+    out = []
+    for e in effects:
+        ps = ", ".join(f"{k}={v:g}" for k, v in e.items() if k not in ("name", "joint"))
+        out.append(f"`{e['name']}`{' ' + e['joint'] if e.get('joint') else ''} {ps}")
+    return "; ".join(out) or "none"
+
+
+def _fmt_report(rep) -> str:  # type: ignore[no-untyped-def]
+    if not rep.mismatch:
+        return "no mismatch"
+    if not rep.effects:
+        return "unexplained" if rep.unexplained else "—"
+    out = []
+    for e in rep.effects:
+        ps = ", ".join(f"{k}={v:.4g} ± {e.stderr[k]:.1g}" for k, v in e.parameters.items())
+        out.append(f"`{e.name}`{' ' + e.target if e.target else ''} {ps}")
+    s = "; ".join(out)
+    if rep.confounded_with:
+        s += " (confounded: " + " / ".join(", ".join(g) for g in rep.confounded_with) + ")"
+    if rep.unexplained:
+        s += " — unexplained"
+    return s
+
+
+def table(out: Path) -> int:
+    from suds_ros.io.bags import read_recording
+
+    rows = []
+    bags = [
+        ("purcell3_real_friction.mcap", [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.7)]),
+        ("swimmer9_real_rest_offset.mcap", [dict(name="spring_rest_offset", joint="joint_6", offset=0.25)]),
+    ]
+    for name, truth in bags:
+        p = SHARED / name
+        if not p.exists():
+            continue
+        rec = read_recording(p)
+        rep, wall, cpu = _timed(rec, rec.system)
+        rows.append((f"bag `{name}`", rec.system, rec.n_samples // 100, _fmt_effects(truth), rep, wall, cpu))
+        print(rows[-1][0], f"{wall:.1f}s", _fmt_report(rep), flush=True)
+    for label, system, effects, cycles, seed in TABLE_CASES:
+        rec = _sim(system, effects, cycles, seed)
+        rep, wall, cpu = _timed(rec, system)
+        lab = label or effects[0]["name"]
+        rows.append((f"{lab} (seed {seed})", system, cycles, _fmt_effects(effects), rep, wall, cpu))
+        print(rows[-1][0], system, f"{wall:.1f}s", _fmt_report(rep), flush=True)
+    lines = [
+        "| case | system | cycles | injected | recovered ± stderr | held-out improvement | wall (s) | cpu (s) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for case, system, cyc, inj, rep, wall, cpu in rows:
+        imp = f"{rep.improvement:.3f}" if rep.mismatch else "–"
+        lines.append(f"| {case} | {system} | {cyc} | {inj} | {_fmt_report(rep)} | {imp} | {wall:.1f} | {cpu:.1f} |")
+    text = "\n".join(lines) + "\n"
+    head = (
+        f"<!-- generated by `PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py --table` on "
+        f"{platform.node()} ({platform.machine()}), python {platform.python_version()} -->\n"
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    block = "<!-- table:start -->\n" + head + "\n" + text + "<!-- table:end -->"
+    old = out.read_text() if out.exists() else ""
+    if "<!-- table:start -->" in old and "<!-- table:end -->" in old:
+        a, rest = old.split("<!-- table:start -->", 1)
+        _, b = rest.split("<!-- table:end -->", 1)
+        out.write_text(a + block + b)
+    else:
+        out.write_text(old + ("\n" if old else "") + block + "\n")
+    print(text)
+    print(f"wrote {out}")
+    return 0
 
 
 def main() -> int:
-    from suds_ros.core.diagnosis import diagnose
-    from suds_ros.core.systems import swimmer9_model
-
-    default = Path(__file__).resolve().parents[2] / "shared" / "bags" / "swimmer9_real_rest_offset.mcap"
-    path = Path(sys.argv[1]) if len(sys.argv) > 1 else default
-    if path.exists():
-        from suds_ros.io.bags import read_recording
-
-        rec = read_recording(path)
-        label = path.name
-    else:
-        from suds_ros.core.effects import apply_effects
-        from suds_ros.core.rft import RFTChain
-        from suds_ros.core.sim import SimConfig, simulate
-
-        model, _ = apply_effects(swimmer9_model(), [{"name": "spring_rest_offset", "joint": "joint_6", "offset": 0.25}])
-        rec = simulate(RFTChain(model), SimConfig(cycles=60, seed=4))
-        label = "simulated swimmer9 rest offset, 60 cycles"
-    t0 = time.perf_counter()
-    rep = diagnose(rec, swimmer9_model())
-    wall = time.perf_counter() - t0
-    stages = ", ".join(f"{k} {v:.1f}s" for k, v in rep.timings.items())
-    print(f"diagnose {label}: {rec.n_samples} samples, wall {wall:.1f} s (cumulative: {stages})")
-    print(f"  effects: {[(e.name, e.target, dict(e.parameters)) for e in rep.effects]}")
-    print(f"  improvement {rep.improvement:.3f}; target < 60 s on 2 cores: {'OK' if wall < 60 else 'SLOW'}")
-    return 0
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("bags", nargs="*")
+    ap.add_argument("--table", action="store_true", help="run every case and write the Markdown table")
+    ap.add_argument("--out", default="docs/results/diagnose.md", help="Markdown file; the table replaces the block between the table markers")
+    a = ap.parse_args()
+    return table(Path(a.out)) if a.table else wall_times(a.bags)
 
 
 if __name__ == "__main__":

@@ -26,6 +26,13 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
         lines.append(
             f"  {c:<10}{rep.noise_floor.get(c, float('nan')):>10.3g}{b:>12.4g}{a:>12.4g}{fb:>10.1f}{fa:>9.1f}{flag}"
         )
+    if rep.phase_source == "phaser":
+        lines.append("  phase: the phaser's gait phase of the recorded shape (rad, zero at the upward crossing")
+        lines.append("         of the shape's first principal component), shared by recording and replay")
+    else:
+        lines.append("  phase: clock phase 2π·gait_hz·(t − t0) (rad) — the phaser could not be fitted")
+    for note in rep.notes:
+        lines.append(f"  note: {note}")
     if rep.mismatch:
         lines.append("  located (* above; F = residual power / noise-floor power):")
         for loc in rep.located:
@@ -91,7 +98,7 @@ def write_figures(rep: DiagnosisReport, out_dir: str | Path) -> list[Path]:
             ax.axhline(-fl, color="gray", lw=0.6, ls=":")
         ax.set_ylabel(c, fontsize=8)
     axes[0, 0].legend(loc="upper right", fontsize=7, markerscale=8)
-    axes[-1, 0].set_xlabel("gait phase (rad)")
+    axes[-1, 0].set_xlabel(f"gait phase (rad, {rep.phase_source})")
     fig.suptitle(f"{rep.system}: held-out residual (recorded − simulated) vs phase", fontsize=10)
     fig.tight_layout()
     p = out / "residual_vs_phase.png"

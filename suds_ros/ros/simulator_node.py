@@ -1,0 +1,268 @@
+"""``suds_simulator``: publish a simulated swimmer's shape and body pose, paced in (scaled) real time.
+
+Samples come from :class:`~suds_ros.core.stream.StreamingSimulator`, one gait
+cycle per chunk, and are published by a wall-clock timer: sample k goes out at
+``start + k / (rate * real_time_factor)`` (several per tick when needed, so the
+stream keeps its rate whatever the timer resolution).
+
+Topics
+------
+``/suds/shape`` (sensor_msgs/JointState: names, positions) and
+``/suds/body_pose`` (geometry_msgs/PoseStamped, frame ``world``, yaw-only
+quaternion), both stamped with the simulated sample time and published
+RELIABLE + TRANSIENT_LOCAL + KEEP_LAST(``history_depth``), so an estimator that
+restarts gets back the samples it missed (up to ``history_depth`` of them).
+``/suds/system`` (std_msgs/String, latched): JSON ``{"system", "joint_names",
+"actuated", "passive", "gait_hz", "rate"}`` for downstream nodes.
+``/clock`` (rosgraph_msgs/Clock): the simulated time, only when
+``real_time_factor`` != 1.
+
+Time
+----
+``t0`` is the stamp of the first sample; when not set, it is the wall-clock
+time at start for ``real_time_factor`` = 1 (stamps then track the wall clock)
+and 1.7e9 s otherwise.  ``cycles`` > 0 stops after that many gait cycles: the
+node waits (≤ 5 s) for reliable subscribers to acknowledge the tail and exits
+with code 0.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+
+from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.sim import SimConfig
+from suds_ros.core.stream import StreamingSimulator
+from suds_ros.core.systems import make_system
+from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg
+from suds_ros.ros.params import add_validator, config_from_parameters, parameters_help, wants_help
+from suds_ros.ros.qos import MODEL_QOS, overriding_options
+
+#: Stamp of the first sample when not running in real time (and ``t0`` is not set).
+DEFAULT_T0 = 1.7e9
+
+
+def stream_qos(depth: int) -> QoSProfile:
+    """Shape/pose publisher QoS: reliable, transient local, keep last ``depth`` (late joiners catch up).
+
+    (Not in ``qos.py`` yet; proposed there as ``LATCHED_STATE_QOS``.)
+    """
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+def system_info_to_msg(info: dict[str, Any]) -> Any:
+    """``std_msgs/String`` holding the JSON system description."""
+    from std_msgs.msg import String
+
+    return String(data=json.dumps(info, sort_keys=True))
+
+
+def system_info_from_msg(msg: Any) -> dict[str, Any]:
+    """Parse a ``/suds/system`` message; raises SudsConfigError when it is not a valid description."""
+    try:
+        info = json.loads(msg.data)
+        names = tuple(str(j) for j in info["joint_names"])
+        actuated = tuple(str(j) for j in info["actuated"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SudsConfigError(f"/suds/system: expected JSON with joint_names and actuated: {exc}") from None
+    if not actuated or not set(actuated) <= set(names):
+        raise SudsConfigError(f"/suds/system: actuated {list(actuated)} not among joints {list(names)}")
+    gait = info.get("gait_hz")
+    return {**info, "joint_names": names, "actuated": actuated,
+            "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    """Parameters of the simulator node (all read-only except ``real_time_factor``)."""
+
+    system: str = field(default="purcell3", metadata={
+        "description": "system id: purcell3, swimmer9, linear_passive, pushmepullyou or nlinkN"})
+    seed: int = field(default=0, metadata={
+        "description": "seed of the drive perturbation and the measurement noise", "range": (0, 2**31 - 1)})
+    noise: float = field(default=1e-3, metadata={
+        "description": "std of the measurement noise on joints (rad or m), x, y (m) and yaw (rad)",
+        "range": (0.0, 10.0)})
+    rate: float = field(default=100.0, metadata={
+        "description": "samples per second of simulated time, Hz; rate / gait_hz = samples per cycle "
+                       "(an integer ≥ 8)", "range": (1.0, 100000.0)})
+    gait_hz: float = field(default=1.0, metadata={
+        "description": "gait frequency, Hz", "range": (1e-3, 1000.0)})
+    real_time_factor: float = field(default=1.0, metadata={
+        "description": "simulated seconds per wall-clock second (1: real time; 0: as fast as possible)",
+        "range": (0.0, 1e6), "read_only": False})
+    cycles: int = field(default=0, metadata={
+        "description": "gait cycles to publish, then exit with code 0 (0: run forever)",
+        "range": (0, 2**31 - 1)})
+    t0: float | None = field(default=None, metadata={
+        "description": "stamp of the first sample, s (unset: now in real time, 1.7e9 otherwise)"})
+    history_depth: int = field(default=6000, metadata={
+        "description": "samples kept for late-joining/restarted subscribers (transient local)",
+        "range": (1, 10_000_000)})
+    tick: float = field(default=0.01, metadata={
+        "description": "wall-clock s between publishing timer ticks", "range": (1e-4, 1.0)})
+
+    def __post_init__(self) -> None:
+        spc = self.rate / self.gait_hz
+        if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
+            raise SudsConfigError(
+                f"`rate`: rate / gait_hz must be an integer ≥ 8 (samples per cycle), got "
+                f"{self.rate!r} / {self.gait_hz!r} = {spc:.6g}")
+        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
+            raise SudsConfigError(
+                f"`real_time_factor`: expected ≥ 0 (0: as fast as possible), got {self.real_time_factor!r}")
+        if self.t0 is not None and (isinstance(self.t0, (bool, str)) or not math.isfinite(float(self.t0))
+                                    or not 0 <= float(self.t0) < 2**31):
+            raise SudsConfigError(f"`t0`: expected a stamp in [0, 2^31) s, got {self.t0!r}")
+        if self.noise < 0:
+            raise SudsConfigError(f"`noise`: expected ≥ 0, got {self.noise!r}")
+
+    @property
+    def samples_per_cycle(self) -> int:
+        """Samples per gait cycle."""
+        return int(round(self.rate / self.gait_hz))
+
+    def first_stamp(self) -> float:
+        """``t0``, or its default (wall clock now in real time, 1.7e9 otherwise)."""
+        if self.t0 is not None:
+            return float(self.t0)
+        return time.time() if self.real_time_factor == 1.0 else DEFAULT_T0
+
+    def sim_config(self, t0: float) -> SimConfig:
+        """The :class:`SimConfig` of the stream whose first stamp is ``t0``."""
+        return SimConfig(samples_per_cycle=self.samples_per_cycle, gait_hz=self.gait_hz,
+                         noise_std=self.noise, seed=self.seed, t0=t0)
+
+
+class SimulatorNode(Node):
+    """Publish the streamed simulation on /suds/shape, /suds/body_pose (and /clock, /suds/system)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("suds_simulator", **kwargs)
+        self.config = config_from_parameters(self, SimulatorConfig)
+        add_validator(self, lambda: self.config, on_valid=self._on_config)
+        cfg = self.config
+        self.system = make_system(cfg.system)
+        self.t0 = cfg.first_stamp()
+        self.sim = StreamingSimulator(self.system, cfg.sim_config(self.t0))
+        names = self.system.joint_names
+        self.names = tuple(names)
+        from geometry_msgs.msg import PoseStamped
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import String
+
+        qos = stream_qos(cfg.history_depth)
+        self._shape_pub = self.create_publisher(JointState, "/suds/shape", qos,
+                                                qos_overriding_options=overriding_options())
+        self._pose_pub = self.create_publisher(PoseStamped, "/suds/body_pose", qos,
+                                               qos_overriding_options=overriding_options())
+        self._system_pub = self.create_publisher(String, "/suds/system", MODEL_QOS)
+        self._clock_cls = Clock
+        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self._system_pub.publish(system_info_to_msg({
+            "system": cfg.system, "joint_names": list(self.names),
+            "actuated": [names[i] for i in self.system.actuated],
+            "passive": [names[i] for i in self.system.passive],
+            "gait_hz": cfg.gait_hz, "rate": cfg.rate}))
+        self._total = cfg.cycles * cfg.samples_per_cycle  # 0: forever
+        self._sent = 0
+        self._chunk: Any = None
+        self._chunk_i = 0
+        self._anchor: tuple[float, int] | None = None  # (wall monotonic, sample index) of the pacing
+        self.finished: Future = Future()
+        self._timer = self.create_timer(cfg.tick, self._on_tick)
+        self.get_logger().info(
+            f"simulating {cfg.system} at {cfg.rate:g} Hz ({cfg.samples_per_cycle} samples/cycle), "
+            f"real_time_factor {cfg.real_time_factor:g}, t0 {self.t0:.3f} s, "
+            f"{'forever' if not cfg.cycles else f'{cfg.cycles} cycles'}")
+
+    def _on_config(self, new: SimulatorConfig) -> None:
+        if new.real_time_factor != self.config.real_time_factor:
+            self._anchor = None  # re-anchor the pacing at the next tick
+            self.get_logger().info(f"real_time_factor → {new.real_time_factor:g}")
+        self.config = new
+
+    def _due(self) -> int:
+        """Number of samples due now according to the pacing."""
+        rtf = self.config.real_time_factor
+        if rtf == 0:
+            return self.config.samples_per_cycle  # as fast as possible: one cycle per tick
+        now = time.monotonic()
+        if self._anchor is None:
+            self._anchor = (now, self._sent)
+        w0, k0 = self._anchor
+        target = k0 + int(math.floor((now - w0) * self.config.rate * rtf)) + 1
+        return max(0, target - self._sent)
+
+    def _next_sample(self) -> tuple[float, np.ndarray, np.ndarray]:
+        if self._chunk is None or self._chunk_i >= self._chunk.t.size:
+            self._chunk = self.sim.step(self.config.samples_per_cycle)
+            self._chunk_i = 0
+        c, i = self._chunk, self._chunk_i
+        self._chunk_i += 1
+        return float(c.t[i]), c.r[i], c.pose[i]
+
+    def _on_tick(self) -> None:
+        if self.finished.done():
+            return
+        n = self._due()
+        if self._total:
+            n = min(n, self._total - self._sent)
+        for _ in range(n):
+            t, r, pose = self._next_sample()
+            if self.config.real_time_factor != 1.0:
+                self._clock_pub.publish(self._clock_cls(clock=float_to_time(t)))
+            self._shape_pub.publish(joint_state_to_msg(t, self.names, r))
+            self._pose_pub.publish(pose_to_msg(t, pose[0], pose[1], pose[2]))
+            self._sent += 1
+        if self._total and self._sent >= self._total:
+            self._timer.cancel()
+            for pub in (self._shape_pub, self._pose_pub):
+                pub.wait_for_all_acked(Duration(seconds=5.0))
+            self.get_logger().info(f"published {self._sent} samples ({self.config.cycles} cycles); done")
+            self.finished.set_result(self._sent)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the simulator until ``cycles`` are published (or SIGINT); 1 with the reason if it cannot start."""
+    if wants_help(args):
+        print(parameters_help("simulator", __doc__.strip().splitlines()[0], SimulatorConfig))
+        return 0
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimulatorNode()
+        rclpy.spin_until_future_complete(node, node.finished)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except SudsError as exc:
+        print(f"ERROR: suds_simulator: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

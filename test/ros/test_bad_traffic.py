@@ -1,0 +1,123 @@
+"""The estimator survives bad traffic: each bad sample is skipped, counted per reason, logged once.
+
+Run as a script (``python test_bad_traffic.py``) this file is the publisher:
+valid purcell3 samples at 200 Hz with, three times, one of each bad kind
+(NaN shape, NaN pose, duplicate and out-of-order stamps on both streams,
+wrong joint names, wrong joint count), then shapes only (the pose stream
+stops) for 4 s.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import pytest
+
+try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
+    from .test_pipeline_e2e import read_topic, stop, wait_for
+except ImportError:
+    from test_pipeline_e2e import read_topic, stop, wait_for
+
+pytestmark = pytest.mark.ros
+
+#: skip reason key -> how many the publisher sends
+EXPECTED = {
+    "shape.nan_or_inf": 3, "pose.nan_or_inf": 3,
+    "shape.duplicate_stamp": 3, "shape.out_of_order_stamp": 3,
+    "pose.duplicate_stamp": 3, "pose.out_of_order_stamp": 3,
+    "shape.wrong_joint_names": 3, "shape.wrong_joint_count": 3,
+}
+GOOD, HZ, SHAPE_ONLY_S = 1000, 200.0, 4.0
+
+
+def publish() -> int:
+    """The bad-traffic publisher (see module doc)."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+
+    from suds_ros.core.sim import SimConfig
+    from suds_ros.core.stream import StreamingSimulator
+    from suds_ros.core.systems import make_system
+    from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg
+    from suds_ros.ros.qos import ESTIMATE_QOS
+
+    rclpy.init()
+    node = rclpy.create_node("bad_traffic")
+    shape = node.create_publisher(JointState, "/suds/shape", ESTIMATE_QOS)
+    pose = node.create_publisher(PoseStamped, "/suds/body_pose", ESTIMATE_QOS)
+    deadline = time.monotonic() + 30
+    while shape.get_subscription_count() < 1 or pose.get_subscription_count() < 1:
+        if time.monotonic() > deadline:
+            print("no subscriber", flush=True)
+            return 2
+        time.sleep(0.05)
+    time.sleep(0.5)
+    names = ("joint_1", "joint_2")
+    n_shape = int(GOOD + SHAPE_ONLY_S * HZ)
+    extra = StreamingSimulator(make_system("purcell3"), SimConfig(seed=2)).step(n_shape)
+    for i in range(n_shape):
+        t, r, p = float(extra.t[i]), extra.r[i], extra.pose[i]
+        shape.publish(joint_state_to_msg(t, names, r))
+        if i < GOOD:
+            pose.publish(pose_to_msg(t, *p))
+        if i in (200, 600, 800):
+            nan_shape = joint_state_to_msg(t + 1e-3, names, r)
+            nan_shape.position[0] = float("nan")
+            shape.publish(nan_shape)
+            nan_pose = pose_to_msg(t + 1e-3, *p)
+            nan_pose.pose.position.x = float("nan")
+            pose.publish(nan_pose)
+            shape.publish(joint_state_to_msg(t, names, r))  # duplicate
+            shape.publish(joint_state_to_msg(t - 0.05, names, r))  # out of order
+            pose.publish(pose_to_msg(t, *p))  # duplicate
+            pose.publish(pose_to_msg(t - 0.05, *p))  # out of order
+            shape.publish(joint_state_to_msg(t + 2e-3, ("joint_1", "joint_2", "joint_3"), [*r, 0.0]))
+            wrong = JointState(name=list(names), position=[*r, 0.0])  # 2 names, 3 positions
+            wrong.header.stamp = float_to_time(t + 3e-3)
+            shape.publish(wrong)
+        time.sleep(1.0 / HZ)
+    time.sleep(0.5)
+    print(f"published {n_shape} shapes", flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+def test_estimator_survives_bad_traffic(start_process, node_command, tmp_path):
+    from suds_ros.ros.conversions import diagnostics_from_msg
+
+    bag = tmp_path / "status.mcap"
+    rec = start_process(node_command("recorder_node", f"output:={bag}", "topics:=['/suds/status']"),
+                        "recorder")
+    est = start_process(node_command("estimator_node", "actuated:=['joint_1']", "pose_stall:=1.0"),
+                        "estimator")
+    wait_for(lambda: "recording [" in rec.output(), 30, "the recorder")
+    pub = start_process([sys.executable, __file__], "publisher")
+    assert pub.wait(90) == 0, pub.output()
+    time.sleep(1.5)
+    assert est.poll() is None, est.output()  # still running
+    assert stop(est) == 0, est.output()
+    assert stop(rec) == 0, rec.output()
+
+    reports = [diagnostics_from_msg(m)[0] for m in read_topic(bag, "/suds/status")]
+    last = reports[-1].values
+    got = {k[len("skipped."):]: int(v) for k, v in last.items() if k.startswith("skipped.")}
+    print(f"skipped per reason: {got}; samples {last['samples']}, poses {last['poses']}, "
+          f"dropped_no_pose {last['dropped_no_pose']}")
+    assert got == EXPECTED
+    assert last["initialised"] == "true"
+    assert int(last["poses"]) == GOOD
+    log = est.output()
+    for key in EXPECTED:
+        assert log.count(f"[{key}]") == 1, f"{key} logged {log.count(f'[{key}]')} times\n{log}"
+    assert "not finite" in log and "duplicate shape stamp" in log and "out-of-order pose stamp" in log
+    stalled = [r for r in reports if r.level == 1 and "pose stream stalled since" in r.message]
+    assert stalled, [(r.level, r.message) for r in reports]
+    assert log.count("pose stream stalled since") == 1
+    assert int(last["dropped_no_pose"]) > 0  # shapes after the pose stream stopped cannot be paired
+
+
+if __name__ == "__main__":
+    sys.exit(publish())

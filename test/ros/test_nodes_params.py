@@ -1,0 +1,148 @@
+"""Parameters of the simulator, estimator and predictor nodes: bad values are refused with the reason.
+
+In-process tests build each node with ``parameter_overrides`` in its own
+``Context``; a few start the node as a process to check exit codes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+
+import pytest
+
+pytestmark = pytest.mark.ros
+
+_IDS = itertools.count()
+
+
+@pytest.fixture
+def context(tmp_path, monkeypatch):
+    """A fresh, isolated rclpy Context (shut down at teardown)."""
+    import rclpy
+    from rclpy.context import Context
+
+    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "ros_log"))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=101 + (os.getpid() * 7 + next(_IDS)) % 100)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def make(kind: str, context, **params):
+    """Build the ``kind`` node with the given parameter overrides."""
+    from rclpy.parameter import Parameter
+
+    from suds_ros.ros.estimator_node import EstimatorNode
+    from suds_ros.ros.predictor_node import PredictorNode
+    from suds_ros.ros.simulator_node import SimulatorNode
+
+    cls = {"simulator": SimulatorNode, "estimator": EstimatorNode, "predictor": PredictorNode}[kind]
+    overrides = [Parameter(k, value=v) for k, v in params.items()]
+    return cls(context=context, parameter_overrides=overrides)
+
+
+@pytest.mark.parametrize(("kind", "params", "match"), [
+    ("simulator", {"rate": 50.5}, r"`rate`: rate / gait_hz must be an integer"),
+    ("simulator", {"rate": 5.0}, r"`rate`.*≥ 8"),
+    ("simulator", {"gait_hz": 3.0}, r"`rate`.*33.3"),
+    ("simulator", {"noise": -0.1}, r"`noise`"),
+    ("simulator", {"real_time_factor": -1.0}, r"`real_time_factor`"),
+    ("simulator", {"cycles": -3}, r"`cycles`"),
+    ("simulator", {"system": "nope"}, r"unknown system 'nope'"),
+    ("simulator", {"t0": "yesterday"}, r"`t0`"),
+    ("simulator", {"seed": "x"}, r"`seed`"),
+    ("estimator", {"forgetting": 0.0}, r"`forgetting`"),
+    ("estimator", {"init_cycles": 2.0}, r"`init_cycles`"),
+    ("estimator", {"system": "purcell3", "actuated": ["joint_1"]}, r"`system` and `actuated`"),
+    ("estimator", {"system": "nope"}, r"unknown system"),
+    ("estimator", {"chunk": 0}, r"`chunk`"),
+    ("predictor", {"executor": "bogus"}, r"`executor`: expected 'events' or 'single'"),
+    ("predictor", {"frame_id": ""}, r"`frame_id`"),
+])
+def test_bad_parameter_is_refused_with_reason(context, kind, params, match):
+    from suds_ros.core.errors import SudsConfigError
+
+    with pytest.raises(SudsConfigError, match=match):
+        make(kind, context, **params)
+
+
+def test_unreadable_checkpoint_stops_the_estimator(context, tmp_path):
+    from suds_ros.core.errors import SudsDataError
+
+    bad = tmp_path / "garbage.ckpt"
+    bad.write_bytes(b"not a pickle")
+    with pytest.raises(SudsDataError, match="unreadable"):
+        make("estimator", context, checkpoint=str(bad))
+
+
+def test_simulator_runtime_parameters(context):
+    from rclpy.parameter import Parameter
+
+    node = make("simulator", context, real_time_factor=2.0, cycles=1)
+    try:
+        assert node.config.samples_per_cycle == 100 and node.t0 == 1.7e9  # not real time: default t0
+        res = node.set_parameters([Parameter("real_time_factor", value=-2.0)])[0]
+        assert not res.successful and "real_time_factor" in res.reason
+        res = node.set_parameters([Parameter("real_time_factor", value=8.0)])[0]
+        assert res.successful and node.config.real_time_factor == 8.0
+        res = node.set_parameters([Parameter("system", value="swimmer9")])[0]
+        assert not res.successful and "read-only" in res.reason
+        d = node.describe_parameter("real_time_factor")
+        assert d.description and not d.read_only and d.floating_point_range[0].from_value == 0.0
+        assert node.describe_parameter("system").read_only
+    finally:
+        node.destroy_node()
+
+
+def test_real_time_default_t0_is_now(context):
+    node = make("simulator", context)
+    try:
+        assert abs(node.t0 - time.time()) < 5.0
+    finally:
+        node.destroy_node()
+
+
+def test_estimator_runtime_parameters_and_status(context):
+    from rclpy.parameter import Parameter
+
+    node = make("estimator", context, system="purcell3")
+    try:
+        assert node.est is not None and node.est.actuated == ("joint_1",)
+        res = node.set_parameters([Parameter("pose_stall", value=-1.0)])[0]
+        assert not res.successful
+        res = node.set_parameters([Parameter("pose_stall", value=3.0)])[0]
+        assert res.successful and node.config.pose_stall == 3.0
+        res = node.set_parameters([Parameter("chunk", value=5)])[0]
+        assert not res.successful and "read-only" in res.reason
+        values = node.status_values()
+        assert values["initialised"] == "false" and values["samples"] == "0"
+    finally:
+        node.destroy_node()
+
+
+def test_predictor_starts_and_counts_nothing(context):
+    node = make("predictor", context, executor="single")
+    try:
+        assert node.predictor is None and node.before_model == 0
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize(("module", "params", "reason"), [
+    ("simulator_node", ("rate:=5.0",), "`rate`"),
+    ("estimator_node", ("forgetting:=1.5",), "forgetting"),
+    ("predictor_node", ("executor:=bogus",), "`executor`"),
+])
+def test_node_process_exits_1_with_reason(start_process, node_command, module, params, reason):
+    proc = start_process(node_command(module, *params), module)
+    assert proc.wait(30) == 1, proc.output()
+    assert reason in proc.output()
+
+
+def test_simulator_process_runs_its_cycles_and_exits_0(start_process, node_command):
+    proc = start_process(node_command("simulator_node", "cycles:=2", "real_time_factor:=0.0"), "sim")
+    assert proc.wait(30) == 0, proc.output()
+    assert "published 200 samples" in proc.output()
