@@ -1,4 +1,4 @@
-"""The ``suds`` command: simulate, inspect, identify and diagnose recordings.
+"""The ``suds`` command: simulate, inspect, identify, score and diagnose recordings.
 
 Every subcommand is a function ``cmd_<name>(args) -> int``; deliberate errors
 (:class:`~suds_ros.core.errors.SudsError`) print one ``ERROR: …`` line and
@@ -130,6 +130,20 @@ def cmd_info(args: argparse.Namespace) -> int:
                 print(f"  {v}")
         else:
             print(f"{key}: {value}")
+    return 0
+
+
+def cmd_score(args: argparse.Namespace) -> int:
+    from suds_ros.live_score import score_live_predictions
+
+    if not Path(args.bag).exists():
+        raise SudsConfigError(f"no such file: {args.bag!r}")
+    score = score_live_predictions(args.bag, args.train_cycles)
+    if args.json:
+        print(json.dumps(score.as_dict(), indent=2))
+    else:
+        print(score.summary())
+        print(f"RMS error: body {score.rms_body:.4g}, passive {score.rms_passive:.4g} rad/s")
     return 0
 
 
@@ -303,12 +317,20 @@ def build_parser() -> argparse.ArgumentParser:
     _add_recording_options(p)
     p.set_defaults(func=cmd_identify)
 
-    try:
-        from suds_ros import cli_diagnose
-    except ImportError:  # diagnosis module not installed
-        pass
-    else:
-        cli_diagnose.add_parser(sub)
+    p = sub.add_parser("score", help="score the live predictions recorded in a bag (pipeline output)",
+                       description="Γ of the predictor's recorded /suds/predicted/* messages against "
+                       "the velocities measured from the same bag's shape and pose, on the cycles after "
+                       "--train-cycles, with the phase-only template fitted on the cycles before.  Each "
+                       "live prediction was made before its sample was learnt, so all are out of sample.")
+    p.add_argument("bag")
+    p.add_argument("--train-cycles", type=float, default=None,
+                   help="cycles for the reference template (default: half of the recording)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_score)
+
+    from suds_ros import cli_diagnose
+
+    cli_diagnose.add_parser(sub)
     return parser
 
 

@@ -31,7 +31,6 @@ def identify_figure(
     path = Path(path)
     fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
     ax = axes[0]
-    ph_tr = np.mod(ident._phase(train, fit=False), 2 * np.pi)
     ph_te = np.mod(pred.phase, 2 * np.pi)
     j0 = int(train.actuated_index[0])
     jp = int(train.passive_index[0]) if train.passive else j0

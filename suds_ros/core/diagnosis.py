@@ -1362,7 +1362,6 @@ def diagnose(
             coeffs = ()
     timings["locate"] = time.perf_counter() - tick
 
-    series_before = (rp0, xi0)
     if not mismatch:
         series = _series(data, channels, held, E0, E0, residual_table, rp0, xi0, rp0, xi0, xi_rec)
         return DiagnosisReport(

@@ -38,7 +38,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError, SudsPhaseError
 from suds_ros.core.identify import BODY_CHANNELS
 from suds_ros.core.recording import Recording
-from suds_ros.core.sysid import SudsConfig, SudsRegressor, gamma
+from suds_ros.core.sysid import SudsConfig, SudsRegressor
 
 CHECKPOINT_VERSION = 1
 
@@ -581,6 +581,27 @@ class StreamingPredictor:
         self._tracker = None
         self._prev: tuple[float, FloatArray, float] | None = None
         self.last_stamp = -np.inf
+
+    def shares_phase_with(self, model: SudsModel) -> bool:
+        """True when ``model`` has this predictor's joints, template and phase rate (phase carries over)."""
+        return (model.joint_names == self.model.joint_names
+                and model.omega == self.model.omega
+                and np.array_equal(model.template_coef, self.model.template_coef))
+
+    def with_model(self, model: SudsModel) -> StreamingPredictor:
+        """A predictor for ``model`` that continues this one's stream without a restart.
+
+        When the new model shares this one's template and phase rate (a refit of the same
+        gait), the phase tracker, the last sample and the stamp check carry over, so the
+        next sample is predicted at once and the phase is continuous.  Otherwise the new
+        predictor is fresh: it re-initialises its phase at the next sample.
+        """
+        new = StreamingPredictor(model)
+        if self._tracker is not None and self.shares_phase_with(model):
+            new._tracker = self._tracker
+            new._prev = self._prev
+            new.last_stamp = self.last_stamp
+        return new
 
     def update(self, t: float, names: tuple[str, ...], position: FloatArray) -> tuple[FloatArray, FloatArray] | None:
         """Predicted ξ (3,) and ṙ_p (np,) for the interval ending at ``t``; None for the first sample.

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import array
 import importlib
+import json
 import math
 from collections.abc import Mapping, Sequence
 from fractions import Fraction
@@ -30,7 +31,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.online import SudsModel
 
 _NS = 10**9
 _INT32 = (-(2**31), 2**31 - 1)
@@ -383,3 +385,43 @@ def diagnostics_from_msg(msg: Any) -> list[DiagnosticReport]:
         )
         for s in msg.status
     ]
+
+
+# --- JSON payloads in std_msgs/String: the identified model and the system description ---
+
+
+def model_to_msg(model: SudsModel) -> Any:
+    """``std_msgs/String`` with the model's JSON (:meth:`SudsModel.to_dict`)."""
+    from std_msgs.msg import String
+
+    return String(data=json.dumps(model.to_dict()))
+
+
+def model_from_msg(msg: Any) -> SudsModel:
+    """Inverse of :func:`model_to_msg`; raises SudsConfigError for a malformed model."""
+    try:
+        return SudsModel.from_dict(json.loads(msg.data))
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SudsConfigError(f"/suds/model: not a SudsModel JSON ({type(exc).__name__}: {exc})") from None
+
+
+def system_info_to_msg(info: dict[str, Any]) -> Any:
+    """``std_msgs/String`` holding the JSON system description."""
+    from std_msgs.msg import String
+
+    return String(data=json.dumps(info, sort_keys=True))
+
+
+def system_info_from_msg(msg: Any) -> dict[str, Any]:
+    """Parse a ``/suds/system`` message; raises SudsConfigError when it is not a valid description."""
+    try:
+        info = json.loads(msg.data)
+        names = tuple(str(j) for j in info["joint_names"])
+        actuated = tuple(str(j) for j in info["actuated"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SudsConfigError(f"/suds/system: expected JSON with joint_names and actuated: {exc}") from None
+    if not actuated or not set(actuated) <= set(names):
+        raise SudsConfigError(f"/suds/system: actuated {list(actuated)} not among joints {list(names)}")
+    gait = info.get("gait_hz")
+    return {**info, "joint_names": names, "actuated": actuated,
+            "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}

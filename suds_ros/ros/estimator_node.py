@@ -26,7 +26,6 @@ changes the result.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -35,33 +34,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from suds_ros.core.errors import SudsConfigError, SudsError, SudsPhaseError
-from suds_ros.core.online import OnlineConfig, OnlineSudsEstimator, SudsModel
+from suds_ros.core.online import OnlineConfig, OnlineSudsEstimator
 from suds_ros.core.sysid import SudsConfig
-from suds_ros.ros.conversions import diagnostics_to_msg, joint_state_from_msg, pose_from_msg
-from suds_ros.ros.params import add_validator, config_from_parameters, parameters_help, wants_help
+from suds_ros.ros.conversions import (
+    diagnostics_to_msg,
+    joint_state_from_msg,
+    model_to_msg,
+    pose_from_msg,
+    system_info_from_msg,
+)
+from suds_ros.ros.params import add_validator, config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, overriding_options, subscription_qos_for
+from suds_ros.ros.runner import run_node
 
 SHAPE, POSE, SYSTEM = "/suds/shape", "/suds/body_pose", "/suds/system"
-
-
-def model_to_msg(model: SudsModel) -> Any:
-    """``std_msgs/String`` with the model's JSON (:meth:`SudsModel.to_dict`)."""
-    from std_msgs.msg import String
-
-    return String(data=json.dumps(model.to_dict()))
-
-
-def model_from_msg(msg: Any) -> SudsModel:
-    """Inverse of :func:`model_to_msg`; raises SudsConfigError for a malformed model."""
-    try:
-        return SudsModel.from_dict(json.loads(msg.data))
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SudsConfigError(f"/suds/model: not a SudsModel JSON ({type(exc).__name__}: {exc})") from None
 
 
 def reason_key(exc: Exception) -> str:
@@ -229,7 +218,6 @@ class EstimatorNode(Node):
     def _on_system(self, msg: Any) -> None:
         if self.est is not None:
             return
-        from suds_ros.ros.simulator_node import system_info_from_msg
 
         try:
             info = system_info_from_msg(msg)
@@ -452,25 +440,8 @@ class EstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the estimator until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
-    if wants_help(args):
-        print(parameters_help("estimator", __doc__.strip().splitlines()[0], EstimatorNodeConfig))
-        return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = EstimatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except SudsError as exc:
-        print(f"ERROR: suds_estimator: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(args, name="estimator", doc=__doc__, config_cls=EstimatorNodeConfig,
+                    make=EstimatorNode, close=EstimatorNode.close)
 
 
 if __name__ == "__main__":

@@ -2,10 +2,14 @@
 
 A small supervisor for installs without the ``launch`` package.  Each node runs
 as ``python -m suds_ros.ros.<module> --ros-args -p ...``; its output is
-printed prefixed with ``[name]``.  When the simulator has finished its cycles,
+printed prefixed with ``[name]``.  When the simulator has finished its cycles
+(and ``--drain`` s more, so the last predictions are recorded),
 on Ctrl-C or on SIGTERM, every child is stopped (SIGINT, then SIGTERM, then
 SIGKILL, each after a timeout).  The exit code is 0 only if every child ended
 cleanly; a child that fails stops the others.
+
+When the recorder ran, the recorded live predictions are scored at the end
+(:func:`suds_ros.live_score.score_live_predictions`, as ``suds score BAG``).
 
 Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
 ``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
@@ -70,14 +74,17 @@ def stop_children(procs: Mapping[str, subprocess.Popen], timeouts: tuple[float, 
 
 def supervise(commands: Mapping[str, Sequence[str]], *, main: str | None = "simulator",
               env: Mapping[str, str] | None = None, timeouts: tuple[float, float] = (5.0, 3.0),
-              out: IO[str] = sys.stdout) -> int:
+              out: IO[str] = sys.stdout, drain: float = 0.0) -> int:
     """Run ``commands`` (name → argv) until ``main`` exits, a child fails or we are interrupted.
 
+    After ``main`` exits cleanly the others run ``drain`` s more (the last predictions
+    reach the recorder) before they are stopped.
     Returns 0 when every child ended cleanly, else 1 (each failure is reported).
     """
     procs: dict[str, subprocess.Popen] = {}
     lock, pumps = threading.Lock(), []
     interrupted = False
+    drain_until: float | None = None
     previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         for name, cmd in commands.items():
@@ -89,8 +96,13 @@ def supervise(commands: Mapping[str, Sequence[str]], *, main: str | None = "simu
             pumps.append(t)
         while True:
             done = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
-            if any(code != 0 for code in done.values()) or (main in done) or len(done) == len(procs):
+            if any(code != 0 for code in done.values()) or len(done) == len(procs):
                 break
+            if main in done:
+                if drain_until is None:
+                    drain_until = time.monotonic() + drain
+                if time.monotonic() >= drain_until:
+                    break
             time.sleep(0.1)
     except KeyboardInterrupt:
         interrupted = True
@@ -150,6 +162,20 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
     }
 
 
+def prepare_output(path: str, overwrite: bool) -> None:
+    """Create the bag's directory; refuse an existing bag unless ``overwrite`` (before any node starts)."""
+    out = os.path.abspath(path)
+    if os.path.isdir(out):
+        raise SudsError(f"--output {path}: is a directory, expected a .mcap file path")
+    if os.path.exists(out) and not overwrite:
+        raise SudsError(f"--output {path}: file exists; pass --overwrite to replace it "
+                        "or choose another path")
+    try:
+        os.makedirs(os.path.dirname(out), exist_ok=True)
+    except OSError as exc:
+        raise SudsError(f"--output {path}: cannot create its directory: {exc.strerror}") from None
+
+
 def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
     """Names of the nodes whose module cannot be found."""
     return [n for n in commands if importlib.util.find_spec(NODES[n]) is None]
@@ -167,11 +193,17 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--overwrite", action="store_true", help="let the recorder replace BAG")
     p.add_argument("--nodes", default="simulator,estimator,predictor,recorder",
                    help="comma-separated nodes to start (the recorder needs --output)")
+    p.add_argument("--drain", type=float, default=2.0,
+                   help="s the other nodes keep running after the simulator is done (default 2)")
+    p.add_argument("--no-score", dest="score", action="store_false",
+                   help="do not score the recorded live predictions at the end")
     p.add_argument("--stop-timeout", type=float, default=5.0,
                    help="s to wait after SIGINT (and again after SIGTERM) before escalating")
     p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
                    help="extra ROS arguments for every node (e.g. -p use_sim_time:=true)")
     args = p.parse_args(argv)
+    if args.drain < 0:
+        p.error(f"--drain: expected a value ≥ 0, got {args.drain}")
     for opt in ("cycles", "rate", "realtime_factor", "stop_timeout"):
         v = getattr(args, opt)
         if v is not None and not v > 0:
@@ -187,6 +219,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SudsError as exc:
         print(f"ERROR: {exc}", file=sys.stderr)
         return 2
+    if "recorder" in commands:
+        try:
+            prepare_output(args.output, args.overwrite)
+        except SudsError as exc:
+            print(f"ERROR: {exc}", file=sys.stderr)
+            return 2
     missing = missing_modules(commands)
     if missing:
         mods = ", ".join(NODES[n] for n in missing)
@@ -197,8 +235,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     if "recorder" not in commands and "recorder" in args.nodes.split(","):
         print("[pipeline] no --output given: not recording", flush=True)
     print(f"[pipeline] starting {', '.join(commands)}", flush=True)
-    return supervise(commands, main="simulator" if "simulator" in commands else None,
-                     timeouts=(args.stop_timeout, args.stop_timeout))
+    rc = supervise(commands, main="simulator" if "simulator" in commands else None,
+                   timeouts=(args.stop_timeout, args.stop_timeout), drain=args.drain)
+    if rc == 0 and args.score and {"recorder", "predictor"} <= set(commands):
+        rc = report_score(args.output)
+    return rc
+
+
+def report_score(bag: str) -> int:
+    """Print the recorded live predictions' Γ (``suds score``); 1 if they cannot be scored."""
+    from suds_ros.live_score import score_live_predictions
+
+    try:
+        score = score_live_predictions(bag)
+    except SudsError as exc:
+        print(f"[pipeline] ERROR: cannot score the live predictions in {bag}: {exc}", flush=True)
+        return 1
+    print(f"[pipeline] recorded {bag}", flush=True)
+    print(f"[pipeline] {score.summary()}", flush=True)
+    return 0
 
 
 if __name__ == "__main__":

@@ -16,14 +16,14 @@ from typing import Any
 
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from suds_ros.core.errors import SudsBagError, SudsConfigError, SudsError
+from suds_ros.core.errors import SudsBagError, SudsConfigError
 from suds_ros.io.bags import bag_info, iter_raw_messages
 from suds_ros.ros.conversions import message_class, ns_to_time
-from suds_ros.ros.params import config_from_parameters, parameters_help, wants_help
+from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import replay_qos
+from suds_ros.ros.runner import run_node
 
 
 @dataclass(frozen=True)
@@ -106,27 +106,15 @@ class PlayerNode(Node):
                 return sent
 
 
+def _play(node: PlayerNode) -> None:
+    sent = node.play()
+    node.get_logger().info(f"played {sent} messages from {node.config.bag}")
+
+
 def main(args: list[str] | None = None) -> int:
     """Play the bag; 0 when done (or interrupted), 1 with the reason if it cannot start."""
-    if wants_help(args):
-        print(parameters_help("player", __doc__.strip().splitlines()[0], PlayerConfig))
-        return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlayerNode()
-        sent = node.play()
-        node.get_logger().info(f"played {sent} messages from {node.config.bag}")
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except SudsError as exc:
-        print(f"ERROR: player: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(args, name="player", doc=__doc__, config_cls=PlayerConfig, make=PlayerNode,
+                    run=_play)
 
 
 if __name__ == "__main__":

@@ -26,16 +26,21 @@ from typing import Any
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from suds_ros.core.errors import SudsConfigError, SudsError
-from suds_ros.core.online import StreamingPredictor
-from suds_ros.ros.conversions import joint_state_from_msg, joint_velocity_to_msg, twist_to_msg
-from suds_ros.ros.estimator_node import model_from_msg, reason_key
-from suds_ros.ros.params import config_from_parameters, parameters_help, wants_help
+from suds_ros.core.online import StreamingPredictor, SudsModel
+from suds_ros.ros.conversions import (
+    joint_state_from_msg,
+    joint_velocity_to_msg,
+    model_from_msg,
+    twist_to_msg,
+)
+from suds_ros.ros.estimator_node import reason_key
+from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS, overriding_options, subscription_qos_for
+from suds_ros.ros.runner import run_node
 
 SHAPE = "/suds/shape"
 BODY_TOPIC, PASSIVE_TOPIC = "/suds/predicted/body_velocity", "/suds/predicted/passive_velocity"
@@ -59,25 +64,23 @@ class PredictorConfig:
             raise SudsConfigError("`frame_id`: expected a frame name, got ''")
 
 
-def carry_over(old: StreamingPredictor | None, new: StreamingPredictor, last: Any) -> str:
-    """Give ``new`` the running state of ``old`` (same template and phase rate) or prime it with ``last``.
+def carry_over(old: StreamingPredictor | None, model: SudsModel, last: Any) -> tuple[StreamingPredictor, str]:
+    """A predictor for ``model`` that keeps the running state of ``old`` or is primed with ``last``.
 
-    Returns how continuity was kept: ``"tracker"``, ``"primed"`` or ``"fresh"``.
-    (Uses StreamingPredictor internals; a public ``with_model`` would be cleaner.)
+    Returns the predictor and how continuity was kept: ``"tracker"`` (same template and
+    phase rate: the phase tracker carries over), ``"primed"`` (fed the last shape sample,
+    so the next one is predicted) or ``"fresh"``.
     """
-    if old is not None and old.model.joint_names == new.model.joint_names \
-            and old.model.omega == new.model.omega \
-            and np.array_equal(old.model.template_coef, new.model.template_coef) \
-            and getattr(old, "_tracker", None) is not None:
-        new._tracker, new._prev, new.last_stamp = old._tracker, old._prev, old.last_stamp
-        return "tracker"
+    if old is not None and old.last_stamp > -np.inf and old.shares_phase_with(model):
+        return old.with_model(model), "tracker"
+    new = StreamingPredictor(model)
     if last is not None:
         try:
             new.update(last.stamp, last.names, last.position)
-            return "primed"
+            return new, "primed"
         except SudsError:
             pass
-    return "fresh"
+    return new, "fresh"
 
 
 class PredictorNode(Node):
@@ -129,11 +132,10 @@ class PredictorNode(Node):
     def _on_model(self, msg: Any) -> None:
         try:
             model = model_from_msg(msg)
-            new = StreamingPredictor(model)
+            new, how = carry_over(self.predictor, model, self._last)
         except Exception as exc:  # noqa: BLE001 - never die on a bad model message
             self._skip("model", exc)
             return
-        how = carry_over(self.predictor, new, self._last)
         if self.predictor is None:
             self.get_logger().info(f"first model ({model.n_samples} rows; passive {list(model.passive)}); "
                                    f"{self.before_model} samples arrived before it")
@@ -177,32 +179,23 @@ def make_executor(kind: str) -> Any:
     return rclpy.executors.SingleThreadedExecutor()
 
 
+def _spin(node: PredictorNode) -> None:
+    executor = make_executor(node.config.executor)
+    executor.add_node(node)
+    while rclpy.ok(context=node.context):  # EventsExecutor.spin() never returns control in Jazzy
+        executor.spin_once(timeout_sec=0.2)
+
+
+def _report(node: PredictorNode) -> None:
+    node.get_logger().info(f"{node.predictions} predictions, {node.models} models, "
+                           f"{node.before_model} samples before the first model, "
+                           f"skipped {dict(node.skipped)}")
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the predictor until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
-    if wants_help(args):
-        print(parameters_help("predictor", __doc__.strip().splitlines()[0], PredictorConfig))
-        return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PredictorNode()
-        executor = make_executor(node.config.executor)
-        executor.add_node(node)
-        while rclpy.ok(context=node.context):  # EventsExecutor.spin() never returns control in Jazzy
-            executor.spin_once(timeout_sec=0.2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except SudsError as exc:
-        print(f"ERROR: suds_predictor: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.get_logger().info(f"{node.predictions} predictions, {node.models} models, "
-                                   f"{node.before_model} samples before the first model, "
-                                   f"skipped {dict(node.skipped)}")
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(args, name="predictor", doc=__doc__, config_cls=PredictorConfig,
+                    make=PredictorNode, run=_spin, close=_report)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,10 @@
 """QoS profiles of the suds topics (STYLE.md §4) and their rosbag2 YAML form.
 
-* high-rate state (``/suds/shape``, ``/suds/body_pose``) → :data:`STATE_QOS`
-  (``qos_profile_sensor_data``: best effort, keep last 5);
+* high-rate state (``/suds/shape``, ``/suds/body_pose``) from the simulator →
+  :func:`latched_state_qos` (reliable, transient local, keep last N, so a node
+  started late still gets the start of the run); a robot driver may publish it
+  with :data:`STATE_QOS` (``qos_profile_sensor_data``: best effort, keep last 5);
+  subscribers adapt to whatever is offered (:func:`subscription_qos_for`);
 * estimates and predictions → :data:`ESTIMATE_QOS` (reliable, depth 10);
 * the identified model → :data:`MODEL_QOS` (reliable, depth 1, transient local,
   so a late subscriber still gets the last model);
@@ -35,6 +38,16 @@ MODEL_QOS = QoSProfile(
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: Publisher QoS of the player: reliable matches both reliable and best-effort subscribers.
 REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def latched_state_qos(depth: int) -> QoSProfile:
+    """Shape/pose publisher QoS of the simulator: reliable, transient local, keep last ``depth``."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
 
 
 def overriding_options() -> QoSOverridingOptions:

@@ -28,7 +28,6 @@ with code 0.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -38,56 +37,20 @@ from typing import Any
 import numpy as np
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.sim import SimConfig
 from suds_ros.core.stream import StreamingSimulator
 from suds_ros.core.systems import make_system
-from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg
-from suds_ros.ros.params import add_validator, config_from_parameters, parameters_help, wants_help
-from suds_ros.ros.qos import MODEL_QOS, overriding_options
+from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
+from suds_ros.ros.params import add_validator, config_from_parameters
+from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options
+from suds_ros.ros.runner import run_node
 
 #: Stamp of the first sample when not running in real time (and ``t0`` is not set).
 DEFAULT_T0 = 1.7e9
-
-
-def stream_qos(depth: int) -> QoSProfile:
-    """Shape/pose publisher QoS: reliable, transient local, keep last ``depth`` (late joiners catch up).
-
-    (Not in ``qos.py`` yet; proposed there as ``LATCHED_STATE_QOS``.)
-    """
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
-
-
-def system_info_to_msg(info: dict[str, Any]) -> Any:
-    """``std_msgs/String`` holding the JSON system description."""
-    from std_msgs.msg import String
-
-    return String(data=json.dumps(info, sort_keys=True))
-
-
-def system_info_from_msg(msg: Any) -> dict[str, Any]:
-    """Parse a ``/suds/system`` message; raises SudsConfigError when it is not a valid description."""
-    try:
-        info = json.loads(msg.data)
-        names = tuple(str(j) for j in info["joint_names"])
-        actuated = tuple(str(j) for j in info["actuated"])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SudsConfigError(f"/suds/system: expected JSON with joint_names and actuated: {exc}") from None
-    if not actuated or not set(actuated) <= set(names):
-        raise SudsConfigError(f"/suds/system: actuated {list(actuated)} not among joints {list(names)}")
-    gait = info.get("gait_hz")
-    return {**info, "joint_names": names, "actuated": actuated,
-            "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}
 
 
 @dataclass(frozen=True)
@@ -170,7 +133,7 @@ class SimulatorNode(Node):
         from sensor_msgs.msg import JointState
         from std_msgs.msg import String
 
-        qos = stream_qos(cfg.history_depth)
+        qos = latched_state_qos(cfg.history_depth)
         self._shape_pub = self.create_publisher(JointState, "/suds/shape", qos,
                                                 qos_overriding_options=overriding_options())
         self._pose_pub = self.create_publisher(PoseStamped, "/suds/body_pose", qos,
@@ -244,24 +207,9 @@ class SimulatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the simulator until ``cycles`` are published (or SIGINT); 1 with the reason if it cannot start."""
-    if wants_help(args):
-        print(parameters_help("simulator", __doc__.strip().splitlines()[0], SimulatorConfig))
-        return 0
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimulatorNode()
-        rclpy.spin_until_future_complete(node, node.finished)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except SudsError as exc:
-        print(f"ERROR: suds_simulator: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(args, name="simulator", doc=__doc__, config_cls=SimulatorConfig,
+                    make=SimulatorNode,
+                    run=lambda node: rclpy.spin_until_future_complete(node, node.finished))
 
 
 if __name__ == "__main__":

@@ -15,9 +15,9 @@ import time
 import pytest
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from .test_pipeline_e2e import read_topic, stop, wait_for
+    from ._ros_helpers import read_topic, stop, wait_for
 except ImportError:
-    from test_pipeline_e2e import read_topic, stop, wait_for
+    from _ros_helpers import read_topic, stop, wait_for
 
 pytestmark = pytest.mark.ros
 

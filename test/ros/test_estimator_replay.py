@@ -11,9 +11,9 @@ from suds_ros.core.online import OnlineSudsEstimator, fit_streaming
 from suds_ros.io.bags import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from .test_pipeline_e2e import stop, wait_for
+    from ._ros_helpers import stop, wait_for
 except ImportError:
-    from test_pipeline_e2e import stop, wait_for
+    from _ros_helpers import stop, wait_for
 
 pytestmark = pytest.mark.ros
 

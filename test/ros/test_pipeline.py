@@ -91,3 +91,45 @@ def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
     assert proc.wait(30) == 0, proc.output()
     assert bag_info(out)["has_summary"]
     assert bag_info(out)["metadata"]["suds"]["actuated"] == "joint_1"
+
+
+def test_drain_lets_the_others_finish_their_work():
+    late = ("import signal, sys, time\n"
+            "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
+            "time.sleep(1.0)\n"
+            "print('late', flush=True)\n"
+            "time.sleep(60)\n")
+    for drain, seen in ((0.0, False), (2.5, True)):
+        out = io.StringIO()
+        rc = pipeline.supervise({"simulator": py("print('sim')"), "estimator": py(late)},
+                                out=out, timeouts=(3.0, 1.0), drain=drain)
+        assert rc == 0, out.getvalue()
+        assert ("[estimator] late" in out.getvalue()) is seen, out.getvalue()
+
+
+def test_main_job_runs_and_scores_its_live_predictions(start_process, tmp_path):
+    """The README's main job, shortened: every node, recorded, scored at the end."""
+    from suds_ros.live_score import score_live_predictions
+
+    out = tmp_path / "pipeline.mcap"
+    proc = start_process([sys.executable, "-m", "suds_ros.ros.pipeline", "--system", "purcell3",
+                          "--cycles", "20", "--real-time-factor", "5", "--output", out], "pipeline")
+    assert proc.wait(180) == 0, proc.output()
+    text = proc.output()
+    score = score_live_predictions(out)
+    assert f"[pipeline] {score.summary()}" in text, text[-2000:]
+    assert score.train_cycles == 10 and score.coverage >= 0.9, score
+    info = bag_info(out)
+    assert info["has_summary"] and info["topics"]["/suds/predicted/body_velocity"]["count"] > 800
+
+
+def test_output_is_prepared_before_any_node_starts(tmp_path, capsys):
+    nested = tmp_path / "a" / "b" / "run.mcap"
+    pipeline.prepare_output(str(nested), overwrite=False)
+    assert nested.parent.is_dir() and not nested.exists()
+    nested.write_bytes(b"recorded")
+    assert pipeline.main(["--output", str(nested), "--nodes", "recorder"]) == 2
+    assert "file exists; pass --overwrite" in capsys.readouterr().err
+    assert nested.read_bytes() == b"recorded"
+    assert pipeline.main(["--output", str(tmp_path), "--nodes", "recorder"]) == 2
+    assert "is a directory" in capsys.readouterr().err

@@ -12,18 +12,15 @@ import pytest
 
 from suds_ros.io.bags import BagWriter, bag_info, iter_raw_messages, read_recording
 
+try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
+    from ._ros_helpers import wait_for
+except ImportError:
+    from _ros_helpers import wait_for
+
 pytestmark = pytest.mark.ros
 
 PUBLISHER = Path(__file__).with_name("_publisher.py")
 META = ("system:=purcell3", "actuated:=joint_1", "passive:=joint_2")
-
-
-def wait_for(predicate, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.05)
 
 
 def record(start_process, node_command, out: Path, count: int, *params: str):
