@@ -143,7 +143,8 @@ def cmd_score(args: argparse.Namespace) -> int:
         print(json.dumps(score.as_dict(), indent=2))
     else:
         print(score.summary())
-        print(f"RMS error: body {score.rms_body:.4g}, passive {score.rms_passive:.4g} rad/s")
+        print(f"RMS error: body velocity {score.rms_body:.4g} (m/s and rad/s pooled), "
+              f"passive velocity {score.rms_passive:.4g} rad/s")
     return 0
 
 

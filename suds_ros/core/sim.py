@@ -209,8 +209,8 @@ def integrate(
             f"`r_a`: expected shape (n, {len(system.actuated)}), got {r_a.shape}"
         )
     n = r_a.shape[0]
-    act = np.asarray(system.actuated)
-    pas = np.asarray(system.passive)
+    act = np.asarray(system.actuated, dtype=int)
+    pas = np.asarray(system.passive, dtype=int)
     nj = act.size + pas.size
     rp = np.asarray(r_p0, dtype=float).reshape(1, -1).copy()
     if rp.shape[1] != pas.size:

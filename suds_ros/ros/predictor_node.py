@@ -187,9 +187,10 @@ def _spin(node: PredictorNode) -> None:
 
 
 def _report(node: PredictorNode) -> None:
-    node.get_logger().info(f"{node.predictions} predictions, {node.models} models, "
-                           f"{node.before_model} samples before the first model, "
-                           f"skipped {dict(node.skipped)}")
+    # not the node's logger: after Ctrl-C its /rosout publisher is gone with the context
+    log = rclpy.logging.get_logger(f"{node.get_name()}.summary")
+    log.info(f"{node.predictions} predictions, {node.models} models, {node.before_model} samples "
+             f"before the first model, skipped {dict(node.skipped)}")
 
 
 def main(args: list[str] | None = None) -> int:
