@@ -44,6 +44,9 @@ class PlayerConfig:
     delay: float = field(default=0.0, metadata={
         "description": "s to wait before the first message, for subscribers to match",
         "range": (0.0, 3600.0)})
+    wait_subscribers: int = field(default=0, metadata={
+        "description": "before playing, wait (up to 60 s) until every played topic has this many "
+                       "matched subscribers", "range": (0, 1000)})
 
     def __post_init__(self) -> None:
         if not self.bag:
@@ -86,6 +89,16 @@ class PlayerNode(Node):
     def play(self) -> int:
         """Publish the bag once (or forever with ``loop``); returns the number of messages sent."""
         cfg = self.config
+        if cfg.wait_subscribers:
+            deadline = time.monotonic() + 60.0
+            while any(p.get_subscription_count() < cfg.wait_subscribers for p in self._pubs.values()):
+                if time.monotonic() > deadline:
+                    short = sorted(t for t, p in self._pubs.items()
+                                   if p.get_subscription_count() < cfg.wait_subscribers)
+                    raise SudsBagError(f"`wait_subscribers`: after 60 s, {short} still have fewer "
+                                       f"than {cfg.wait_subscribers} subscriber(s)")
+                if not self._sleep_until(time.monotonic() + 0.05):
+                    return 0
         if not self._sleep_until(time.monotonic() + cfg.delay):
             return 0
         sent = 0

@@ -133,7 +133,7 @@ def test_player_replays_bytes_with_timing(start_process, node_command, tmp_path)
     rec = start_process(node_command("recorder_node", f"output:={out}", "topics:=['/suds/shape']"),
                         "recorder")
     wait_for(lambda: "recording [" in rec.output(), 30, "the recorder to start")
-    player = start_process(node_command("player_node", f"bag:={src}", "rate:=2.0", "delay:=2.0",
+    player = start_process(node_command("player_node", f"bag:={src}", "rate:=2.0", "delay:=0.5", "wait_subscribers:=1",
                                         "topics:=['/suds/shape']", "start_offset:=0.1"), "player")
     assert player.wait(60) == 0, player.output()
     rec.send_signal(signal.SIGTERM)
