@@ -144,10 +144,8 @@ def table(out: Path) -> int:
     ]
     for case, system, cyc, inj, rep, wall, cpu in rows:
         imp = f"{rep.improvement:.3f}" if rep.mismatch else "–"
-        located = [l.channel for l in rep.located]
-        before = sum(rep.heldout_rms_before[c] for c in located)
-        after = sum(rep.heldout_rms_after[c] for c in located)
-        plain = f"{1 - after / before:.3f}" if rep.mismatch and before > 0 else "–"
+        ratio = rep.plain_rms_ratio
+        plain = f"{ratio:.3f}" if rep.mismatch and ratio is not None else "–"
         lines.append(f"| {case} | {system} | {cyc} | {inj} | {_fmt_report(rep)} | {imp} | {plain} "
                      f"| {wall:.1f} | {cpu:.1f} |")
     text = "\n".join(lines) + "\n"

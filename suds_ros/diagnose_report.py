@@ -56,10 +56,8 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
             lines.append(f"  effect: {e.name}{tgt}: {ps}")
         for g in rep.confounded_with:
             lines.append(f"  confounded on this data (cannot be told apart): {', '.join(g)}")
-        located = [l.channel for l in rep.located]
-        before = sum(rep.heldout_rms_before[c] for c in located)
-        after = sum(rep.heldout_rms_after[c] for c in located)
-        plain = f"; plain RMS ratio 1 − Σ after/Σ before {1 - after / before:.3f}" if before > 0 else ""
+        ratio = rep.plain_rms_ratio
+        plain = f"; plain RMS ratio 1 − Σ after/Σ before {ratio:.3f}" if ratio is not None else ""
         lines.append(f"  held-out improvement over the located channels: {rep.improvement:.3f} of the "
                      f"mismatch beyond the noise floor removed{plain}")
     return "\n".join(lines)

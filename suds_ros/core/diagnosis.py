@@ -273,6 +273,16 @@ class DiagnosisReport:
     phase_source: str = "phaser"
     notes: tuple[str, ...] = ()
 
+    @property
+    def plain_rms_ratio(self) -> float | None:
+        """1 − Σ RMS after / Σ RMS before over the located channels (None without a located channel).
+
+        Unlike :attr:`improvement` it keeps the noise, which no model removes, in both sums.
+        """
+        before = sum(self.heldout_rms_before[l.channel] for l in self.located)
+        after = sum(self.heldout_rms_after[l.channel] for l in self.located)
+        return 1.0 - after / before if before > 0 else None
+
     def to_dict(self) -> dict[str, object]:
         """The JSON schema of ``suds diagnose --json`` (exactly these keys)."""
         return {
