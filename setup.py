@@ -33,7 +33,7 @@ EXECUTABLES = {
     "recorder": "suds_ros.ros.recorder_node",
     "player": "suds_ros.ros.player_node",
     "pipeline": "suds_ros.ros.pipeline",
-    "suds": "suds_ros.cli",
+    "suds": "suds_ros.cli.main",
 }
 
 LAUNCHER = """#!/bin/sh

@@ -24,10 +24,10 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "bags"
 
 
 def _sim(system: str, effects: list[dict[str, Any]], cycles: int, seed: int):  # type: ignore[no-untyped-def]
-    from suds_ros.core.effects import apply_effects
-    from suds_ros.core.rft import RFTChain
-    from suds_ros.core.sim import SimConfig, simulate
-    from suds_ros.core.systems import purcell3_model, swimmer9_model
+    from suds_ros.core.physics.effects import apply_effects
+    from suds_ros.core.physics.rft import RFTChain
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
 
     base = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}[system]()
     model, delay = apply_effects(base, effects)
@@ -36,7 +36,7 @@ def _sim(system: str, effects: list[dict[str, Any]], cycles: int, seed: int):  #
 
 def _timed(rec, system: str):  # type: ignore[no-untyped-def]
     from suds_ros.core.diagnosis import diagnose
-    from suds_ros.core.systems import purcell3_model, swimmer9_model
+    from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
 
     base = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}[system]()
     t0 = time.perf_counter()

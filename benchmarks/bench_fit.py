@@ -17,10 +17,10 @@ import numpy as np
 
 from _common import machine, stamp, write
 
-from suds_ros.core.identify import IdentifyConfig, SudsIdentifier, split_cycles
-from suds_ros.core.sim import SimConfig, simulate
-from suds_ros.core.sysid import SudsConfig, SudsRegressor
-from suds_ros.core.systems import make_system
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
+from suds_ros.core.physics.systems import make_system
 
 
 def rows(n: int, nj: int, na: int, n_out: int, seed: int = 0):

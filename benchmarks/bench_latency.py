@@ -41,9 +41,9 @@ def role_pub(a: argparse.Namespace) -> int:
     from sensor_msgs.msg import JointState
     from std_msgs.msg import String
 
-    from suds_ros.core.sim import SimConfig
-    from suds_ros.core.stream import StreamingSimulator
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.stream import StreamingSimulator
+    from suds_ros.core.physics.systems import make_system
     from suds_ros.ros.conversions import joint_state_to_msg, pose_to_msg
     from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS
 
@@ -181,9 +181,9 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
 
 
 def _model_file(tmp: str) -> str:
-    from suds_ros.core.online import OnlineConfig, fit_streaming
-    from suds_ros.core.sim import SimConfig, simulate
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.ident.online import OnlineConfig, fit_streaming
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
 
     rec = simulate(make_system("purcell3"), SimConfig(cycles=12, seed=4))
     path = os.path.join(tmp, "model.json")

@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.diagnosis import diagnose
-from suds_ros.core.effects import EFFECTS, apply_effects
-from suds_ros.core.rft import RFTChain
-from suds_ros.core.sim import SimConfig, simulate
-from suds_ros.core.systems import purcell3_model, swimmer9_model
+from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
 
 MODELS = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}
 PASSIVE = {"purcell3": ["joint_2"], "swimmer9": ["joint_5", "joint_6", "joint_7", "joint_8"]}

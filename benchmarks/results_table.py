@@ -14,10 +14,10 @@ import numpy as np
 
 from _common import machine, stamp, write
 
-from suds_ros.core.identify import IdentifyConfig, SudsIdentifier, split_cycles
-from suds_ros.core.sim import SimConfig, simulate
-from suds_ros.core.sysid import SudsConfig
-from suds_ros.core.systems import make_system
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.ident.sysid import SudsConfig
+from suds_ros.core.physics.systems import make_system
 
 SYSTEMS = ("linear_passive", "pushmepullyou", "purcell3", "swimmer9")
 

@@ -25,8 +25,8 @@ def shared_bag():
 @pytest.fixture(scope="session")
 def purcell3_run():
     """purcell3, 20 cycles, seed 11, default noise."""
-    from suds_ros.core.sim import SimConfig, simulate
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
 
     return simulate(make_system("purcell3"), SimConfig(cycles=20, seed=11))
 
@@ -34,7 +34,7 @@ def purcell3_run():
 @pytest.fixture(scope="session")
 def swimmer9_run():
     """swimmer9, 20 cycles, seed 12, default noise."""
-    from suds_ros.core.sim import SimConfig, simulate
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
 
     return simulate(make_system("swimmer9"), SimConfig(cycles=20, seed=12))

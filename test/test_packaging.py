@@ -27,7 +27,7 @@ EXECUTABLES = {
     "recorder": "suds_ros.ros.recorder_node",
     "player": "suds_ros.ros.player_node",
     "pipeline": "suds_ros.ros.pipeline",
-    "suds": "suds_ros.cli",
+    "suds": "suds_ros.cli.main",
 }
 IGNORE = shutil.ignore_patterns(".venv", ".git", "build", "*.egg-info", "__pycache__",
                                 ".pytest_cache", "bags", "log", "install", "*.mcap")

@@ -1,6 +1,6 @@
 """``suds_estimator``: identify the SUDS model live from /suds/shape and /suds/body_pose.
 
-Samples go to :class:`~suds_ros.core.online.OnlineSudsEstimator`.  A shape
+Samples go to :class:`~suds_ros.core.ident.online.OnlineSudsEstimator`.  A shape
 sample is handed over once the pose stream has covered its stamp (or after
 ``pose_wait`` wall-clock seconds), so the order in which the two topics are
 delivered — e.g. a burst of transient-local history after a restart — never
@@ -37,8 +37,8 @@ from typing import Any
 from rclpy.node import Node
 
 from suds_ros.core.errors import SudsConfigError, SudsError, SudsPhaseError
-from suds_ros.core.online import OnlineConfig, OnlineSudsEstimator
-from suds_ros.core.sysid import SudsConfig
+from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator
+from suds_ros.core.ident.sysid import SudsConfig
 from suds_ros.ros.conversions import (
     diagnostics_to_msg,
     joint_state_from_msg,
@@ -170,7 +170,7 @@ class EstimatorNode(Node):
         if cfg.checkpoint and Path(cfg.checkpoint).exists():
             self._load(cfg.checkpoint)
         elif cfg.system:
-            from suds_ros.core.systems import make_system
+            from suds_ros.core.physics.systems import make_system
 
             s = make_system(cfg.system)
             names = tuple(s.joint_names)

@@ -9,7 +9,7 @@ SIGKILL, each after a timeout).  The exit code is 0 only if every child ended
 cleanly; a child that fails stops the others.
 
 When the recorder ran, the recorded live predictions are scored at the end
-(:func:`suds_ros.live_score.score_live_predictions`, as ``suds score BAG``).
+(:func:`suds_ros.report.live_score.score_live_predictions`, as ``suds score BAG``).
 
 Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
 ``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
@@ -143,7 +143,7 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
     params = {"simulator": sim, "estimator": _param("system", args.system),
               "predictor": _param("system", args.system)}
     if args.output:
-        from suds_ros.core.systems import make_system
+        from suds_ros.core.physics.systems import make_system
 
         system = make_system(args.system)
         names = system.joint_names
@@ -244,7 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def report_score(bag: str) -> int:
     """Print the recorded live predictions' Γ (``suds score``); 1 if they cannot be scored."""
-    from suds_ros.live_score import score_live_predictions
+    from suds_ros.report.live_score import score_live_predictions
 
     try:
         score = score_live_predictions(bag)

@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from suds_ros.core.errors import SudsConfigError, SudsError
-from suds_ros.core.online import StreamingPredictor, SudsModel
+from suds_ros.core.ident.online import StreamingPredictor, SudsModel
 from suds_ros.ros.conversions import (
     joint_state_from_msg,
     joint_velocity_to_msg,

@@ -1,6 +1,6 @@
 """``suds_simulator``: publish a simulated swimmer's shape and body pose, paced in (scaled) real time.
 
-Samples come from :class:`~suds_ros.core.stream.StreamingSimulator`, one gait
+Samples come from :class:`~suds_ros.core.physics.stream.StreamingSimulator`, one gait
 cycle per chunk, and are published by a wall-clock timer: sample k goes out at
 ``start + k / (rate * real_time_factor)`` (several per tick when needed, so the
 stream keeps its rate whatever the timer resolution).
@@ -41,9 +41,9 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.sim import SimConfig
-from suds_ros.core.stream import StreamingSimulator
-from suds_ros.core.systems import make_system
+from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.stream import StreamingSimulator
+from suds_ros.core.physics.systems import make_system
 from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
 from suds_ros.ros.params import add_validator, config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options

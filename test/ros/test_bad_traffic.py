@@ -37,9 +37,9 @@ def publish() -> int:
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import JointState
 
-    from suds_ros.core.sim import SimConfig
-    from suds_ros.core.stream import StreamingSimulator
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.stream import StreamingSimulator
+    from suds_ros.core.physics.systems import make_system
     from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg
     from suds_ros.ros.qos import ESTIMATE_QOS
 

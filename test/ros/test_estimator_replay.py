@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from suds_ros.core.online import OnlineSudsEstimator, fit_streaming
+from suds_ros.core.ident.online import OnlineSudsEstimator, fit_streaming
 from suds_ros.io.bags import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package

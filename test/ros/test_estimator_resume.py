@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 
-from suds_ros.core.online import OnlineSudsEstimator, fit_streaming
+from suds_ros.core.ident.online import OnlineSudsEstimator, fit_streaming
 from suds_ros.io.bags import read_recording
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
     from ._ros_helpers import last_model, read_topic, stop, wait_for
@@ -30,8 +30,8 @@ SEED = 5
 def published_samples(cycles: int, seed: int):
     """The samples the simulator node publishes (same construction; stamps through ns like the wire)."""
     from suds_ros.core.recording import Recording
-    from suds_ros.core.stream import StreamingSimulator
-    from suds_ros.core.systems import make_system
+    from suds_ros.core.physics.stream import StreamingSimulator
+    from suds_ros.core.physics.systems import make_system
     from suds_ros.ros.conversions import float_to_ns, ns_to_float
     from suds_ros.ros.simulator_node import SimulatorConfig
 

@@ -109,7 +109,7 @@ def test_drain_lets_the_others_finish_their_work():
 
 def test_main_job_runs_and_scores_its_live_predictions(start_process, tmp_path):
     """The README's main job, shortened: every node, recorded, scored at the end."""
-    from suds_ros.live_score import score_live_predictions
+    from suds_ros.report.live_score import score_live_predictions
 
     out = tmp_path / "pipeline.mcap"
     proc = start_process([sys.executable, "-m", "suds_ros.ros.pipeline", "--system", "purcell3",

@@ -2,7 +2,7 @@
 
 The predictor's live output on the cycles after the training cycles is scored
 against the velocities measured from the recorded shape and pose
-(:func:`suds_ros.live_score.score_live_predictions`: Γ against the phase-only
+(:func:`suds_ros.report.live_score.score_live_predictions`: Γ against the phase-only
 template fitted on the training cycles).
 """
 
@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from suds_ros.live_score import score_live_predictions
+from suds_ros.report.live_score import score_live_predictions
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
     from ._ros_helpers import last_model, stop, wait_for

@@ -1,0 +1,1 @@
+"""The ``suds`` command line."""

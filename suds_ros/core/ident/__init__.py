@@ -1,0 +1,1 @@
+"""Identification: SUDS regression, intervals, batch and streaming estimators, scoring."""

@@ -1,0 +1,1 @@
+"""Gait phase: the phaser, the Fourier gait template and the online phase tracker."""

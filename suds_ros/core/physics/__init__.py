@@ -1,0 +1,1 @@
+"""Physics: resistive-force chains, the 1-D swimmers, simulation, streaming, effects."""

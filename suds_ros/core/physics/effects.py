@@ -1,0 +1,296 @@
+"""Catalogue of physical effects a simulator can include (``shared/spec/effects.md``).
+
+Every effect is a parametric physical term of the RFT chain (:class:`~suds_ros.core.physics.rft.ChainModel`)
+or of the recording's time base (:class:`~suds_ros.core.physics.sim.SimConfig` ``pose_delay``), off by
+default.  The registry :data:`EFFECTS` maps each id to an :class:`EffectSpec` that documents its
+parameters (names, units, admissible range, the value meaning "no effect") and applies it.
+
+Combining effects (:func:`apply_effects`) applies them in order; offsets and joint terms add
+(friction bounds, damping, rest offsets, cubic coefficients, flow components, time offsets),
+scales multiply (``stiffness_to_drag_error``, ``joint_stiffness_error``) and the drag ratio is
+set (``drag_anisotropy_error``).
+
+Additions to the specification
+------------------------------
+``joint_stiffness_error(joint, scale)``
+    The spring constant of one passive joint is ``scale`` × nominal (a mis-specified or aged
+    spring on one joint; common on real robots where springs are cut or 3-D printed).  Unlike
+    ``stiffness_to_drag_error`` it changes one joint only.  On a system with a single passive
+    joint the two are the same physics, and the diagnosis reports them as confounded.
+
+Joint effects act only on passive joints (actuated joints follow their set-points whatever
+the torque); naming an actuated joint raises :class:`~suds_ros.core.errors.SudsConfigError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.rft import ChainModel
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of an effect.
+
+    Parameters
+    ----------
+    name : str
+        Keyword used in :func:`apply_effect` and in diagnosis reports.
+    unit : str
+        SI unit (drag units of the spec: c∥ = 1, L = 1).
+    lower, upper : float
+        Admissible range (inclusive; ±inf for unbounded).
+    neutral : float
+        The value that leaves the nominal physics unchanged.
+    scale : float
+        Typical magnitude, used to start searches and as a finite-difference scale.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    neutral: float
+    scale: float
+
+    def check(self, effect: str, value: float) -> float:
+        v = float(value)
+        if not np.isfinite(v) or not self.lower <= v <= self.upper:
+            raise SudsConfigError(
+                f"effect {effect!r}: parameter `{self.name}` must lie in [{self.lower}, {self.upper}] "
+                f"{self.unit}, got {value!r}"
+            )
+        return v
+
+
+_Applier = Callable[[ChainModel, "int | None", Mapping[str, float]], tuple[ChainModel, float]]
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """A catalogue entry.
+
+    Attributes
+    ----------
+    id : str
+        Catalogue id (``joint_coulomb_friction`` …).
+    params : tuple of ParamSpec
+        Parameters in canonical order.
+    needs_joint : bool
+        True for joint effects (a passive joint is the target).
+    description : str
+        Exact physical meaning.
+    apply : callable
+        ``apply(model, joint_index_or_None, params) -> (model, pose_delay_increment)``.
+    """
+
+    id: str
+    params: tuple[ParamSpec, ...]
+    needs_joint: bool
+    description: str
+    apply: _Applier
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+
+def _joint_tuple(values: tuple[float, ...], j: int, op: Callable[[float], float]) -> tuple[float, ...]:
+    out = list(values)
+    out[j] = op(out[j])
+    return tuple(out)
+
+
+def _coulomb(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(coulomb=_joint_tuple(m.coulomb, j, lambda v: v + p["mu"])), 0.0  # type: ignore[arg-type]
+
+
+def _damping(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(damping=_joint_tuple(m.damping, j, lambda v: v + p["d"])), 0.0  # type: ignore[arg-type]
+
+
+def _rest(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(rest=_joint_tuple(m.rest, j, lambda v: v + p["offset"])), 0.0  # type: ignore[arg-type]
+
+
+def _cubic(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(k3=_joint_tuple(m.k3, j, lambda v: v + p["k3"])), 0.0  # type: ignore[arg-type]
+
+
+def _joint_stiffness(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(stiffness=_joint_tuple(m.stiffness, j, lambda v: v * p["scale"])), 0.0  # type: ignore[arg-type]
+
+
+def _stiffness_scale(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    return m.with_(stiffness_scale=m.stiffness_scale * p["scale"]), 0.0
+
+
+def _anisotropy(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    return m.with_(c_perp=p["ratio"] * m.c_par), 0.0
+
+
+def _flow(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    return m.with_(flow=(m.flow[0] + p["vx"], m.flow[1] + p["vy"])), 0.0
+
+
+def _time_offset(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    return m, p["dt"]
+
+
+_INF = float("inf")
+
+EFFECTS: dict[str, EffectSpec] = {
+    spec.id: spec
+    for spec in (
+        EffectSpec(
+            "joint_coulomb_friction",
+            (ParamSpec("mu", "N·m", 0.0, _INF, 0.0, 0.3),),
+            True,
+            "dry friction −mu·sign(ṙ_j) while slipping, any torque in [−mu, mu] while stuck (exact)",
+            _coulomb,
+        ),
+        EffectSpec(
+            "joint_viscous_damping",
+            (ParamSpec("d", "N·m·s/rad", 0.0, _INF, 0.0, 0.3),),
+            True,
+            "internal damping torque −d·ṙ_j",
+            _damping,
+        ),
+        EffectSpec(
+            "spring_rest_offset",
+            (ParamSpec("offset", "rad", -np.pi, np.pi, 0.0, 0.1),),
+            True,
+            "spring rest angle r_rest + offset: torque −k_j (r_j − r_rest − offset)",
+            _rest,
+        ),
+        EffectSpec(
+            "spring_nonlinearity",
+            (ParamSpec("k3", "N·m/rad³", -_INF, _INF, 0.0, 1.0),),
+            True,
+            "extra spring torque −k3·(r_j − r_rest)³ (effective rest angle if offset too)",
+            _cubic,
+        ),
+        EffectSpec(
+            "stiffness_to_drag_error",
+            (ParamSpec("scale", "–", 1e-3, 1e3, 1.0, 0.1),),
+            False,
+            "every passive k_j (and k3) × scale ⇔ every drag coefficient / scale",
+            _stiffness_scale,
+        ),
+        EffectSpec(
+            "drag_anisotropy_error",
+            (ParamSpec("ratio", "–", 1e-2, 1e2, 2.0, 0.2),),
+            False,
+            "c⊥/c∥ = ratio with c∥ kept (nominal 2); link drag diag(L, ratio·L, ratio·L³/12)",
+            _anisotropy,
+        ),
+        EffectSpec(
+            "background_flow",
+            (ParamSpec("vx", "m/s", -_INF, _INF, 0.0, 0.05), ParamSpec("vy", "m/s", -_INF, _INF, 0.0, 0.05)),
+            False,
+            "uniform world-frame current U = (vx, vy): the chain is advected, ξ gains R(−yaw)·U",
+            _flow,
+        ),
+        EffectSpec(
+            "sensor_time_offset",
+            (ParamSpec("dt", "s", -1.0, 1.0, 0.0, 0.02),),
+            False,
+            "pose stamps late by dt: the pose stamped s is the true pose at s − dt",
+            _time_offset,
+        ),
+        EffectSpec(
+            "joint_stiffness_error",
+            (ParamSpec("scale", "–", 1e-3, 1e3, 1.0, 0.1),),
+            True,
+            "spring constant of one passive joint × scale (addition to the spec)",
+            _joint_stiffness,
+        ),
+    )
+}
+
+
+def joint_index(model: ChainModel, joint: object, effect: str) -> int:
+    """0-based index of the passive joint named ``joint`` (``"joint_k"``, 1-based, head to tail)."""
+    names = [f"joint_{j + 1}" for j in range(model.n_joints)]
+    if isinstance(joint, str) and joint in names:
+        j = names.index(joint)
+    else:
+        raise SudsConfigError(
+            f"effect {effect!r}: `joint` must be one of {names}, got {joint!r}"
+        )
+    if j not in model.passive:
+        passive = [names[i] for i in model.passive]
+        raise SudsConfigError(
+            f"effect {effect!r}: joint {joint!r} is actuated; joint effects act on the passive joints {passive}"
+        )
+    return j
+
+
+def _apply(model: ChainModel, name: str, joint: object, params: Mapping[str, object]) -> tuple[ChainModel, float]:
+    spec = EFFECTS.get(name)
+    if spec is None:
+        raise SudsConfigError(f"unknown effect {name!r}; catalogue: {', '.join(EFFECTS)}")
+    unknown = set(params) - set(spec.param_names)
+    if unknown:
+        raise TypeError(f"effect {name!r}: unknown parameter(s) {sorted(unknown)}; expected {list(spec.param_names)}")
+    missing = [p for p in spec.param_names if p not in params]
+    if missing:
+        raise SudsConfigError(f"effect {name!r}: missing parameter(s) {missing}")
+    values = {p.name: p.check(name, params[p.name]) for p in spec.params}  # type: ignore[arg-type]
+    if spec.needs_joint:
+        j: int | None = joint_index(model, joint, name)
+    else:
+        if joint is not None:
+            raise SudsConfigError(f"effect {name!r} acts on the whole chain; got a joint {joint!r}")
+        j = None
+    return spec.apply(model, j, values)
+
+
+def apply_effect(model: ChainModel, name: str, joint: str | None = None, **params: float) -> ChainModel:
+    """The model with one effect added.
+
+    ``sensor_time_offset`` does not change the physics (it acts on the recording's pose stamps):
+    the model is returned unchanged; use :func:`apply_effects` to obtain the pose delay.
+
+    Examples
+    --------
+    >>> m = apply_effect(purcell3_model(), "joint_coulomb_friction", joint="joint_2", mu=0.7)
+    """
+    return _apply(model, name, joint, params)[0]
+
+
+def apply_effects(model: ChainModel, effects: Sequence[Mapping[str, object]]) -> tuple[ChainModel, float]:
+    """Apply effects in order; returns the model and the pose delay (s) for ``SimConfig.pose_delay``.
+
+    Each effect is a mapping ``{"name": id, "joint" (or "target"): "joint_k" | None, <param>: value, …}``.
+    """
+    delay = 0.0
+    for i, eff in enumerate(effects):
+        eff = dict(eff)
+        if "name" not in eff:
+            raise SudsConfigError(f"effect #{i}: missing `name` (one of {', '.join(EFFECTS)})")
+        name = str(eff.pop("name"))
+        joint = eff.pop("joint", None)
+        target = eff.pop("target", None)
+        if joint is None:
+            joint = target
+        elif target is not None and target != joint:
+            raise SudsConfigError(f"effect {name!r}: `joint` {joint!r} and `target` {target!r} disagree")
+        model, d = _apply(model, name, joint, eff)
+        delay += d
+    return model, delay
+
+
+def neutral_params(name: str) -> dict[str, float]:
+    """The parameter values of ``name`` that leave the nominal physics unchanged."""
+    return {p.name: p.neutral for p in EFFECTS[name].params}

@@ -1,0 +1,1 @@
+"""Reports: live-prediction scores, identification figures, diagnosis figures and summaries."""

@@ -1,0 +1,194 @@
+"""Score the live predictions recorded in a bag against the velocities measured in it.
+
+The predictor publishes, for every shape sample k, the body velocity
+(``/suds/predicted/body_velocity``, TwistStamped, body frame) and passive joint
+velocity (``/suds/predicted/passive_velocity``, JointState ``velocity``) over
+the interval [t_{k−1}, t_k], stamped t_k.  Each prediction is made with the
+model the estimator had published *before* sample k arrived, so every one is
+out of sample (prequential): no held-out split of the training data is needed
+to score it honestly.
+
+The measured velocities are the forward differences of the recorded shape and
+pose over the same intervals (:mod:`suds_ros.core.ident.intervals`).  The reference
+is the phase-only template of the paper's Γ: the phaser is fitted on the first
+``train_cycles`` of the recording and the template (a Fourier series in phase)
+is fitted to the measured velocities of those cycles; both are evaluated on the
+later cycles, where Γ = 1 − Σ|pred − meas| / Σ|template − meas| per channel
+group.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from suds_ros.core.errors import SudsDataError
+from suds_ros.core.ident.intervals import make_intervals
+from suds_ros.core.phase.phaser import Phaser
+from suds_ros.core.ident.sysid import gamma
+from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+from suds_ros.io.bags import decode_message, iter_raw_messages, read_recording
+
+BODY_TOPIC = "/suds/predicted/body_velocity"
+PASSIVE_TOPIC = "/suds/predicted/passive_velocity"
+
+
+@dataclass(frozen=True)
+class LiveScore:
+    """Accuracy of a bag's recorded live predictions on its cycles after ``train_cycles``.
+
+    Attributes
+    ----------
+    gamma_body, gamma_passive : Γ of the live predictions against the phase-only template.
+    rms_body, rms_passive : RMS prediction error (m/s and rad/s mixed for the body; rad/s).
+    n_scored : intervals scored (after ``train_cycles`` and with both predictions).
+    n_intervals : intervals after ``train_cycles``.
+    n_predictions : predicted intervals in the whole bag.
+    first_prediction_s : time of the first prediction after the first shape sample, s.
+    train_cycles, test_cycles : cycles used for the template / scored.
+    """
+
+    gamma_body: float
+    gamma_passive: float
+    rms_body: float
+    rms_passive: float
+    n_scored: int
+    n_intervals: int
+    n_predictions: int
+    first_prediction_s: float
+    train_cycles: float
+    test_cycles: float
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of the scored cycles' intervals that have a live prediction."""
+        return self.n_scored / self.n_intervals if self.n_intervals else 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        """JSON-ready dictionary (with ``coverage``)."""
+        out = {k: float(v) for k, v in self.__dict__.items()}
+        out["coverage"] = self.coverage
+        return out
+
+    def summary(self) -> str:
+        """One line for a terminal."""
+        return (f"live predictions on cycles {self.train_cycles:g}–"
+                f"{self.train_cycles + self.test_cycles:g} (out of sample): Γ body "
+                f"{self.gamma_body:.3f}, Γ passive {self.gamma_passive:.3f}; "
+                f"{self.n_scored} of {self.n_intervals} intervals predicted; first prediction "
+                f"{self.first_prediction_s:.1f} s into the run")
+
+
+def _stamp_ns(msg: object) -> int:
+    st = msg.header.stamp  # type: ignore[attr-defined]
+    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
+
+
+def read_predictions(bag: str | Path, passive: tuple[str, ...]
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Recorded predictions of a bag.
+
+    Returns
+    -------
+    body_ns : (nb,) int64 stamps, ns; body : (nb, 3) predicted (vx, vy, ωz).
+    passive_ns : (npv,) int64 stamps, ns; passive_vel : (npv, len(passive)) predicted ṙ_p.
+
+    Raises
+    ------
+    SudsDataError
+        No predictions, or predicted passive joints other than ``passive``.
+    """
+    body_ns, body, pas_ns, pas = [], [], [], []
+    for m in iter_raw_messages(bag, topics=[BODY_TOPIC, PASSIVE_TOPIC]):
+        msg = decode_message(m.type_name, m.data)
+        if m.topic == BODY_TOPIC:
+            body_ns.append(_stamp_ns(msg))
+            body.append((msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z))
+        else:
+            if tuple(msg.name) != passive:
+                raise SudsDataError(f"{bag}: {PASSIVE_TOPIC} names joints {list(msg.name)}; "
+                                    f"the recording's passive joints are {list(passive)}")
+            pas_ns.append(_stamp_ns(msg))
+            pas.append(tuple(msg.velocity))
+    if not body_ns or not pas_ns:
+        missing = [t for t, v in ((BODY_TOPIC, body_ns), (PASSIVE_TOPIC, pas_ns)) if not v]
+        raise SudsDataError(f"{bag}: no live predictions recorded on {missing}")
+    return (np.asarray(body_ns, dtype=np.int64), np.asarray(body, dtype=float).reshape(-1, 3),
+            np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), -1))
+
+
+def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """values at each stamp (NaN rows where no key is within 1 µs); the last duplicate wins.
+
+    (Float-second stamps near 1.7e9 s are only good to ~240 ns, hence the tolerance.)
+    """
+    tol = 1_000
+    order = np.argsort(keys_ns, kind="stable")
+    keys, vals = keys_ns[order], values[order]
+    idx = np.clip(np.searchsorted(keys, stamps_ns + tol, side="right") - 1, 0, keys.size - 1)
+    hit = np.abs(keys[idx] - stamps_ns) <= tol
+    out = np.full((stamps_ns.size, values.shape[1]), np.nan)
+    out[hit] = vals[idx[hit]]
+    return out
+
+
+def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
+                           template_order: int = 8) -> LiveScore:
+    """Γ of the live predictions recorded in ``bag`` on the cycles after ``train_cycles``.
+
+    ``train_cycles`` defaults to half of the recorded cycles (cycle length from the bag's
+    ``gait_hz`` metadata, else 1 Hz).
+
+    Raises
+    ------
+    SudsDataError
+        No predictions, too few cycles on either side, or no prediction after ``train_cycles``.
+    SudsBagError
+        The bag cannot be read (see :func:`~suds_ros.io.bags.read_recording`).
+    """
+    rec = read_recording(bag)
+    hz = rec.gait_hz or 1.0
+    cycles = (rec.t[-1] - rec.t[0] + float(np.median(np.diff(rec.t)))) * hz  # n samples span n periods
+    if train_cycles is None:
+        train_cycles = float(np.floor(cycles / 2))
+    if not 2 <= train_cycles <= cycles - 1:
+        raise SudsDataError(f"{bag}: {cycles:.1f} cycles recorded; cannot keep {train_cycles:g} for "
+                            "the template and at least 1 to score (need ≥ 2 for the template)")
+    body_ns, body, pas_ns, pas = read_predictions(bag, rec.passive)
+
+    iv = make_intervals(rec)
+    k = iv.k.astype(np.int64)
+    end_ns = np.round(rec.t[k + 1] * 1e9).astype(np.int64)  # a prediction is stamped t_{k+1}
+    meas = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
+    pred = np.concatenate([_lookup(end_ns, body_ns, body), _lookup(end_ns, pas_ns, pas)], axis=1)
+
+    cut = rec.t[0] + train_cycles / hz
+    train_s = rec.t < cut
+    phaser = Phaser()
+    phase = phaser.fit(rec.r[train_s]).transform(rec.r)
+    mid = 0.5 * (phase[k] + phase[k + 1])
+    train = iv.t < cut
+    template = FourierTemplate(FourierTemplateConfig(order=template_order)).fit(mid[train], meas[train])
+    tmpl = template.predict(mid)
+
+    test = ~train
+    scored = test & np.all(np.isfinite(pred), axis=1)
+    if not scored.any():
+        raise SudsDataError(f"{bag}: no live prediction after cycle {train_cycles:g}")
+    b, p = slice(0, 3), slice(3, None)
+    P, M, T = pred[scored], meas[scored], tmpl[scored]
+    first = min(int(body_ns.min()), int(pas_ns.min())) * 1e-9 - rec.t[0]
+    return LiveScore(
+        gamma_body=gamma(P[:, b], T[:, b], M[:, b]),
+        gamma_passive=gamma(P[:, p], T[:, p], M[:, p]),
+        rms_body=float(np.sqrt(np.mean((P[:, b] - M[:, b]) ** 2))),
+        rms_passive=float(np.sqrt(np.mean((P[:, p] - M[:, p]) ** 2))),
+        n_scored=int(scored.sum()),
+        n_intervals=int(test.sum()),
+        n_predictions=int(min(body_ns.size, pas_ns.size)),
+        first_prediction_s=float(first),
+        train_cycles=float(train_cycles),
+        test_cycles=float(cycles - train_cycles),
+    )

@@ -1,0 +1,148 @@
+"""Scoring of recorded live predictions (``suds score``, the pipeline's closing line).
+
+The bags are written without ROS: a simulated purcell3 run, and as "live" predictions the
+streaming predictor of a model fitted on the first cycles only, stamped like the predictor
+node stamps them (the stamp of the sample that closes the interval).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from suds_ros.cli.main import main as suds_main
+from suds_ros.core.errors import SudsDataError
+from suds_ros.core.ident.identify import split_cycles
+from suds_ros.core.ident.online import StreamingPredictor, fit_streaming
+from suds_ros.io import cdr
+from suds_ros.io.bags import POSE_TYPE, SHAPE_TYPE, BagWriter
+from suds_ros.report.live_score import BODY_TOPIC, PASSIVE_TOPIC, score_live_predictions
+
+TWIST_TYPE = "geometry_msgs/msg/TwistStamped"
+TRAIN = 10
+
+
+def _header(ns: int) -> dict:
+    return {"stamp": {"sec": ns // 10**9, "nanosec": ns % 10**9}, "frame_id": "body"}
+
+
+def write_bag(path, rec, preds, passive_names=None) -> None:
+    """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``."""
+    passive_names = rec.passive if passive_names is None else passive_names
+    with BagWriter(path) as w:
+        for topic, type_name in (("/suds/shape", SHAPE_TYPE), ("/suds/body_pose", POSE_TYPE),
+                                 (BODY_TOPIC, TWIST_TYPE), (PASSIVE_TOPIC, SHAPE_TYPE)):
+            w.add_topic(topic, type_name)
+        w.write_metadata("suds", {"system": rec.system, "actuated": ",".join(rec.actuated),
+                                  "passive": ",".join(rec.passive), "gait_hz": "1.0"})
+        for k, t in enumerate(rec.t):
+            ns = cdr.ns_from_seconds(t)
+            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
+            x, y, yaw = rec.pose[k]
+            q = (0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2))
+            w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (x, y, 0.0), q, "world"), ns, ns)
+            if t in preds:
+                xi, rp = preds[t]
+                twist = {"header": _header(ns), "twist": {
+                    "linear": {"x": xi[0], "y": xi[1], "z": 0.0},
+                    "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
+                w.write_raw(BODY_TOPIC, cdr.serialize(TWIST_TYPE, twist), ns, ns)
+                w.write_raw(PASSIVE_TOPIC, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
+
+
+@pytest.fixture(scope="module")
+def live(purcell3_run):
+    """Predictions of a model fitted on the first TRAIN cycles, for every later sample."""
+    train, _ = split_cycles(purcell3_run, TRAIN)
+    model = fit_streaming(train).model()
+    pred = StreamingPredictor(model)
+    preds = {}
+    start = train.n_samples - 1
+    for k in range(start, purcell3_run.n_samples):
+        out = pred.update(purcell3_run.t[k], purcell3_run.joint_names, purcell3_run.r[k])
+        if out is not None:
+            preds[purcell3_run.t[k]] = out
+    return purcell3_run, preds
+
+
+def test_out_of_sample_predictions_beat_the_template(live, tmp_path):
+    rec, preds = live
+    bag = tmp_path / "live.mcap"
+    write_bag(bag, rec, preds)
+    s = score_live_predictions(bag, TRAIN)
+    # intervals whose midpoint lies after the cut; the first prediction closes the interval
+    # that straddles it
+    assert s.n_intervals == rec.n_samples - 1 - TRAIN * 100
+    assert s.n_scored == s.n_intervals and s.n_predictions == len(preds) == s.n_intervals + 1
+    assert s.coverage == 1.0
+    assert s.gamma_body > 0.8 and s.gamma_passive > 0.9, s
+    assert abs(s.first_prediction_s - TRAIN) < 1e-6
+
+
+def test_worse_predictions_score_worse_and_gaps_lower_coverage(live, tmp_path):
+    rec, preds = live
+    stamps = sorted(preds)
+    # every prediction 5 samples (50 ms) late: the right waveform at the wrong time
+    late = {t: preds[stamps[max(i - 5, 0)]] for i, t in enumerate(stamps)}
+    gapped = {t: v for i, (t, v) in enumerate(sorted(preds.items())) if i % 4}
+    for name, p in (("late", late), ("gapped", gapped)):
+        write_bag(tmp_path / f"{name}.mcap", rec, p)
+    lagged = score_live_predictions(tmp_path / "late.mcap", TRAIN)
+    write_bag(tmp_path / "good.mcap", rec, preds)
+    ref = score_live_predictions(tmp_path / "good.mcap", TRAIN)
+    assert lagged.gamma_body < ref.gamma_body - 0.1 and lagged.gamma_passive < ref.gamma_passive - 0.1
+    g = score_live_predictions(tmp_path / "gapped.mcap", TRAIN)
+    assert g.n_scored == len(gapped)
+    assert g.coverage == pytest.approx(0.75, abs=0.01)
+
+
+def test_errors_name_the_problem(live, tmp_path):
+    rec, preds = live
+    write_bag(tmp_path / "none.mcap", rec, {})
+    with pytest.raises(SudsDataError, match="no live predictions recorded"):
+        score_live_predictions(tmp_path / "none.mcap")
+    write_bag(tmp_path / "names.mcap", rec, preds, passive_names=("joint_9",))
+    with pytest.raises(SudsDataError, match="joint_9"):
+        score_live_predictions(tmp_path / "names.mcap")
+    write_bag(tmp_path / "ok.mcap", rec, preds)
+    with pytest.raises(SudsDataError, match="cannot keep 19"):
+        score_live_predictions(tmp_path / "ok.mcap", 19.5)
+    early = {t: v for t, v in preds.items() if t < rec.t[0] + 15}
+    write_bag(tmp_path / "early.mcap", rec, early)
+    with pytest.raises(SudsDataError, match="no live prediction after cycle 16"):
+        score_live_predictions(tmp_path / "early.mcap", 16)
+
+
+def test_cli_score(live, tmp_path, capsys):
+    rec, preds = live
+    bag = tmp_path / "live.mcap"
+    write_bag(bag, rec, preds)
+    assert suds_main(["score", str(bag), "--train-cycles", str(TRAIN), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["coverage"] == 1.0 and out["gamma_passive"] > 0.9
+    assert suds_main(["score", str(bag)]) == 0
+    assert "Γ body" in capsys.readouterr().out
+    assert suds_main(["score", str(tmp_path / "missing.mcap")]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_with_model_continues_the_stream(live):
+    rec, _ = live
+    train, _ = split_cycles(rec, TRAIN)
+    model = fit_streaming(train).model()
+    a, b = StreamingPredictor(model), StreamingPredictor(model)
+    for k in range(50):
+        a.update(rec.t[k], rec.joint_names, rec.r[k])
+        b.update(rec.t[k], rec.joint_names, rec.r[k])
+    c = a.with_model(model)  # same template and phase rate: continues
+    assert c.shares_phase_with(model) and c.last_stamp == a.last_stamp
+    out_b = b.update(rec.t[50], rec.joint_names, rec.r[50])
+    out_c = c.update(rec.t[50], rec.joint_names, rec.r[50])
+    np.testing.assert_allclose(np.concatenate(out_c), np.concatenate(out_b))
+    other = replace(model, omega=1.01 * model.omega)
+    assert not a.shares_phase_with(other)
+    d = a.with_model(other)  # a different template: starts afresh
+    assert d.update(rec.t[50], rec.joint_names, rec.r[50]) is None
