@@ -52,6 +52,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.recording import joint_names
 
 
 def _as_tuple(value: float | tuple[float, ...] | list[float], n: int, name: str) -> tuple[float, ...]:
@@ -88,8 +89,8 @@ class ChainModel:
         Dry-friction torque bound mu_j, N·m (≥ 0; exact stick/slip).
     link_length : float or tuple of N floats
         Link lengths L_i, m.
-    c_par, c_perp : float
-        RFT drag coefficients per unit length along and across a link.
+    c_par, c_perp : float or tuple of N floats
+        RFT drag coefficients per unit length along and across each link.
     stiffness_scale : float
         Multiplies every k_j and k3_j (the ``stiffness_to_drag_error`` effect).
     flow : (float, float)
@@ -99,8 +100,15 @@ class ChainModel:
     name : str
         System id.
     gait : tuple
-        Nominal drive per actuated joint: ((amplitude rad, frequency Hz, phase rad, offset rad), ...),
-        set-point offset + amplitude·sin(2π f t − phase).
+        Nominal drive per actuated joint: ((amplitude rad, frequency, phase rad, offset rad), ...),
+        set-point offset + amplitude·sin(2π f t − phase), t in gait time (f = 1: once per gait cycle).
+    pose_offset : (x m, y m, yaw rad)
+        The pose frame (the frame of the recorded pose and of the body velocity) relative to
+        the centre frame of the body link; zero puts it on the body link's centre.
+    joint_names : tuple of nj str
+        Joint names head to tail; default ``joint_1`` … ``joint_{N-1}``.
+    gait_hz : float
+        Nominal gait frequency, Hz (cycles per second of the drive).
     """
 
     n_links: int
@@ -111,13 +119,16 @@ class ChainModel:
     k3: float | tuple[float, ...] = 0.0
     coulomb: float | tuple[float, ...] = 0.0
     link_length: float | tuple[float, ...] = 1.0
-    c_par: float = 1.0
-    c_perp: float = 2.0
+    c_par: float | tuple[float, ...] = 1.0
+    c_perp: float | tuple[float, ...] = 2.0
     stiffness_scale: float = 1.0
     flow: tuple[float, float] = (0.0, 0.0)
     body_link: int | None = None
     name: str = "chain"
     gait: tuple[tuple[float, float, float, float], ...] = field(default=())
+    pose_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    joint_names: tuple[str, ...] = ()
+    gait_hz: float = 1.0
 
     def __post_init__(self) -> None:
         if int(self.n_links) != self.n_links or self.n_links < 2:
@@ -137,10 +148,19 @@ class ChainModel:
         for name in ("damping", "coulomb"):
             if min(getattr(self, name)) < 0:
                 raise SudsConfigError(f"`{name}`: must be ≥ 0, got {getattr(self, name)}")
-        if not (self.c_par > 0 and self.c_perp > 0):
-            raise SudsConfigError(
-                f"`c_par`, `c_perp`: drag coefficients must be > 0, got {self.c_par}, {self.c_perp}"
-            )
+        for name in ("c_par", "c_perp"):
+            values = _as_tuple(getattr(self, name), self.n_links, name)
+            if min(values) <= 0:
+                raise SudsConfigError(f"`{name}`: drag coefficients must be > 0, got {values}")
+            object.__setattr__(self, name, values)
+        offset = _as_tuple(self.pose_offset, 3, "pose_offset")
+        object.__setattr__(self, "pose_offset", offset)
+        names = tuple(str(n) for n in self.joint_names) or joint_names(nj)
+        if len(names) != nj or len(set(names)) != nj or not all(names):
+            raise SudsConfigError(f"`joint_names`: expected {nj} distinct non-empty names, got {names}")
+        object.__setattr__(self, "joint_names", names)
+        if not (np.isfinite(self.gait_hz) and self.gait_hz > 0):
+            raise SudsConfigError(f"`gait_hz`: expected a frequency > 0 Hz, got {self.gait_hz!r}")
         if not self.stiffness_scale > 0:
             raise SudsConfigError(f"`stiffness_scale`: must be > 0, got {self.stiffness_scale}")
         object.__setattr__(self, "flow", (float(self.flow[0]), float(self.flow[1])))
@@ -199,7 +219,8 @@ class RFTChain:
                 W[i, i] = L[i] / 2
         self._S = S
         self._W = W
-        self._K = np.stack([model.c_par * L, model.c_perp * L, model.c_perp * L**3 / 12.0], axis=1)
+        cpar, cperp = np.asarray(model.c_par), np.asarray(model.c_perp)
+        self._K = np.stack([cpar * L, cperp * L, cperp * L**3 / 12.0], axis=1)
         self._sqrtK = np.sqrt(self._K)
         self._act = np.array(model.actuated, dtype=np.int64)
         self._pas = np.array(model.passive, dtype=np.int64)
@@ -227,7 +248,7 @@ class RFTChain:
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        return tuple(f"joint_{j + 1}" for j in range(self.model.n_joints))
+        return self.model.joint_names
 
     @property
     def actuated(self) -> tuple[int, ...]:
@@ -359,11 +380,39 @@ class RFTChain:
         model has a background flow (which adds R(−yaw) U to ξx, ξy).
         """
         xi, rdot_p, _ = self.solve(r, rdot_a)
+        xi = self.to_pose_frame(xi)
         if self.model.flow != (0.0, 0.0):
             if yaw is None:
-                raise SudsConfigError("background flow needs the body heading `yaw`")
+                raise SudsConfigError("`yaw`: a background flow needs the heading of the pose frame, got None")
             xi = xi + flow_in_body(self.model.flow, yaw)
         return xi, rdot_p
+
+    def to_pose_frame(self, xi_link: FloatArray) -> FloatArray:
+        """Body velocity of the body link's centre frame (B, 3) → velocity of the pose frame in itself.
+
+        For the pose frame o = (a, b, φ) fixed to the link frame, ω' = ω and
+        v' = R(−φ) (vx − ω b, vy + ω a) (the adjoint of o⁻¹).
+        """
+        a, b, phi = self.model.pose_offset
+        if a == 0.0 and b == 0.0 and phi == 0.0:
+            return xi_link
+        xi_link = np.atleast_2d(xi_link)
+        vx = xi_link[:, 0] - xi_link[:, 2] * b
+        vy = xi_link[:, 1] + xi_link[:, 2] * a
+        c, s = np.cos(phi), np.sin(phi)
+        return np.stack([c * vx + s * vy, -s * vx + c * vy, xi_link[:, 2]], axis=1)
+
+    def to_link_frame(self, xi_pose: FloatArray) -> FloatArray:
+        """Inverse of :meth:`to_pose_frame`: pose-frame body velocity → body-link centre frame."""
+        a, b, phi = self.model.pose_offset
+        if a == 0.0 and b == 0.0 and phi == 0.0:
+            return xi_pose
+        xi_pose = np.atleast_2d(xi_pose)
+        c, s = np.cos(phi), np.sin(phi)
+        vx = c * xi_pose[:, 0] - s * xi_pose[:, 1]
+        vy = s * xi_pose[:, 0] + c * xi_pose[:, 1]
+        w = xi_pose[:, 2]
+        return np.stack([vx + w * b, vy - w * a, w], axis=1)
 
     def full_rates(self, r: FloatArray, rdot_a: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Still-fluid q̇ = (ξ, ṙ) (B, 3 + nj) and D (B, 3+nj, 3+nj)."""

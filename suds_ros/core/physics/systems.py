@@ -1,11 +1,13 @@
-"""Registry of the named systems: the paper's swimmers and general N-link chains.
+"""Registry of the named systems: the paper's swimmers, general N-link chains and model files.
 
-``make_system(name, **overrides)`` returns a :class:`~suds_ros.core.physics.system.SudsSystem`.
+``make_system(name, **overrides)`` returns a :class:`~suds_ros.core.physics.system.SudsSystem`;
+``load_system(spec)`` also takes the path of a robot model file (``suds-robot/1``).
 The N-link swimmers follow ``shared/spec/recording.md`` (nominal physics).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -108,3 +110,38 @@ def make_system(name: str, **overrides: object) -> SudsSystem:
         return RFTChain(nlink_model(int(name[5:]), **overrides))  # type: ignore[arg-type]
     known = ", ".join(sorted(SYSTEMS)) + ", nlinkN (N ≥ 3)"
     raise SudsConfigError(f"unknown system {name!r}; known systems: {known}")
+
+
+def is_model_file(spec: str) -> bool:
+    """True when ``spec`` names a robot model file rather than a built-in system id."""
+    return spec.endswith((".yaml", ".yml")) or "/" in spec or "\\" in spec or Path(spec).is_file()
+
+
+def load_system(spec: str, **overrides: object) -> SudsSystem:
+    """A built-in system id (``purcell3``, ``nlink7``, …) or the path of a robot model file.
+
+    Raises
+    ------
+    SudsConfigError
+        For an unknown id, or a model file that does not follow ``suds-robot/1``.
+    """
+    if is_model_file(spec):
+        from suds_ros.core.physics.robot_model import load_model
+
+        model = load_model(spec)
+        return RFTChain(model.with_(**overrides) if overrides else model)
+    return make_system(spec, **overrides)
+
+
+def builtin_model(name: str) -> ChainModel:
+    """The :class:`ChainModel` of a built-in chain (``purcell3``, ``swimmer9``, ``nlinkN``).
+
+    Raises
+    ------
+    SudsConfigError
+        For a name that is not a chain (the 1-D swimmers have no model file).
+    """
+    system = make_system(name)
+    if not isinstance(system, RFTChain):
+        raise SudsConfigError(f"`name`: expected a chain system (purcell3, swimmer9, nlinkN), got {name!r}")
+    return system.model
