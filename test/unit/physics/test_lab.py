@@ -1,0 +1,59 @@
+"""Lab-style recordings: own rates and start times, jitter, drops — and the aligned twin inside."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.lab import LabConditions, simulate_lab
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import make_system
+
+
+@pytest.fixture(scope="module")
+def purcell3():  # type: ignore[no-untyped-def]
+    return make_system("purcell3")
+
+
+def test_without_lab_effects_it_is_the_aligned_twin(purcell3) -> None:  # type: ignore[no-untyped-def]
+    cfg = SimConfig(cycles=3, seed=4)
+    twin = simulate(purcell3, cfg)
+    lab = simulate_lab(purcell3, cfg, LabConditions(pose_hz=None, pose_phase=0.0, jitter=0.0, drop=0.0))
+    np.testing.assert_allclose(lab.t, twin.t, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(lab.pose_t, twin.pose_t, rtol=0, atol=1e-6)
+    # same drive and physics: the noise-free states agree to the integrator's accuracy
+    np.testing.assert_allclose(lab.truth["r"], twin.truth["r"], atol=2e-5)
+    np.testing.assert_allclose(lab.truth["pose"], twin.truth["pose"], atol=2e-5)
+
+
+def test_lab_streams_have_their_own_rates_jitter_and_drops(purcell3) -> None:  # type: ignore[no-untyped-def]
+    cfg = SimConfig(cycles=10, seed=5)
+    lab = simulate_lab(purcell3, cfg, LabConditions(pose_hz=120.0, pose_phase=0.0037, jitter=4e-4, drop=0.02))
+    ts, tp = lab.t - cfg.t0, lab.pose_t - cfg.t0
+    assert np.all(np.diff(ts) > 0) and np.all(np.diff(tp) > 0)
+    assert 0.95 * 1000 < ts.size < 1000 and 0.95 * 1200 < tp.size < 1200
+    assert np.median(np.diff(tp)) == pytest.approx(1 / 120, rel=0.02)
+    dev = ts - np.rint(ts / cfg.dt) * cfg.dt
+    assert 2e-4 < dev.std() < 6e-4 and np.abs(dev).max() <= 0.4 * cfg.dt + 1e-9
+    assert tp[0] == pytest.approx(0.0037, abs=0.4 / 120 + 1e-9)
+    assert np.any(np.diff(ts) > 1.5 * cfg.dt)  # some shape messages are missing
+
+
+def test_pose_delay_not_a_multiple_of_the_period(purcell3) -> None:  # type: ignore[no-untyped-def]
+    # a smooth drive (no OU), so that interpolating either stream between its samples is accurate
+    cfg = SimConfig(cycles=3, seed=6, noise_std=0.0, ou_std=0.0)
+    base = simulate_lab(purcell3, cfg, LabConditions(jitter=0.0, drop=0.0))
+    late = simulate_lab(purcell3, SimConfig(cycles=3, seed=6, noise_std=0.0, ou_std=0.0, pose_delay=0.017),
+                        LabConditions(jitter=0.0, drop=0.0))
+    # the pose stamped s is the true pose at s − 17 ms
+    s = late.pose_t[10:-10]
+    np.testing.assert_allclose(late.pose_at(s), base.pose_at(s - 0.017), atol=2e-4)
+    assert np.abs(late.pose_at(s) - base.pose_at(s)).max() > 100 * 2e-4
+
+
+def test_bad_conditions_are_refused() -> None:
+    with pytest.raises(SudsConfigError, match="`drop`"):
+        LabConditions(drop=0.7)
+    with pytest.raises(SudsConfigError, match="`pose_hz`"):
+        LabConditions(pose_hz=0.0)
