@@ -209,3 +209,13 @@ class Recording:
             effort=None if self.effort is None else self.effort[start:stop],
             truth=truth,
         )
+
+
+def joint_names(n_joints: int) -> tuple[str, ...]:
+    """The default joint names ``joint_1 … joint_n`` (head to tail) of an ``n_joints`` chain."""
+    return tuple(f"joint_{j + 1}" for j in range(n_joints))
+
+
+def samples_per_cycle(dt: float, gait_hz: float) -> int:
+    """Samples per gait cycle, ``round(1 / (gait_hz · dt))``, for sample interval ``dt`` (s)."""
+    return int(round(1.0 / (gait_hz * dt)))
