@@ -28,6 +28,8 @@ from rclpy.qos import (
 )
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
+from suds_ros.io.recording_bag import MODEL_TOPIC
+
 STATE_QOS: QoSProfile = qos_profile_sensor_data
 ESTIMATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 MODEL_QOS = QoSProfile(
@@ -57,7 +59,7 @@ def overriding_options() -> QoSOverridingOptions:
 
 def replay_qos(topic: str) -> QoSProfile:
     """Publisher QoS for replaying ``topic``: the model keeps transient-local durability."""
-    if topic == "/suds/model":
+    if topic == MODEL_TOPIC:
         return MODEL_QOS
     return REPLAY_QOS
 
