@@ -29,6 +29,7 @@ from suds_ros.core.ident.intervals import make_intervals
 from suds_ros.core.ident.sysid import gamma
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+from suds_ros.core.recording import Recording
 from suds_ros.io.mcap import decode_message, iter_raw_messages
 from suds_ros.io.recording_bag import PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, read_recording
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float
@@ -136,11 +137,13 @@ def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> n
 
 
 def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
-                           template_order: int = 8) -> LiveScore:
+                           template_order: int = 8, *, recording: Recording | None = None
+                           ) -> LiveScore:
     """Γ of the live predictions recorded in ``bag`` on the cycles after ``train_cycles``.
 
     ``train_cycles`` defaults to half of the recorded cycles (cycle length from the bag's
-    ``gait_hz`` metadata, else 1 Hz).
+    ``gait_hz`` metadata, else 1 Hz).  ``recording`` is the bag's recording when the caller
+    has already read it (e.g. with metadata overrides); by default it is read from ``bag``.
 
     Raises
     ------
@@ -149,7 +152,7 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     SudsBagError
         The bag cannot be read (see :func:`~suds_ros.io.recording_bag.read_recording`).
     """
-    rec = read_recording(bag)
+    rec = read_recording(bag) if recording is None else recording
     hz = rec.gait_hz or 1.0
     cycles = (rec.t[-1] - rec.t[0] + float(np.median(np.diff(rec.t)))) * hz  # n samples span n periods
     if train_cycles is None:

@@ -179,7 +179,8 @@ def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0],
+                                allow_abbrev=False)
     p.add_argument("--system", default="purcell3", help="system id (default purcell3)")
     p.add_argument("--cycles", type=int, help="gait cycles the simulator runs before the pipeline stops")
     p.add_argument("--rate", type=float, help="simulator sample rate, Hz")
