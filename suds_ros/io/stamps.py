@@ -108,7 +108,8 @@ def quaternion_yaw(q):  # type: ignore[no-untyped-def]
     norm2 = np.sum(a * a, axis=-1)
     if a.ndim == 1:
         if not norm2 > 0 or not np.isfinite(norm2):
-            raise SudsDataError(f"`orientation`: expected a non-zero finite quaternion, got {tuple(a)}",
+            got = tuple(float(v) for v in a)
+            raise SudsDataError(f"`orientation`: expected a non-zero finite quaternion, got {got}",
                                 code=BAD_QUATERNION)
         return float(yaw)
     return np.where(norm2 > 0, yaw, np.nan)
