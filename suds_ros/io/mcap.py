@@ -19,7 +19,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO, Callable
 
-from suds_ros.core.errors import SudsBagError
+from suds_ros.core.errors import DAMAGED_BAG, EXISTS, SudsBagError
 from suds_ros.io import msgdefs
 from suds_ros.io.stamps import ns_to_float
 
@@ -227,17 +227,19 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
     result = ScanResult(path=p)
     n = len(buf)
     if n == 0:
-        raise SudsBagError(f"{p}: file is empty (0 bytes), not an MCAP recording")
+        raise SudsBagError(f"{p}: file is empty (0 bytes), not an MCAP recording",
+                           code=DAMAGED_BAG)
     if buf[:8] != MAGIC:
         if n < 8 and MAGIC.startswith(buf):
-            raise SudsBagError(f"{p}: truncated MCAP file: only {n} bytes of the 8-byte magic")
+            raise SudsBagError(f"{p}: truncated MCAP file: only {n} bytes of the 8-byte magic",
+                               code=DAMAGED_BAG)
         raise SudsBagError(
-            f"{p}: not an MCAP file (starts with {buf[:8]!r}, expected the magic {MAGIC!r})"
-        )
+            f"{p}: not an MCAP file (starts with {buf[:8]!r}, expected the magic {MAGIC!r})",
+            code=DAMAGED_BAG)
     view = memoryview(buf)
     if n < 17 or buf[8] != OP_HEADER or 17 + _U64.unpack_from(buf, 9)[0] > n:
         msg = f"{p}: truncated MCAP file: the header record is incomplete ({n} bytes)"
-        raise SudsBagError(msg)
+        raise SudsBagError(msg, code=DAMAGED_BAG)
     scanner = _Scanner(result, topics, keep_messages, chunks)
     pos, in_summary, footer = 8, False, False
     while pos + 9 <= n:
@@ -252,7 +254,7 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
             scanner.record(op, view[start:start + length], in_summary)
         except (ValueError, struct.error, UnicodeDecodeError, MemoryError) as exc:
             msg = f"{p}: corrupt record (opcode 0x{op:02x}) at byte {pos}: {exc}"
-            raise SudsBagError(msg) from None
+            raise SudsBagError(msg, code=DAMAGED_BAG) from None
         pos = start + length
         if op == OP_DATA_END:
             in_summary = True
@@ -296,7 +298,7 @@ class BagWriter:
         self.path = Path(path)
         if self.path.exists() and not overwrite:
             msg = f"{self.path}: file exists; refusing to overwrite it (pass overwrite=True)"
-            raise SudsBagError(msg)
+            raise SudsBagError(msg, code=EXISTS)
         if self.path.is_dir():
             raise SudsBagError(f"{self.path}: is a directory, expected a .mcap file path")
         try:
@@ -453,7 +455,7 @@ class BagInfo:
         return ns_to_float(self.end_ns - self.start_ns)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (``suds info --json``); topics as ``{'type', 'count', 'message_encoding'}``."""
+        """JSON-ready dictionary; topics as ``{'type', 'count', 'message_encoding'}``."""
         topics = {t: {"type": i.type_name, "count": i.count, "message_encoding": i.message_encoding}
                   for t, i in self.topics.items()}
         return {"path": self.path, "profile": self.profile, "library": self.library,

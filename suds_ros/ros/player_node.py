@@ -20,7 +20,7 @@ from rclpy.node import Node
 
 from suds_ros.core.errors import MISSING_TOPIC, SudsBagError, SudsConfigError
 from suds_ros.io.mcap import bag_info, iter_raw_messages
-from suds_ros.io.stamps import float_to_ns
+from suds_ros.io.stamps import float_to_ns, ns_to_float
 from suds_ros.ros.conversions import message_class, ns_to_time
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import replay_qos
@@ -108,7 +108,7 @@ class PlayerNode(Node):
             for m in iter_raw_messages(cfg.bag, topics=list(self._pubs)):
                 if m.log_time_ns < self._start_ns:
                     continue
-                if not self._sleep_until(t0 + (m.log_time_ns - self._start_ns) * 1e-9 / cfg.rate):
+                if not self._sleep_until(t0 + ns_to_float(m.log_time_ns - self._start_ns) / cfg.rate):
                     return sent
                 if self._clock is not None:
                     self._clock.publish(self._clock_cls(clock=ns_to_time(m.log_time_ns)))

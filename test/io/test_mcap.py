@@ -9,9 +9,16 @@ import pytest
 from _bags import JS, META, PS, STAMPS, js, make_rec, raw_bag, shared
 from mcap.writer import CompressionType
 
-from suds_ros.core.errors import SudsBagError
+from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
 from suds_ros.io import cdr, msgdefs
-from suds_ros.io.mcap import BagInfo, BagWriter, bag_info, decode_message, iter_raw_messages, read_metadata
+from suds_ros.io.mcap import (
+    BagInfo,
+    BagWriter,
+    bag_info,
+    decode_message,
+    iter_raw_messages,
+    read_metadata,
+)
 from suds_ros.io.recording_bag import read_recording
 from suds_ros.io.stamps import float_to_ns
 
@@ -123,7 +130,7 @@ def test_foreign_files(tmp_path: Path, content: bytes, match: str) -> None:
     path.write_bytes(content)
     with pytest.raises(SudsBagError, match=match) as info:
         read_recording(path)
-    assert str(path) in str(info.value)
+    assert str(path) in str(info.value) and info.value.code == DAMAGED_BAG
 
 
 def test_missing_file(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ from _bags import BAGS, JS, META, PS, STAMPS, assert_rec_equal, js, make_rec, ra
 
 from suds_ros.core.errors import (
     DUPLICATE_STAMP,
+    EXISTS,
     MISSING_JOINT_ROLES,
     MISSING_SYSTEM,
     MISSING_TOPIC,
@@ -145,8 +146,9 @@ def test_missing_topic(tmp_path: Path) -> None:
 def test_refuses_to_overwrite(tmp_path: Path) -> None:
     path = tmp_path / "rec.mcap"
     path.write_bytes(b"precious")
-    with pytest.raises(SudsBagError, match=r"rec\.mcap: file exists; refusing to overwrite"):
+    with pytest.raises(SudsBagError, match=r"rec\.mcap: file exists; refusing to overwrite") as err:
         write_recording(path, make_rec())
+    assert err.value.code == EXISTS
     assert path.read_bytes() == b"precious"
     write_recording(path, make_rec(), overwrite=True)
     assert read_recording(path).n_samples == 50
