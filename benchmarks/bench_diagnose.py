@@ -46,7 +46,7 @@ def _timed(rec, system: str):  # type: ignore[no-untyped-def]
 
 
 def wall_times(paths: list[str]) -> int:
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     cases: list[tuple[str, Any]] = []
     if paths:
@@ -116,7 +116,7 @@ def _fmt_report(rep) -> str:  # type: ignore[no-untyped-def]
 
 
 def table(out: Path) -> int:
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     rows = []
     bags = [

@@ -19,7 +19,7 @@ def _modules(package: str) -> list[str]:
 
 def test_core_and_io_do_not_import_rclpy():
     mods = _modules("suds_ros.core") + _modules("suds_ros.io")
-    assert "suds_ros.core.recording" in mods and "suds_ros.io.bags" in mods
+    assert "suds_ros.core.recording" in mods and "suds_ros.io.recording_bag" in mods
     code = (
         "import importlib, sys\n"
         f"for m in {mods!r}:\n"

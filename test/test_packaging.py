@@ -19,16 +19,9 @@ from pathlib import Path
 
 import pytest
 
+from suds_ros.executables import EXECUTABLES
+
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = {
-    "simulator": "suds_ros.ros.simulator_node",
-    "estimator": "suds_ros.ros.estimator_node",
-    "predictor": "suds_ros.ros.predictor_node",
-    "recorder": "suds_ros.ros.recorder_node",
-    "player": "suds_ros.ros.player_node",
-    "pipeline": "suds_ros.ros.pipeline",
-    "suds": "suds_ros.cli.main",
-}
 IGNORE = shutil.ignore_patterns(".venv", ".git", "build", "*.egg-info", "__pycache__",
                                 ".pytest_cache", "bags", "log", "install", "*.mcap")
 

@@ -1,17 +1,17 @@
 """``suds diagnose``: where does the simulator disagree with a recording, and which physics explains it.
 
 ``add_parser(subparsers)`` registers the subcommand; ``run(args)`` executes it and returns the
-exit code (2 with one ``ERROR: …`` line on a deliberate suds error, never a traceback).
+exit code (errors are reported by :func:`suds_ros.cli.main.main`).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
-from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording
+from suds_ros.core.errors import SudsConfigError
 
 EPILOG = """\
 The nominal simulator is driven with the recorded actuated angles from the recorded
@@ -33,54 +33,25 @@ examples:
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``diagnose`` on the ``suds`` sub-command parser."""
+    """Register ``diagnose`` on the ``suds`` subcommand parser."""
     p = subparsers.add_parser(
         "diagnose",
         help="locate, name and fit the physics where a simulator disagrees with a recording",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("bag", metavar="REAL.mcap", help="the recording to diagnose")
-    p.add_argument("--system", help="system id of the nominal simulator (default: the bag's metadata)")
-    p.add_argument("--sim", metavar="SIM.mcap", help="reference recording driven by the same actuated trajectory")
+    add_bag_argument(p, metavar="REAL.mcap", help="the recording to diagnose")
+    p.add_argument("--sim", metavar="SIM.mcap",
+                   help="reference recording driven by the same actuated trajectory")
     p.add_argument("--json", action="store_true", help="print the machine-readable report only")
-    p.add_argument("-o", "--output", metavar="REPORT_DIR", help="write figures, report.json and summary.txt here")
-    p.add_argument("--actuated", help="comma-separated actuated joint names (overrides metadata)")
-    p.add_argument("--passive", help="comma-separated passive joint names (overrides metadata)")
-    p.add_argument("--gait-hz", type=float, help="gait frequency, Hz (overrides metadata)")
+    p.add_argument("-o", "--output", metavar="REPORT_DIR",
+                   help="write figures, report.json and summary.txt here")
+    add_recording_options(p)
     p.set_defaults(func=run)
-
-
-def _split(text: str | None) -> list[str] | None:
-    return [x.strip() for x in text.split(",") if x.strip()] if text else None
-
-
-def _load(path_text: str, args: argparse.Namespace):  # type: ignore[no-untyped-def]
-    from suds_ros.io.bags import read_recording
-
-    path = Path(path_text)
-    if not path.exists():
-        raise SudsConfigError(f"no such file: {str(path)!r}")
-    rec = read_recording(
-        path, system=getattr(args, "system", None),
-        actuated=_split(getattr(args, "actuated", None)), passive=_split(getattr(args, "passive", None)),
-    )
-    gait_hz = getattr(args, "gait_hz", None)
-    if gait_hz:
-        rec = replace(rec, gait_hz=gait_hz)
-    return rec
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds diagnose``; returns the exit code."""
-    try:
-        return _run(args)
-    except SudsError as exc:
-        print(f"ERROR: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from suds_ros.core.diagnosis import diagnose_recording
     from suds_ros.report.diagnosis import summary_text, write_figures
 
@@ -88,8 +59,8 @@ def _run(args: argparse.Namespace) -> int:
         out = Path(args.output)
         if out.exists() and not out.is_dir():
             raise SudsConfigError(f"-o {str(out)!r}: exists and is not a directory")
-    rec = _load(args.bag, args)
-    ref = _load(args.sim, args) if args.sim else None
+    rec = load_recording(args.bag, args)
+    ref = load_recording(args.sim, args) if args.sim else None
     quiet = args.json or not sys.stderr.isatty()
     progress = None if quiet else (lambda s: print(f"  … {s}", file=sys.stderr, flush=True))
     rep = diagnose_recording(rec, system=args.system, reference=ref, progress=progress)

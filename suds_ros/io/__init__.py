@@ -1,1 +1,6 @@
-"""Recording I/O (MCAP, ROS 2 profile) without rclpy."""
+"""Recording I/O without rclpy.
+
+``mcap`` (generic MCAP: writer, tolerant reader, :class:`~suds_ros.io.mcap.BagInfo`),
+``recording_bag`` (the recording contract: topics, metadata keys, reader and writer),
+``stamps`` (float ↔ ns, ROS stamps, quaternion yaw), ``cdr`` (CDR codec), ``msgdefs`` (schemas).
+"""

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from suds_ros.core.errors import SudsBagError
+from suds_ros.io.stamps import split_ns
 
 #: Encapsulation header of little-endian plain CDR.
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
-NS_PER_S = 1_000_000_000
 
 
 class _Out:
@@ -69,18 +69,6 @@ def _get(msg: Any, name: str, default: Any = None) -> Any:
     if isinstance(msg, Mapping):
         return msg.get(name, default)
     return getattr(msg, name, default)
-
-
-def stamp_from_ns(ns: int) -> tuple[int, int]:
-    """Split a time in integer nanoseconds into ROS ``(sec, nanosec)``."""
-    sec, nanosec = divmod(int(ns), NS_PER_S)
-    return sec, nanosec
-
-
-def ns_from_seconds(t: float) -> int:
-    """Float seconds to integer nanoseconds, rounding the fractional part to 1 ns."""
-    sec = int(np.floor(t))
-    return sec * NS_PER_S + int(round((float(t) - sec) * 1e9))
 
 
 def _time(out: _Out, t: Any) -> None:
@@ -205,7 +193,7 @@ def joint_state(
         rad (m), rad/s (m/s), N·m (N).
     frame_id : str
     """
-    sec, nanosec = stamp_from_ns(stamp_ns)
+    sec, nanosec = split_ns(stamp_ns)
     header = {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id}
     msg = {"header": header, "name": list(names), "position": position,
            "velocity": velocity, "effort": effort}
@@ -230,7 +218,7 @@ def pose_stamped(
         Quaternion x, y, z, w.
     frame_id : str
     """
-    sec, nanosec = stamp_from_ns(stamp_ns)
+    sec, nanosec = split_ns(stamp_ns)
     out = _Out()
     _header(out, {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id})
     out.pack("7d", 8, *(float(v) for v in (*position, *orientation)))

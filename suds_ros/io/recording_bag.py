@@ -1,10 +1,38 @@
-"""The recording contract (`shared/spec/recording.md`): topic names, message types, metadata keys.
+"""The recording contract (`shared/spec/recording.md`): topics, message types, metadata, reader, writer.
 
 Every module that reads, writes, publishes or subscribes a contract topic takes
-its name from here.  (The reader and writer of recordings will live here too.)
+its name from here.  :func:`read_recording` turns a contract bag into a
+:class:`~suds_ros.core.recording.Recording` and :func:`write_recording` the
+reverse, without rclpy (generic MCAP in :mod:`suds_ros.io.mcap`, CDR in
+:mod:`suds_ros.io.cdr`).
 """
 
 from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from suds_ros.core.errors import (
+    DUPLICATE_STAMP,
+    MISSING_JOINT_ROLES,
+    MISSING_SYSTEM,
+    MISSING_TOPIC,
+    NAN_OR_INF,
+    OUT_OF_ORDER_STAMP,
+    WRONG_JOINT_COUNT,
+    WRONG_JOINT_NAMES,
+    SudsBagError,
+    SudsDataError,
+)
+from suds_ros.core.recording import Recording
+from suds_ros.io import cdr
+from suds_ros.io.mcap import BagWriter, ScanResult, decode_message, scan
+from suds_ros.io.stamps import float_to_ns, format_ns, join_ns, ns_to_float, quaternion_yaw, yaw_quaternion
 
 # topics of a recording, as stored in bags
 SHAPE_TOPIC = "/suds/shape"
@@ -15,6 +43,8 @@ MODEL_TOPIC = "/suds/model"
 STATUS_TOPIC = "/suds/status"
 PREDICTED_BODY_TOPIC = "/suds/predicted/body_velocity"
 PREDICTED_PASSIVE_TOPIC = "/suds/predicted/passive_velocity"
+#: shell-style pattern matching every predicted topic
+PREDICTED_PATTERN = "/suds/predicted/*"
 
 SHAPE_TYPE = "sensor_msgs/msg/JointState"
 POSE_TYPE = "geometry_msgs/msg/PoseStamped"
@@ -28,3 +58,241 @@ META_SYSTEM = "system"
 META_ACTUATED = "actuated"
 META_PASSIVE = "passive"
 META_GAIT_HZ = "gait_hz"
+#: frame of the recorded body pose
+WORLD_FRAME = "world"
+
+
+def _select(res: ScanResult, topic: str, type_name: str) -> list[tuple[int, bytes, bytes]]:
+    """``(sample index, data, schema)`` list of ``topic``'s messages of ``type_name``."""
+    present = sorted({ch.topic for ch in res.channels.values()})
+    chans = {cid: ch for cid, ch in res.channels.items() if ch.topic == topic}
+    if not chans:
+        raise SudsBagError(f"{res.path}: topic {topic!r} is not in the bag; topics present: "
+                           f"{', '.join(present) or 'none'}", code=MISSING_TOPIC)
+    good = {cid: ch for cid, ch in chans.items() if ch.schema_name == type_name}
+    if not good:
+        types = sorted({ch.schema_name for ch in chans.values()})
+        raise SudsBagError(f"{res.path}: topic {topic!r} has type {', '.join(types)}, "
+                           f"expected {type_name}")
+    for ch in good.values():
+        if ch.message_encoding != "cdr":
+            raise SudsBagError(f"{res.path}: topic {topic!r} has message encoding "
+                               f"{ch.message_encoding!r}, expected 'cdr'")
+    out = [(k, data, good[cid].schema_data) for k, (cid, _, _, data)
+           in enumerate(m for m in res.messages if m[0] in good)]
+    if not out:
+        raise SudsBagError(f"{res.path}: topic {topic!r} has no messages", code=MISSING_TOPIC)
+    return out
+
+
+def _decode(type_name: str, schema: bytes, data: bytes, where: str) -> Any:
+    """Decode with the bag's schema text (the slow path); errors name ``where``."""
+    try:
+        return decode_message(type_name, data, schema)
+    except SudsBagError as exc:
+        raise SudsBagError(f"{where}: {exc}", code=exc.code) from None
+
+
+def _read_shape(res: ScanResult, topic: str) -> tuple[
+        np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
+    """Stamps (n,) int ns, joint names, positions (n, nj) and efforts (n, nj) or None."""
+    sec, nsec, pos, eff = [], [], [], []
+    first: tuple[str, ...] | None = None
+    for k, data, schema in _select(res, topic, SHAPE_TYPE):
+        try:
+            s, ns, names, p, v, e = cdr.parse_joint_state(data)
+        except (ValueError, struct.error, UnicodeDecodeError):
+            m = _decode(SHAPE_TYPE, schema, data, f"{res.path}: {topic}: sample {k}")
+            s, ns = m.header.stamp.sec, m.header.stamp.nanosec
+            names, p, v, e = (tuple(m.name), tuple(m.position), tuple(m.velocity),
+                              tuple(m.effort))
+        stamp = format_ns(join_ns(s, ns))
+        if first is None:
+            first = names
+        elif names != first:
+            raise SudsDataError(f"{res.path}: {topic}: sample {k} (stamp {stamp}) has "
+                                f"joints {list(names)}, but sample 0 has {list(first)}",
+                                code=WRONG_JOINT_NAMES)
+        nj = len(first)
+        for field, vals in (("position", p), ("velocity", v), ("effort", e)):
+            if len(vals) != nj and (field == "position" or len(vals) != 0):
+                raise SudsDataError(
+                    f"{res.path}: {topic}: sample {k} (stamp {stamp}): {field} has "
+                    f"{len(vals)} values for {nj} joints {list(first)}",
+                    code=WRONG_JOINT_COUNT)
+        sec.append(s)
+        nsec.append(ns)
+        pos.append(p)
+        eff.append(e)
+    assert first is not None
+    r = np.asarray(pos, dtype=float).reshape(len(pos), len(first))
+    effort = None
+    if first and all(len(e) == len(first) for e in eff):
+        effort = np.asarray(eff, dtype=float)
+    return join_ns(sec, nsec), first, r, effort
+
+
+def _read_pose(res: ScanResult, topic: str) -> tuple[np.ndarray, np.ndarray]:
+    """Pose stamps (m,) int ns and pose (m, 3): x (m), y (m), yaw (rad)."""
+    sec, nsec, vals = [], [], []
+    for k, data, schema in _select(res, topic, POSE_TYPE):
+        try:
+            s, ns, _, v = cdr.parse_pose_stamped(data)
+        except (ValueError, struct.error, UnicodeDecodeError):
+            m = _decode(POSE_TYPE, schema, data, f"{res.path}: {topic}: sample {k}")
+            s, ns = m.header.stamp.sec, m.header.stamp.nanosec
+            p, o = m.pose.position, m.pose.orientation
+            v = (p.x, p.y, p.z, o.x, o.y, o.z, o.w)
+        sec.append(s)
+        nsec.append(ns)
+        vals.append(v)
+    arr = np.asarray(vals, dtype=float).reshape(len(vals), 7)
+    pose = np.column_stack([arr[:, 0], arr[:, 1], quaternion_yaw(arr[:, 3:7])])
+    return join_ns(sec, nsec), pose
+
+
+def _check_series(path: Path, topic: str, t_ns: np.ndarray, values: np.ndarray) -> None:
+    """Raise :class:`SudsDataError` naming ``topic`` for NaN, duplicate or unsorted data.
+
+    ``t_ns`` (n,) int ns stamps, ``values`` (n, ...) float.
+    """
+    rows = ~np.all(np.isfinite(values.reshape(len(t_ns), -1)), axis=1)
+    if np.any(rows):
+        k = int(np.flatnonzero(rows)[0])
+        raise SudsDataError(f"{path}: {topic}: sample {k} (stamp {format_ns(t_ns[k])}) contains "
+                            "NaN or Inf (a zero quaternion counts as NaN yaw)", code=NAN_OR_INF)
+    d = np.diff(t_ns)
+    if np.any(d == 0):
+        k = int(np.flatnonzero(d == 0)[0])
+        raise SudsDataError(f"{path}: {topic}: duplicate stamp {format_ns(t_ns[k])} at samples "
+                            f"{k} and {k + 1}", code=DUPLICATE_STAMP)
+    if np.any(d < 0):
+        k = int(np.flatnonzero(d < 0)[0])
+        raise SudsDataError(f"{path}: {topic}: stamps are not sorted: sample {k + 1} "
+                            f"({format_ns(t_ns[k + 1])}) comes before sample {k} "
+                            f"({format_ns(t_ns[k])})", code=OUT_OF_ORDER_STAMP)
+
+
+def _split(value: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in value.split(",") if x.strip())
+
+
+def _roles(path: Path, meta: dict[str, str] | None, names: tuple[str, ...],
+           actuated: Sequence[str] | None, passive: Sequence[str] | None
+           ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Actuated and passive joints: keyword arguments first, else the metadata."""
+    if actuated is None and passive is None and meta is not None:
+        if META_ACTUATED in meta:
+            actuated = _split(meta[META_ACTUATED])
+        if META_PASSIVE in meta:
+            passive = _split(meta[META_PASSIVE])
+    if actuated is None and passive is None:
+        why = ("the bag has no 'suds' metadata record" if meta is None else
+               "the 'suds' metadata record has neither 'actuated' nor 'passive'")
+        raise SudsBagError(f"{path}: no 'actuated' joints: {why} "
+                           f"(joints in the bag: {', '.join(names)})", code=MISSING_JOINT_ROLES)
+    if actuated is None:
+        actuated = tuple(j for j in names if j not in set(passive or ()))
+    if passive is None:
+        passive = tuple(j for j in names if j not in set(actuated))
+    return tuple(actuated), tuple(passive)
+
+
+def read_recording(path: str | Path, *, system: str | None = None,
+                   actuated: Sequence[str] | None = None, passive: Sequence[str] | None = None,
+                   shape_topic: str = SHAPE_TOPIC, pose_topic: str = POSE_TOPIC
+                   ) -> Recording:
+    """Read a bag that follows the recording contract into a :class:`Recording`.
+
+    Parameters
+    ----------
+    path : str or Path
+        MCAP file (or rosbag2 directory with one ``.mcap``).
+    system : str, optional
+        System id; overrides the ``suds`` metadata.
+    actuated, passive : sequence of str, optional
+        Joint roles; if either is given, both come from the arguments (the missing one
+        is the complement), otherwise from the ``suds`` metadata.
+    shape_topic, pose_topic : str
+        Topics of the JointState and PoseStamped streams.
+
+    Returns
+    -------
+    Recording
+        ``t`` (n,) and ``pose_t`` (m,) are the absolute ``header.stamp`` values in s;
+        ``r`` (n, nj) the positions; ``pose`` (m, 3) x, y (m) and yaw (rad);
+        ``effort`` (n, nj) only if every JointState carries one.
+
+    Raises
+    ------
+    SudsBagError
+        Unreadable/foreign file, missing topic, missing system or joint roles.
+    SudsDataError
+        Joint names changing mid-stream, NaN values, duplicate or unsorted stamps.
+    """
+    res = scan(path, frozenset({shape_topic, pose_topic}))
+    t_ns, names, r, effort = _read_shape(res, shape_topic)
+    pose_ns, pose = _read_pose(res, pose_topic)
+    _check_series(res.path, shape_topic, t_ns, r)
+    _check_series(res.path, pose_topic, pose_ns, pose)
+    t, pose_t = ns_to_float(t_ns), ns_to_float(pose_ns)
+    meta = res.metadata.get(METADATA_NAME)
+    if system is None:
+        system = (meta or {}).get(META_SYSTEM)
+    if not system:
+        why = ("the bag has no 'suds' metadata record" if meta is None
+               else "the 'suds' metadata record has no 'system' key")
+        raise SudsBagError(f"{res.path}: no 'system': {why}", code=MISSING_SYSTEM)
+    act, pas = _roles(res.path, meta, names, actuated, passive)
+    gait_hz = None
+    if meta is not None and meta.get(META_GAIT_HZ, "").strip():
+        try:
+            gait_hz = float(meta[META_GAIT_HZ])
+        except ValueError:
+            raise SudsBagError(f"{res.path}: 'suds' metadata gait_hz: expected a number, got "
+                               f"{meta[META_GAIT_HZ]!r}") from None
+        if not math.isfinite(gait_hz) or gait_hz <= 0:
+            raise SudsBagError(f"{res.path}: 'suds' metadata gait_hz: expected a positive "
+                               f"frequency, got {meta[META_GAIT_HZ]!r}")
+    try:
+        return Recording(t=t, r=r, joint_names=names, actuated=act, passive=pas,
+                         pose_t=pose_t, pose=pose, system=system, gait_hz=gait_hz,
+                         effort=effort)
+    except SudsDataError as exc:
+        raise SudsDataError(f"{res.path}: {exc}", code=exc.code) from None
+
+
+def write_recording(path: str | Path, rec: Recording, *, overwrite: bool = False,
+                    compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
+                    pose_topic: str = POSE_TOPIC) -> None:
+    """Write ``rec`` as a contract bag (``Recording.truth`` is never written).
+
+    Shape samples become JointState messages (names, positions, empty velocity,
+    effort if ``rec.effort``), pose samples PoseStamped messages in frame
+    ``world`` with a yaw-only quaternion; header stamps are the sample stamps and
+    the log times equal them.  The ``suds`` metadata record holds system,
+    actuated, passive (comma-joined) and gait_hz (if known).
+    """
+    stamps = [int(ns) for ns in float_to_ns(rec.t)]
+    pose_stamps = [int(ns) for ns in float_to_ns(rec.pose_t)]
+    meta = {META_SYSTEM: rec.system, META_ACTUATED: ",".join(rec.actuated),
+            META_PASSIVE: ",".join(rec.passive)}
+    if rec.gait_hz is not None:
+        meta[META_GAIT_HZ] = repr(float(rec.gait_hz))
+    events: list[tuple[int, int, int]] = [(ns, 0, k) for k, ns in enumerate(stamps)]
+    events += [(ns, 1, k) for k, ns in enumerate(pose_stamps)]
+    events.sort()
+    quat = yaw_quaternion(rec.pose[:, 2])
+    with BagWriter(path, overwrite=overwrite, compression=compression) as w:
+        w.add_topic(shape_topic, SHAPE_TYPE)
+        w.add_topic(pose_topic, POSE_TYPE)
+        w.write_metadata(METADATA_NAME, meta)
+        for ns, kind, k in events:
+            if kind == 0:
+                eff = () if rec.effort is None else rec.effort[k]
+                data = cdr.joint_state(ns, rec.joint_names, rec.r[k], (), eff)
+                w.write_raw(shape_topic, data, ns, ns)
+            else:
+                x, y = rec.pose[k, 0], rec.pose[k, 1]
+                data = cdr.pose_stamped(ns, (x, y, 0.0), quat[k], WORLD_FRAME)
+                w.write_raw(pose_topic, data, ns, ns)

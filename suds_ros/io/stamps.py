@@ -108,12 +108,26 @@ def quaternion_yaw(q):  # type: ignore[no-untyped-def]
     norm2 = np.sum(a * a, axis=-1)
     if a.ndim == 1:
         if not norm2 > 0 or not np.isfinite(norm2):
-            raise SudsDataError(f"`orientation`: expected a non-zero finite quaternion, got {tuple(a)}",
+            got = tuple(float(v) for v in a)
+            raise SudsDataError(f"`orientation`: expected a non-zero finite quaternion, got {got}",
                                 code=BAD_QUATERNION)
         return float(yaw)
     return np.where(norm2 > 0, yaw, np.nan)
 
 
-def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
-    """The unit quaternion (x, y, z, w) of a rotation by ``yaw`` rad about z."""
-    return 0.0, 0.0, float(np.sin(yaw / 2.0)), float(np.cos(yaw / 2.0))
+@overload
+def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]: ...
+@overload
+def yaw_quaternion(yaw: FloatArray) -> FloatArray: ...
+
+
+def yaw_quaternion(yaw):  # type: ignore[no-untyped-def]
+    """The unit quaternion (x, y, z, w) of a rotation by ``yaw`` rad about z.
+
+    A scalar gives a 4-tuple of floats, an array of n yaws an (n, 4) array.
+    """
+    if np.ndim(yaw) == 0:
+        return 0.0, 0.0, float(np.sin(yaw / 2.0)), float(np.cos(yaw / 2.0))
+    half = np.asarray(yaw, dtype=float) / 2.0
+    zero = np.zeros_like(half)
+    return np.stack([zero, zero, np.sin(half), np.cos(half)], axis=-1)

@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from suds_ros.core.errors import SudsDataError
+from suds_ros.core.errors import MISSING_TOPIC, WRONG_JOINT_NAMES, SudsDataError
 from suds_ros.core.ident.intervals import make_intervals
-from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.ident.sysid import gamma
+from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
-from suds_ros.io.bags import decode_message, iter_raw_messages, read_recording
-
-BODY_TOPIC = "/suds/predicted/body_velocity"
-PASSIVE_TOPIC = "/suds/predicted/passive_velocity"
+from suds_ros.core.recording import Recording
+from suds_ros.io.mcap import decode_message, iter_raw_messages
+from suds_ros.io.recording_bag import PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, read_recording
+from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ class LiveScore:
 
 def _stamp_ns(msg: object) -> int:
     st = msg.header.stamp  # type: ignore[attr-defined]
-    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
+    return join_ns(st.sec, st.nanosec)
 
 
 def read_predictions(bag: str | Path, passive: tuple[str, ...]
@@ -101,20 +101,22 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...]
         No predictions, or predicted passive joints other than ``passive``.
     """
     body_ns, body, pas_ns, pas = [], [], [], []
-    for m in iter_raw_messages(bag, topics=[BODY_TOPIC, PASSIVE_TOPIC]):
+    for m in iter_raw_messages(bag, topics=[PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC]):
         msg = decode_message(m.type_name, m.data)
-        if m.topic == BODY_TOPIC:
+        if m.topic == PREDICTED_BODY_TOPIC:
             body_ns.append(_stamp_ns(msg))
             body.append((msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z))
         else:
             if tuple(msg.name) != passive:
-                raise SudsDataError(f"{bag}: {PASSIVE_TOPIC} names joints {list(msg.name)}; "
-                                    f"the recording's passive joints are {list(passive)}")
+                raise SudsDataError(f"{bag}: {PREDICTED_PASSIVE_TOPIC} names joints "
+                                    f"{list(msg.name)}; the recording's passive joints are "
+                                    f"{list(passive)}", code=WRONG_JOINT_NAMES)
             pas_ns.append(_stamp_ns(msg))
             pas.append(tuple(msg.velocity))
     if not body_ns or not pas_ns:
-        missing = [t for t, v in ((BODY_TOPIC, body_ns), (PASSIVE_TOPIC, pas_ns)) if not v]
-        raise SudsDataError(f"{bag}: no live predictions recorded on {missing}")
+        missing = [t for t, v in ((PREDICTED_BODY_TOPIC, body_ns),
+                                  (PREDICTED_PASSIVE_TOPIC, pas_ns)) if not v]
+        raise SudsDataError(f"{bag}: no live predictions recorded on {missing}", code=MISSING_TOPIC)
     return (np.asarray(body_ns, dtype=np.int64), np.asarray(body, dtype=float).reshape(-1, 3),
             np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), -1))
 
@@ -135,20 +137,22 @@ def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> n
 
 
 def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
-                           template_order: int = 8) -> LiveScore:
+                           template_order: int = 8, *, recording: Recording | None = None
+                           ) -> LiveScore:
     """Γ of the live predictions recorded in ``bag`` on the cycles after ``train_cycles``.
 
     ``train_cycles`` defaults to half of the recorded cycles (cycle length from the bag's
-    ``gait_hz`` metadata, else 1 Hz).
+    ``gait_hz`` metadata, else 1 Hz).  ``recording`` is the bag's recording when the caller
+    has already read it (e.g. with metadata overrides); by default it is read from ``bag``.
 
     Raises
     ------
     SudsDataError
         No predictions, too few cycles on either side, or no prediction after ``train_cycles``.
     SudsBagError
-        The bag cannot be read (see :func:`~suds_ros.io.bags.read_recording`).
+        The bag cannot be read (see :func:`~suds_ros.io.recording_bag.read_recording`).
     """
-    rec = read_recording(bag)
+    rec = read_recording(bag) if recording is None else recording
     hz = rec.gait_hz or 1.0
     cycles = (rec.t[-1] - rec.t[0] + float(np.median(np.diff(rec.t)))) * hz  # n samples span n periods
     if train_cycles is None:
@@ -160,7 +164,7 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
 
     iv = make_intervals(rec)
     k = iv.k.astype(np.int64)
-    end_ns = np.round(rec.t[k + 1] * 1e9).astype(np.int64)  # a prediction is stamped t_{k+1}
+    end_ns = float_to_ns(rec.t[k + 1])  # a prediction is stamped t_{k+1}
     meas = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
     pred = np.concatenate([_lookup(end_ns, body_ns, body), _lookup(end_ns, pas_ns, pas)], axis=1)
 
@@ -179,7 +183,7 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
         raise SudsDataError(f"{bag}: no live prediction after cycle {train_cycles:g}")
     b, p = slice(0, 3), slice(3, None)
     P, M, T = pred[scored], meas[scored], tmpl[scored]
-    first = min(int(body_ns.min()), int(pas_ns.min())) * 1e-9 - rec.t[0]
+    first = ns_to_float(min(int(body_ns.min()), int(pas_ns.min()))) - rec.t[0]
     return LiveScore(
         gamma_body=gamma(P[:, b], T[:, b], M[:, b]),
         gamma_passive=gamma(P[:, p], T[:, p], M[:, p]),

@@ -6,13 +6,11 @@ Pure ``*_to_msg`` / ``*_from_msg`` pairs, in the style of
 alike; the ``*_to_msg`` functions build rclpy messages, or typestore messages
 when given ``typestore=`` (a :class:`rosbags.typesys.store.Typestore`).
 
-Stamps are float seconds (absolute, e.g. epoch).  The float ↔
-``builtin_interfaces/msg/Time`` conversion goes through integer nanoseconds:
-:func:`float_to_ns` rounds the exact binary value of the float to the nearest
-nanosecond, :func:`ns_to_float` is the correctly rounded quotient, so
-``ns_to_float(float_to_ns(s)) == s`` for every stamp with at least nanosecond
-spacing between neighbouring floats (|s| ≥ 2²³ s, i.e. any epoch stamp), and
-``float_to_ns(ns_to_float(n)) == n`` for |n| < 2²² s.
+Stamps are float seconds (absolute, e.g. epoch); the float ↔
+``builtin_interfaces/msg/Time`` conversion goes through integer nanoseconds
+with the package's one rounding rule (:mod:`suds_ros.io.stamps`), and the
+planar yaw of a quaternion is :func:`suds_ros.io.stamps.quaternion_yaw`, so
+nodes and the bag reader agree to the bit.
 
 Malformed messages (length mismatches, NaN/Inf, bad stamps, a zero quaternion)
 raise :class:`~suds_ros.core.errors.SudsDataError`.
@@ -25,16 +23,16 @@ import importlib
 import json
 import math
 from collections.abc import Mapping, Sequence
-from fractions import Fraction
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.errors import BAD_STAMP, SudsConfigError, SudsDataError
 from suds_ros.core.ident.online import SudsModel
+from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME
+from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float, quaternion_yaw, split_ns, yaw_quaternion
 
-_NS = 10**9
 _INT32 = (-(2**31), 2**31 - 1)
 LEVELS = {"OK": 0, "WARN": 1, "ERROR": 2, "STALE": 3}
 
@@ -138,33 +136,18 @@ def _finite(name: str, value: Any) -> float:
 
 
 # ------------------------------------------------------------------ stamps
-def float_to_ns(stamp: float) -> int:
-    """Float seconds → integer nanoseconds, rounding the exact float value (half to even)."""
-    s = float(stamp)
-    if not math.isfinite(s):
-        raise SudsDataError(f"`stamp`: expected finite seconds, got {s!r}")
-    return round(Fraction(s) * _NS)
-
-
-def ns_to_float(ns: int) -> float:
-    """Integer nanoseconds → float seconds, correctly rounded."""
-    return int(ns) / _NS
-
-
 def ns_to_time(ns: int, *, typestore: Any = None) -> Any:
     """Integer nanoseconds → ``builtin_interfaces/msg/Time`` (``sec`` floored, ``0 ≤ nanosec < 1e9``)."""
-    sec, nanosec = divmod(int(ns), _NS)
+    sec, nanosec = split_ns(ns)
     if not _INT32[0] <= sec <= _INT32[1]:
-        raise SudsDataError(f"`stamp`: {ns} ns is outside the int32 seconds range of a ROS Time")
+        raise SudsDataError(f"`stamp`: {ns} ns is outside the int32 seconds range of a ROS Time",
+                            code=BAD_STAMP)
     return _msg_class("builtin_interfaces/msg/Time", typestore)(sec=sec, nanosec=nanosec)
 
 
 def time_to_ns(msg: Any) -> int:
     """``builtin_interfaces/msg/Time`` → integer nanoseconds (exact)."""
-    sec, nanosec = int(msg.sec), int(msg.nanosec)
-    if not 0 <= nanosec < _NS:
-        raise SudsDataError(f"`stamp.nanosec`: expected 0 ≤ nanosec < 1e9, got {nanosec}")
-    return sec * _NS + nanosec
+    return int(join_ns(msg.sec, msg.nanosec))
 
 
 def float_to_time(stamp: float, *, typestore: Any = None) -> Any:
@@ -273,14 +256,14 @@ def joint_velocity_from_msg(msg: Any) -> tuple[float, tuple[str, ...], FloatArra
 
 # ------------------------------------------------------------------ PoseStamped
 def pose_to_msg(
-    stamp: float, x: float, y: float, yaw: float, *, frame_id: str = "world", typestore: Any = None
+    stamp: float, x: float, y: float, yaw: float, *, frame_id: str = WORLD_FRAME,
+    typestore: Any = None
 ) -> Any:
     """Planar ``geometry_msgs/msg/PoseStamped``: position (x, y, 0) m, yaw-only quaternion."""
     x, y, yaw = _finite("x", x), _finite("y", y), _finite("yaw", yaw)
     point = _msg_class("geometry_msgs/msg/Point", typestore)(x=x, y=y, z=0.0)
-    quat = _msg_class("geometry_msgs/msg/Quaternion", typestore)(
-        x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0)
-    )
+    qx, qy, qz, qw = yaw_quaternion(yaw)
+    quat = _msg_class("geometry_msgs/msg/Quaternion", typestore)(x=qx, y=qy, z=qz, w=qw)
     pose = _msg_class("geometry_msgs/msg/Pose", typestore)(position=point, orientation=quat)
     return _msg_class("geometry_msgs/msg/PoseStamped", typestore)(
         header=_header(stamp, frame_id, typestore), pose=pose
@@ -288,15 +271,11 @@ def pose_to_msg(
 
 
 def pose_from_msg(msg: Any) -> PlanarPose:
-    """Read a ``PoseStamped`` as a planar pose; yaw is the Z angle of the (normalised) quaternion."""
+    """Read a ``PoseStamped`` as a planar pose; yaw is the Z angle of the quaternion."""
     p, q = msg.pose.position, msg.pose.orientation
     x, y = _finite("pose.position.x", p.x), _finite("pose.position.y", p.y)
-    qx, qy, qz, qw = (_finite(f"pose.orientation.{k}", getattr(q, k)) for k in "xyzw")
-    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    if norm < 1e-9:
-        raise SudsDataError("`pose.orientation`: the quaternion is zero, not a rotation")
-    qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
-    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    quat = tuple(_finite(f"pose.orientation.{k}", getattr(q, k)) for k in "xyzw")
+    yaw = quaternion_yaw(quat)
     return PlanarPose(time_to_float(msg.header.stamp), x, y, yaw)
 
 
@@ -402,7 +381,7 @@ def model_from_msg(msg: Any) -> SudsModel:
     try:
         return SudsModel.from_dict(json.loads(msg.data))
     except (ValueError, KeyError, TypeError) as exc:
-        raise SudsConfigError(f"/suds/model: not a SudsModel JSON ({type(exc).__name__}: {exc})") from None
+        raise SudsConfigError(f"{MODEL_TOPIC}: not a SudsModel JSON ({type(exc).__name__}: {exc})") from None
 
 
 def system_info_to_msg(info: dict[str, Any]) -> Any:
@@ -419,9 +398,9 @@ def system_info_from_msg(msg: Any) -> dict[str, Any]:
         names = tuple(str(j) for j in info["joint_names"])
         actuated = tuple(str(j) for j in info["actuated"])
     except (ValueError, KeyError, TypeError) as exc:
-        raise SudsConfigError(f"/suds/system: expected JSON with joint_names and actuated: {exc}") from None
+        raise SudsConfigError(f"{SYSTEM_TOPIC}: expected JSON with joint_names and actuated: {exc}") from None
     if not actuated or not set(actuated) <= set(names):
-        raise SudsConfigError(f"/suds/system: actuated {list(actuated)} not among joints {list(names)}")
+        raise SudsConfigError(f"{SYSTEM_TOPIC}: actuated {list(actuated)} not among joints {list(names)}")
     gait = info.get("gait_hz")
     return {**info, "joint_names": names, "actuated": actuated,
             "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}

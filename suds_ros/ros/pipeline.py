@@ -30,13 +30,10 @@ from collections.abc import Mapping, Sequence
 from typing import IO
 
 from suds_ros.core.errors import SudsError
+from suds_ros.executables import EXECUTABLES
 
-NODES = {
-    "simulator": "suds_ros.ros.simulator_node",
-    "estimator": "suds_ros.ros.estimator_node",
-    "predictor": "suds_ros.ros.predictor_node",
-    "recorder": "suds_ros.ros.recorder_node",
-}
+#: the nodes the pipeline can start: name → module (``python -m <module>``)
+NODES = {name: EXECUTABLES[name] for name in ("simulator", "estimator", "predictor", "recorder")}
 #: exit codes that count as a clean stop after we asked a child to stop
 _STOPPED_OK = {0, -signal.SIGINT, -signal.SIGTERM, 130, 143}
 
@@ -182,7 +179,8 @@ def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0],
+                                allow_abbrev=False)
     p.add_argument("--system", default="purcell3", help="system id (default purcell3)")
     p.add_argument("--cycles", type=int, help="gait cycles the simulator runs before the pipeline stops")
     p.add_argument("--rate", type=float, help="simulator sample rate, Hz")

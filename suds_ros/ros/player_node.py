@@ -18,8 +18,9 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
 
-from suds_ros.core.errors import SudsBagError, SudsConfigError
-from suds_ros.io.bags import bag_info, iter_raw_messages
+from suds_ros.core.errors import MISSING_TOPIC, SudsBagError, SudsConfigError
+from suds_ros.io.mcap import bag_info, iter_raw_messages
+from suds_ros.io.stamps import float_to_ns, ns_to_float
 from suds_ros.ros.conversions import message_class, ns_to_time
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import replay_qos
@@ -62,17 +63,17 @@ class PlayerNode(Node):
         super().__init__("player", **kwargs)
         self.config = config_from_parameters(self, PlayerConfig)
         info = bag_info(self.config.bag)
-        wanted = set(self.config.topics) or set(info["topics"])
-        missing = wanted - set(info["topics"])
+        wanted = set(self.config.topics) or set(info.topics)
+        missing = wanted - set(info.topics)
         if missing:
-            msg = f"`topics`: {sorted(missing)} not in {self.config.bag}; it has {sorted(info['topics'])}"
-            raise SudsBagError(msg)
-        if info["start_ns"] is None:
-            raise SudsBagError(f"{self.config.bag}: the bag holds no message")
-        self._start_ns = int(info["start_ns"]) + round(self.config.start_offset * 1e9)
+            msg = f"`topics`: {sorted(missing)} not in {self.config.bag}; it has {sorted(info.topics)}"
+            raise SudsBagError(msg, code=MISSING_TOPIC)
+        if info.start_ns is None:
+            raise SudsBagError(f"{self.config.bag}: the bag holds no message", code=MISSING_TOPIC)
+        self._start_ns = info.start_ns + float_to_ns(self.config.start_offset)
         self._pubs = {
             topic: self.create_publisher(
-                message_class(info["topics"][topic]["type"]), topic, replay_qos(topic))
+                message_class(info.topics[topic].type_name), topic, replay_qos(topic))
             for topic in sorted(wanted)
         }
         self._clock_cls = message_class("rosgraph_msgs/msg/Clock")
@@ -107,7 +108,7 @@ class PlayerNode(Node):
             for m in iter_raw_messages(cfg.bag, topics=list(self._pubs)):
                 if m.log_time_ns < self._start_ns:
                     continue
-                if not self._sleep_until(t0 + (m.log_time_ns - self._start_ns) * 1e-9 / cfg.rate):
+                if not self._sleep_until(t0 + ns_to_float(m.log_time_ns - self._start_ns) / cfg.rate):
                     return sent
                 if self._clock is not None:
                     self._clock.publish(self._clock_cls(clock=ns_to_time(m.log_time_ns)))

@@ -28,6 +28,9 @@ from rclpy.qos import (
 )
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
+from suds_ros.io.recording_bag import MODEL_TOPIC
+from suds_ros.io.stamps import split_ns
+
 STATE_QOS: QoSProfile = qos_profile_sensor_data
 ESTIMATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 MODEL_QOS = QoSProfile(
@@ -57,7 +60,7 @@ def overriding_options() -> QoSOverridingOptions:
 
 def replay_qos(topic: str) -> QoSProfile:
     """Publisher QoS for replaying ``topic``: the model keeps transient-local durability."""
-    if topic == "/suds/model":
+    if topic == MODEL_TOPIC:
         return MODEL_QOS
     return REPLAY_QOS
 
@@ -67,7 +70,7 @@ def _duration_yaml(d: Duration, indent: str) -> list[str]:
     if ns <= 0 or ns >= 2**63 - 1:  # "infinite"/default, as rosbag2 writes it
         sec, nsec = 9223372036, 854775807
     else:
-        sec, nsec = divmod(ns, 10**9)
+        sec, nsec = split_ns(ns)
     return [f"{indent}  sec: {sec}", f"{indent}  nsec: {nsec}"]
 
 

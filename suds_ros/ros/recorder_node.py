@@ -20,15 +20,27 @@ from typing import Any
 from rclpy.node import Node
 
 from suds_ros.core.errors import SudsConfigError, SudsError
-from suds_ros.io.bags import BagWriter
+from suds_ros.io.mcap import BagWriter
+from suds_ros.io.recording_bag import (
+    META_ACTUATED,
+    META_GAIT_HZ,
+    META_PASSIVE,
+    META_SYSTEM,
+    METADATA_NAME,
+    MODEL_TOPIC,
+    POSE_TOPIC,
+    PREDICTED_PATTERN,
+    SHAPE_TOPIC,
+    STATUS_TOPIC,
+    SYSTEM_TOPIC,
+)
 from suds_ros.ros.conversions import message_class
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import qos_to_yaml, subscription_qos_for
 from suds_ros.ros.runner import run_node
 
 DEFAULT_TOPICS = (
-    "/suds/shape", "/suds/body_pose", "/suds/system", "/suds/predicted/*", "/suds/model",
-    "/suds/status",
+    SHAPE_TOPIC, POSE_TOPIC, SYSTEM_TOPIC, PREDICTED_PATTERN, MODEL_TOPIC, STATUS_TOPIC,
 )
 
 
@@ -69,10 +81,11 @@ class RecorderConfig:
 
     def suds_metadata(self) -> dict[str, str]:
         """The ``suds`` metadata record (empty when no system/joint roles are given)."""
-        meta = {"system": self.system, "actuated": self.actuated, "passive": self.passive}
+        meta = {META_SYSTEM: self.system, META_ACTUATED: self.actuated,
+                META_PASSIVE: self.passive}
         meta = {k: v for k, v in meta.items() if v}
         if meta and self.gait_hz > 0:
-            meta["gait_hz"] = repr(self.gait_hz)
+            meta[META_GAIT_HZ] = repr(self.gait_hz)
         return meta
 
 
@@ -85,7 +98,7 @@ class RecorderNode(Node):
         cfg = self.config
         self._writer = BagWriter(cfg.output, overwrite=cfg.overwrite, compression=cfg.compression)
         if cfg.suds_metadata():
-            self._writer.write_metadata("suds", cfg.suds_metadata())
+            self._writer.write_metadata(METADATA_NAME, cfg.suds_metadata())
         self._subs: dict[str, Any] = {}
         self._skipped: set[str] = set()
         self.create_timer(cfg.discovery_period, self._discover)

@@ -44,6 +44,8 @@ from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import make_system
+from suds_ros.core.recording import samples_per_cycle
+from suds_ros.io.recording_bag import POSE_TOPIC, SHAPE_TOPIC, SYSTEM_TOPIC
 from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
 from suds_ros.ros.params import add_validator, config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options
@@ -101,7 +103,7 @@ class SimulatorConfig:
     @property
     def samples_per_cycle(self) -> int:
         """Samples per gait cycle."""
-        return int(round(self.rate / self.gait_hz))
+        return samples_per_cycle(1.0 / self.rate, self.gait_hz)
 
     def first_stamp(self) -> float:
         """``t0``, or its default (wall clock now in real time, 1.7e9 otherwise)."""
@@ -134,11 +136,11 @@ class SimulatorNode(Node):
         from std_msgs.msg import String
 
         qos = latched_state_qos(cfg.history_depth)
-        self._shape_pub = self.create_publisher(JointState, "/suds/shape", qos,
+        self._shape_pub = self.create_publisher(JointState, SHAPE_TOPIC, qos,
                                                 qos_overriding_options=overriding_options())
-        self._pose_pub = self.create_publisher(PoseStamped, "/suds/body_pose", qos,
+        self._pose_pub = self.create_publisher(PoseStamped, POSE_TOPIC, qos,
                                                qos_overriding_options=overriding_options())
-        self._system_pub = self.create_publisher(String, "/suds/system", MODEL_QOS)
+        self._system_pub = self.create_publisher(String, SYSTEM_TOPIC, MODEL_QOS)
         self._clock_cls = Clock
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._system_pub.publish(system_info_to_msg({

@@ -81,3 +81,58 @@ def test_bad_input_gives_one_line_error(tmp_path: Path, make, args, message) -> 
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("ERROR: ")
     assert message.lower() in lines[0].lower(), lines[0]
+
+
+@pytest.mark.parametrize("args", [
+    ["identify", "{bag}", "--model", "x"],       # not --model-out
+    ["identify", "{bag}", "--stream"],           # not --streaming
+    ["info", "{bag}", "--js"],                   # not --json
+    ["simulate", "purcell3", "--out", "{d}/z.mcap"],
+    ["score", "{bag}", "--train", "3"],
+])
+def test_options_are_never_abbreviated(p3_bag: Path, tmp_path: Path, args, capsys) -> None:
+    argv = [a.format(bag=p3_bag, d=tmp_path) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("ERROR: suds"), err
+    assert "unrecognized arguments" in lines[0] or "required: -o/--output" in lines[0], err
+    assert not (tmp_path / "z.mcap").exists() and not (tmp_path / "x").exists()
+
+
+def test_usage_errors_are_one_line(capsys) -> None:
+    for argv in ([], ["nosuchcommand"], ["identify"], ["identify", "b.mcap", "--regressors", "7"]):
+        assert main(argv) == 2, argv
+        lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+        assert len(lines) == 1 and lines[0].startswith("ERROR: suds"), (argv, lines)
+
+
+def test_missing_metadata_gets_the_command_line_hint(tmp_path: Path, capsys) -> None:
+    from suds_ros.io.mcap import BagWriter
+    from suds_ros.io.recording_bag import read_recording, write_recording
+
+    src = tmp_path / "src.mcap"
+    assert main(["simulate", "purcell3", "-o", str(src), "--cycles", "8"]) == 0
+    capsys.readouterr()
+    rec = read_recording(src)
+    bare = tmp_path / "bare.mcap"
+    with BagWriter(bare) as w:  # same data, no `suds` metadata record
+        from suds_ros.io.mcap import iter_raw_messages
+
+        for m in iter_raw_messages(src):
+            w.add_topic(m.topic, m.type_name)
+            w.write_raw(m.topic, m.data, m.log_time_ns)
+    assert main(["identify", str(bare)]) == 2
+    assert capsys.readouterr().err.strip().endswith("has no 'suds' metadata record; pass --system")
+    assert main(["identify", str(bare), "--system", "purcell3"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no 'actuated' joints" in err and err.endswith("; pass --actuated (or --passive)"), err
+    # the common recording options work the same for every command that reads a recording
+    assert main(["identify", str(bare), "--system", "purcell3", "--actuated", "joint_1",
+                 "--train-cycles", "5", "--test-cycles", "2", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["system"] == "purcell3"
+    assert main(["score", str(bare), "--system", "purcell3", "--passive", "joint_2"]) == 2
+    assert "no live predictions recorded" in capsys.readouterr().err
+    write_recording(tmp_path / "meta.mcap", rec)
+    assert main(["score", str(tmp_path / "meta.mcap")]) == 2
+    assert "no live predictions recorded" in capsys.readouterr().err

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from suds_ros.io import cdr
-from suds_ros.io.bags import BagWriter, write_recording
+from suds_ros.io.mcap import BagWriter
+from suds_ros.io.recording_bag import write_recording
 
 JS = Path(__file__).resolve().parents[1] / "js"
 

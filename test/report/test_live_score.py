@@ -18,39 +18,51 @@ from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.identify import split_cycles
 from suds_ros.core.ident.online import StreamingPredictor, fit_streaming
 from suds_ros.io import cdr
-from suds_ros.io.bags import POSE_TYPE, SHAPE_TYPE, BagWriter
-from suds_ros.report.live_score import BODY_TOPIC, PASSIVE_TOPIC, score_live_predictions
+from suds_ros.io.mcap import BagWriter
+from suds_ros.io.recording_bag import (
+    METADATA_NAME,
+    POSE_TOPIC,
+    POSE_TYPE,
+    PREDICTED_BODY_TOPIC,
+    PREDICTED_PASSIVE_TOPIC,
+    SHAPE_TOPIC,
+    SHAPE_TYPE,
+    TWIST_TYPE,
+)
+from suds_ros.io.stamps import float_to_ns, split_ns, yaw_quaternion
+from suds_ros.report.live_score import score_live_predictions
 
-TWIST_TYPE = "geometry_msgs/msg/TwistStamped"
 TRAIN = 10
 
 
 def _header(ns: int) -> dict:
-    return {"stamp": {"sec": ns // 10**9, "nanosec": ns % 10**9}, "frame_id": "body"}
+    sec, nanosec = split_ns(ns)
+    return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "body"}
 
 
 def write_bag(path, rec, preds, passive_names=None) -> None:
     """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``."""
     passive_names = rec.passive if passive_names is None else passive_names
     with BagWriter(path) as w:
-        for topic, type_name in (("/suds/shape", SHAPE_TYPE), ("/suds/body_pose", POSE_TYPE),
-                                 (BODY_TOPIC, TWIST_TYPE), (PASSIVE_TOPIC, SHAPE_TYPE)):
+        for topic, type_name in ((SHAPE_TOPIC, SHAPE_TYPE), (POSE_TOPIC, POSE_TYPE),
+                                 (PREDICTED_BODY_TOPIC, TWIST_TYPE),
+                                 (PREDICTED_PASSIVE_TOPIC, SHAPE_TYPE)):
             w.add_topic(topic, type_name)
-        w.write_metadata("suds", {"system": rec.system, "actuated": ",".join(rec.actuated),
+        w.write_metadata(METADATA_NAME, {"system": rec.system, "actuated": ",".join(rec.actuated),
                                   "passive": ",".join(rec.passive), "gait_hz": "1.0"})
         for k, t in enumerate(rec.t):
-            ns = cdr.ns_from_seconds(t)
-            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
+            ns = float_to_ns(t)
+            w.write_raw(SHAPE_TOPIC, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
             x, y, yaw = rec.pose[k]
-            q = (0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2))
-            w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (x, y, 0.0), q, "world"), ns, ns)
+            w.write_raw(POSE_TOPIC, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
             if t in preds:
                 xi, rp = preds[t]
                 twist = {"header": _header(ns), "twist": {
                     "linear": {"x": xi[0], "y": xi[1], "z": 0.0},
                     "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
-                w.write_raw(BODY_TOPIC, cdr.serialize(TWIST_TYPE, twist), ns, ns)
-                w.write_raw(PASSIVE_TOPIC, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
+                w.write_raw(PREDICTED_BODY_TOPIC, cdr.serialize(TWIST_TYPE, twist), ns, ns)
+                w.write_raw(PREDICTED_PASSIVE_TOPIC, cdr.joint_state(ns, passive_names, (), rp, ()),
+                            ns, ns)
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import signal
 import time
 from pathlib import Path
 
-from suds_ros.io.bags import decode_message, iter_raw_messages
+from suds_ros.io.mcap import decode_message, iter_raw_messages
 
 
 def wait_for(predicate, timeout: float, what: str) -> None:

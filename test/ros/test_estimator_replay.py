@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core.ident.online import OnlineSudsEstimator, fit_streaming
-from suds_ros.io.bags import read_recording
+from suds_ros.io.recording_bag import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
     from ._ros_helpers import stop, wait_for

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core.ident.online import OnlineSudsEstimator, fit_streaming
-from suds_ros.io.bags import read_recording
+from suds_ros.io.recording_bag import read_recording
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
     from ._ros_helpers import last_model, read_topic, stop, wait_for
 except ImportError:
@@ -32,7 +32,7 @@ def published_samples(cycles: int, seed: int):
     from suds_ros.core.recording import Recording
     from suds_ros.core.physics.stream import StreamingSimulator
     from suds_ros.core.physics.systems import make_system
-    from suds_ros.ros.conversions import float_to_ns, ns_to_float
+    from suds_ros.io.stamps import float_to_ns, ns_to_float
     from suds_ros.ros.simulator_node import SimulatorConfig
 
     cfg = SimulatorConfig(seed=seed, real_time_factor=4.0, cycles=cycles)

@@ -1,18 +1,21 @@
-"""The pipeline supervisor: stop order, exit codes, missing modules, Ctrl-C."""
+"""The pipeline supervisor: stop order, exit codes, missing modules, Ctrl-C.
+
+The supervisor only starts processes, so most tests run plain Python children and need
+no rclpy; only the tests that start real nodes are marked ``ros``.
+"""
 
 from __future__ import annotations
 
 import io
 import signal
+import subprocess
 import sys
 import time
 
 import pytest
 
-from suds_ros.io.bags import bag_info
+from suds_ros.io.mcap import bag_info
 from suds_ros.ros import pipeline
-
-pytestmark = pytest.mark.ros
 
 POLITE = ("import signal, sys, time\n"
           "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
@@ -27,6 +30,15 @@ STUBBORN = ("import signal, time\n"
 
 def py(code: str) -> list[str]:
     return [sys.executable, "-c", code]
+
+
+def test_pipeline_imports_without_rclpy():
+    code = ("import sys; sys.modules['rclpy'] = None; import suds_ros.ros.pipeline as p; "
+            "assert 'rclpy' not in [m for m in sys.modules if sys.modules[m] is not None]; "
+            "print(sorted(p.NODES))")
+    proc = subprocess.run(py(code), capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "recorder" in proc.stdout
 
 
 def test_main_child_finishing_stops_the_others():
@@ -79,6 +91,7 @@ def test_recorder_command_gets_joint_roles(tmp_path):
     assert "cycles:=3" in " ".join(cmds["simulator"]) and "seed:=4" in " ".join(cmds["simulator"])
 
 
+@pytest.mark.ros
 def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
     out = tmp_path / "p.mcap"
     proc = start_process([sys.executable, "-m", "suds_ros.ros.pipeline", "--nodes", "recorder",
@@ -89,8 +102,8 @@ def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
         time.sleep(0.1)
     proc.send_signal(signal.SIGINT)
     assert proc.wait(30) == 0, proc.output()
-    assert bag_info(out)["has_summary"]
-    assert bag_info(out)["metadata"]["suds"]["actuated"] == "joint_1"
+    info = bag_info(out)
+    assert info.has_summary and info.metadata["suds"]["actuated"] == "joint_1"
 
 
 def test_drain_lets_the_others_finish_their_work():
@@ -107,6 +120,7 @@ def test_drain_lets_the_others_finish_their_work():
         assert ("[estimator] late" in out.getvalue()) is seen, out.getvalue()
 
 
+@pytest.mark.ros
 def test_main_job_runs_and_scores_its_live_predictions(start_process, tmp_path):
     """The README's main job, shortened: every node, recorded, scored at the end."""
     from suds_ros.report.live_score import score_live_predictions
@@ -120,7 +134,7 @@ def test_main_job_runs_and_scores_its_live_predictions(start_process, tmp_path):
     assert f"[pipeline] {score.summary()}" in text, text[-2000:]
     assert score.train_cycles == 12 and score.coverage >= 0.9, score
     info = bag_info(out)
-    assert info["has_summary"] and info["topics"]["/suds/predicted/body_velocity"]["count"] > 1000
+    assert info.has_summary and info.topics["/suds/predicted/body_velocity"].count > 1000
 
 
 def test_output_is_prepared_before_any_node_starts(tmp_path, capsys):

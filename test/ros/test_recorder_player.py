@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from suds_ros.io.bags import BagWriter, bag_info, iter_raw_messages, read_recording
+from suds_ros.io.mcap import BagWriter, bag_info, iter_raw_messages
+from suds_ros.io.recording_bag import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
     from ._ros_helpers import wait_for
@@ -37,10 +38,10 @@ def test_record_then_read_with_suds_and_rosbags(start_process, node_command, tmp
     assert rec.wait(20) == 0, rec.output()
 
     info = bag_info(out)
-    assert info["has_summary"] and not info["truncated"]
-    assert {t: v["count"] for t, v in info["topics"].items()} == {
+    assert info.has_summary and not info.truncated
+    assert {t: v.count for t, v in info.topics.items()} == {
         "/suds/shape": 40, "/suds/body_pose": 40}
-    assert info["metadata"]["suds"] == {
+    assert info.metadata["suds"] == {
         "system": "purcell3", "actuated": "joint_1", "passive": "joint_2"}
     rec_ = read_recording(out)
     i = np.arange(40)
@@ -84,7 +85,7 @@ def test_sigkilled_recorder_leaves_readable_file(start_process, node_command, tm
     assert rec.wait(10) == -signal.SIGKILL
 
     info = bag_info(out)
-    assert not info["has_summary"]
+    assert not info.has_summary
     shapes = [m for m in iter_raw_messages(out) if m.topic == "/suds/shape"]
     assert len(shapes) >= 20, info  # ~1.5 s at 100 Hz, minus at most one flush period
     rec_ = read_recording(out)  # metadata written at start, data up to the last flush
@@ -140,7 +141,7 @@ def test_player_replays_bytes_with_timing(start_process, node_command, tmp_path)
     assert rec.wait(20) == 0, rec.output()
 
     got = list(iter_raw_messages(out))
-    assert bag_info(out)["has_summary"]
+    assert bag_info(out).has_summary
     assert [m.data for m in got] == datas[5:]  # start_offset 0.1 s skips 5 samples at 50 Hz
     assert {m.topic for m in got} == {"/suds/shape"}
     span = (got[-1].log_time_ns - got[0].log_time_ns) * 1e-9

@@ -246,7 +246,7 @@ def test_phase_comes_from_the_phaser(purcell3_run) -> None:  # type: ignore[no-u
 
 # ------------------------------------------------------------------------------ public recordings
 def test_public_friction_recording(shared_bag) -> None:  # type: ignore[no-untyped-def]
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     rec = read_recording(shared_bag("purcell3_real_friction.mcap"))
     _check_recovered(diagnose(rec, purcell3_model()),
@@ -254,7 +254,7 @@ def test_public_friction_recording(shared_bag) -> None:  # type: ignore[no-untyp
 
 
 def test_public_rest_offset_recording(shared_bag) -> None:  # type: ignore[no-untyped-def]
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     rec = read_recording(shared_bag("swimmer9_real_rest_offset.mcap"))
     _check_recovered(diagnose(rec, swimmer9_model()),
@@ -287,7 +287,7 @@ def test_cli_json_and_errors(tmp_path, capsys) -> None:  # type: ignore[no-untyp
     import argparse
 
     from suds_ros.cli import diagnose as cli_diagnose
-    from suds_ros.io.bags import write_recording
+    from suds_ros.io.recording_bag import write_recording
 
     base = purcell3_model()
     model, _ = apply_effects(base, [dict(name="spring_rest_offset", joint="joint_2", offset=0.2)])

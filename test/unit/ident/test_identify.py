@@ -54,7 +54,7 @@ def test_gamma_targets_30_30(name: str, seed: int) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("bag", ["purcell3_nominal.mcap", "swimmer9_nominal.mcap"])
 def test_gamma_targets_on_public_recordings(shared_bag, bag: str) -> None:
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     rec = read_recording(shared_bag(bag))
     train, test = split_cycles(rec, 30, 30)

@@ -93,7 +93,7 @@ def test_bad_config_and_inputs() -> None:
 # noise (1e-3), i.e. the README's baseline residuals; with the effect the README names, the
 # "real" recordings must fall to the same floor.
 def _replay_residual(path, model) -> tuple[np.ndarray, float]:
-    from suds_ros.io.bags import read_recording
+    from suds_ros.io.recording_bag import read_recording
 
     rec = read_recording(path)
     chain = RFTChain(model)

@@ -1,0 +1,158 @@
+"""``suds identify``: fit the SUDS model to a recording and score it on held-out cycles."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.recording import Recording
+
+EPILOG = """\
+The first --train-cycles cycles are used to estimate the gait phase (phaser),
+the phase-averaged gait θ(φ) and the SUDS regression
+  (g°, ṙ_p) ~ C(φ) + C_r(φ) δ + B(φ) δ̇_a + B_r(φ) δ⊗δ̇_a ;
+the next --test-cycles cycles are held out.  Γ = 1 − Σ|model − truth| / Σ|template − truth|
+compares the model with the phase-only template on the held-out cycles
+(Γ = 0: no better than the template, Γ = 1: perfect).
+
+examples:
+  suds identify run.mcap                      # 30 train / 30 test cycles, regressor set 2
+  suds identify run.mcap --regressors 1 --json
+  suds identify run.mcap --figure fig.png --actuated joint_1 --system purcell3
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``identify`` on the ``suds`` subcommand parser."""
+    p = subparsers.add_parser("identify", help="fit the SUDS model and report Γ on held-out cycles",
+                              epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_bag_argument(p)
+    p.add_argument("--train-cycles", type=int, default=30, help="training cycles (default 30)")
+    p.add_argument("--test-cycles", type=int, default=30,
+                   help="held-out cycles (default 30; fewer if the bag is short; 0 with "
+                        "--streaming: train on everything)")
+    p.add_argument("--regressors", type=int, choices=(1, 2, 3), default=2,
+                   help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a] (default), "
+                        "3 full second order")
+    p.add_argument("--window", type=int, default=1,
+                   help="differencing window in samples (default 1)")
+    p.add_argument("--torque", action="store_true",
+                   help="also identify actuator effort (needs effort in the bag)")
+    p.add_argument("--streaming", action="store_true",
+                   help="run the live estimator's algorithm (phaser on the first --init-cycles, "
+                        "then phase tracking and incremental fitting); gives the estimator "
+                        "node's model")
+    p.add_argument("--init-cycles", type=float, default=None,
+                   help="with --streaming: cycles before the phaser initialises (default: the "
+                        "estimator's)")
+    p.add_argument("--model-out", help="with --streaming: write the model JSON (as on /suds/model) here")
+    p.add_argument("--figure", help="write a Figure-1-style plot to this path (PNG)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    add_recording_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``suds identify``; returns the exit code."""
+    from suds_ros.core.ident.identify import split_cycles
+
+    rec = load_recording(args.bag, args)
+    if args.test_cycles == 0:
+        train, test = rec, None
+    else:
+        train, test = split_cycles(rec, args.train_cycles, args.test_cycles)
+    if args.streaming:
+        return _streaming(args, rec, train, test)
+    if test is None:
+        raise SudsConfigError("--test-cycles 0 is only supported with --streaming (nothing to score)")
+    return _batch(args, rec, train, test)
+
+
+def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Recording) -> int:
+    """The batch identifier, scored on ``test``; prints the Γ table (or JSON)."""
+    from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, score_prediction
+    from suds_ros.core.ident.sysid import SudsConfig
+
+    cfg = IdentifyConfig(suds=SudsConfig(regressors=args.regressors), window=args.window)
+    if args.torque and rec.effort is None:
+        raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
+    ident = SudsIdentifier(cfg, torque=bool(args.torque)).fit(train)
+    pred = ident.predict(test)
+    sc = score_prediction(pred)
+    result: dict[str, Any] = {
+        "bag": str(args.bag),
+        "system": rec.system,
+        "train_cycles": args.train_cycles,
+        "test_cycles": int(round((test.t[-1] - test.t[0] + test.dt) * (rec.gait_hz or 1.0))),
+        "regressors": args.regressors,
+        "parameters_per_output": ident.n_parameters,
+        "fourier_orders": {
+            "intercept": ident.regressor_.config.intercept_order,
+            "linear": ident.regressor_.config.linear_order,
+            "bilinear": ident.regressor_.config.bilinear_order,
+        },
+        **sc.as_dict(),
+    }
+    if args.figure:
+        from suds_ros.report.identify_figure import identify_figure
+
+        identify_figure(ident, train, test, pred, args.figure,
+                        title=f"{rec.system}: {Path(args.bag).name}")
+        result["figure"] = str(args.figure)
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    print(f"{rec.system}: {args.bag}")
+    print(f"  train {args.train_cycles} cycles, test {result['test_cycles']} cycles, regressor set "
+          f"{args.regressors}, {ident.n_parameters} parameters per output")
+    print(f"  {'':<14}{'Γ':>8}")
+    print(f"  {'body':<14}{sc.gamma_body:>8.3f}")
+    print(f"  {'passive':<14}{sc.gamma_passive:>8.3f}")
+    if sc.gamma_torque is not None:
+        print(f"  {'torque':<14}{sc.gamma_torque:>8.3f}")
+    print(f"  {'channel':<16}{'RMS model':>12}{'RMS template':>14}")
+    for c in pred.channels:
+        print(f"  {c:<16}{sc.rms_model[c]:>12.4g}{sc.rms_template[c]:>14.4g}")
+    if args.figure:
+        print(f"  figure: {args.figure}")
+    return 0
+
+
+def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
+               test: Recording | None) -> int:
+    """The live estimator's algorithm run offline (the estimator node's model on this data)."""
+    from dataclasses import replace
+
+    from suds_ros.core.ident.identify import score_prediction
+    from suds_ros.core.ident.online import OnlineConfig, evaluate_model, fit_streaming
+
+    defaults = OnlineConfig()
+    cfg = replace(defaults, suds=replace(defaults.suds, regressors=args.regressors),
+                  init_cycles=defaults.init_cycles if args.init_cycles is None else args.init_cycles,
+                  gait_hz=rec.gait_hz or 1.0)
+    est = fit_streaming(train, cfg)
+    model = est.model()
+    result: dict[str, object] = {
+        "bag": str(args.bag),
+        "system": rec.system,
+        "mode": "streaming",
+        "samples": model.n_samples,
+        "running_gamma": est.running_gamma(),
+        "parameters_per_output": int(model.coef.shape[0]),
+    }
+    if test is not None:
+        result.update(score_prediction(evaluate_model(model, test)).as_dict())
+    if args.model_out:
+        Path(args.model_out).write_text(json.dumps(model.to_dict()))
+        result["model"] = str(args.model_out)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for k, v in result.items():
+            if k not in ("rms_model", "rms_template"):
+                print(f"{k}: {v}")
+    return 0

@@ -1,0 +1,200 @@
+"""suds_ros.io.mcap: the writer, the truncation-tolerant reader and the bag summary."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _bags import JS, META, PS, STAMPS, js, make_rec, raw_bag, shared
+from mcap.writer import CompressionType
+
+from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
+from suds_ros.io import cdr, msgdefs
+from suds_ros.io.mcap import (
+    BagInfo,
+    BagWriter,
+    bag_info,
+    decode_message,
+    iter_raw_messages,
+    read_metadata,
+)
+from suds_ros.io.recording_bag import read_recording
+from suds_ros.io.stamps import float_to_ns
+
+
+def test_shared_bag_info_and_raw() -> None:
+    path = shared("purcell3_nominal")
+    info = bag_info(path)
+    assert isinstance(info, BagInfo)
+    assert info.topics["/suds/shape"].type_name == JS
+    assert info.topics["/suds/shape"].count == 6000
+    assert info.as_dict()["topics"]["/suds/shape"] == {"type": JS, "count": 6000,
+                                                       "message_encoding": "cdr"}
+    assert info.topics["/suds/body_pose"].count == 6000 and info.message_count == 12000
+    assert info.compression == ("zstd",) and info.has_summary and not info.truncated
+    assert info.duration_s == pytest.approx(59.99) and info.start_ns == 1_700_000_000 * 10**9
+    assert list(info.as_dict()) == ["path", "profile", "library", "topics", "message_count",
+                                    "start_ns", "end_ns", "duration_s", "metadata",
+                                    "compression", "has_summary", "truncated", "problem"]
+    assert read_metadata(path)["suds"]["system"] == "purcell3"
+    msgs = list(iter_raw_messages(path, ["/suds/body_pose"]))
+    assert len(msgs) == 6000 and {m.type_name for m in msgs} == {PS}
+    assert all(a.log_time_ns <= b.log_time_ns for a, b in zip(msgs, msgs[1:]))
+    m = decode_message(PS, msgs[0].data)
+    assert m.header.frame_id == "world" and m.header.stamp.sec == 1_700_000_000
+
+
+
+
+def test_truncated_copies_read_up_to_last_complete_record(tmp_path: Path) -> None:
+    rec = make_rec(n=400)
+    full = tmp_path / "full.mcap"
+    with BagWriter(full, chunk_size=2048) as w:
+        w.add_topic("/suds/shape", JS)
+        w.add_topic("/suds/body_pose", PS)
+        w.write_metadata("suds", {"system": "s", "actuated": "joint_1"})
+        for k in range(rec.n_samples):
+            ns = float_to_ns(rec.t[k])
+            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k]), ns)
+            w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (k, 0, 0), (0, 0, 0, 1)), ns)
+    data = full.read_bytes()
+    footer = len(data) - 8 - 29
+    summary_start = int.from_bytes(data[footer + 9:footer + 17], "little")
+    seen = []
+    for frac in (0.3, 0.55, 0.8, 0.97):
+        cut = tmp_path / f"cut{frac}.mcap"
+        cut.write_bytes(data[: int(summary_start * frac)])
+        info = bag_info(cut)
+        assert info.truncated and "without a complete footer" in info.problem
+        back = read_recording(cut)
+        n = back.n_samples
+        assert 0 < n < rec.n_samples
+        np.testing.assert_array_equal(back.r, rec.r[:n])
+        np.testing.assert_array_equal(back.t, rec.t[:n])
+        assert back.passive == ("joint_2", "joint_3")  # complement of metadata 'actuated'
+        seen.append(n)
+    assert seen == sorted(seen)
+    # a cut inside the summary section keeps every message
+    cut = tmp_path / "cut_summary.mcap"
+    cut.write_bytes(data[:-40])
+    assert read_recording(cut).n_samples == rec.n_samples
+
+
+def test_flush_makes_complete_records(tmp_path: Path) -> None:
+    path = tmp_path / "live.mcap"
+    w = BagWriter(path)
+    w.add_topic("/suds/shape", JS)
+    w.add_topic("/suds/body_pose", PS)
+    for ns in STAMPS[:5]:
+        w.write_raw("/suds/shape", js(ns), ns)
+        w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (0, 0, 0), (0, 0, 0, 1)), ns)
+    w.flush()
+    assert len(list(iter_raw_messages(path))) == 10  # file still open, no summary
+    w.close()
+    w.close()
+    with pytest.raises(SudsBagError, match="closed"):
+        w.write_raw("/suds/shape", js(1), 1)
+    assert bag_info(path).has_summary
+
+
+@pytest.mark.parametrize("compression", [CompressionType.LZ4, CompressionType.NONE,
+                                         CompressionType.ZSTD])
+@pytest.mark.parametrize("summary", [True, False])
+def test_foreign_layouts(tmp_path: Path, compression: CompressionType, summary: bool) -> None:
+    path = tmp_path / "foreign.mcap"
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, compression=compression,
+            summary=summary, meta=META)
+    rec = read_recording(path)
+    assert rec.n_samples == 20 and rec.system == "purcell3"
+    np.testing.assert_allclose(rec.pose[:, 0], 0.1 * np.arange(20))
+    assert bag_info(path).has_summary is summary
+
+
+def test_unchunked_file(tmp_path: Path) -> None:
+    path = tmp_path / "plain.mcap"
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, chunked=False, meta=META)
+    assert read_recording(path).n_samples == 20
+    assert bag_info(path).compression == ()
+
+
+@pytest.mark.parametrize(("content", "match"), [
+    (b"", r"empty \(0 bytes\)"),
+    (b"\x89MCA", r"truncated MCAP file: only 4 bytes"),
+    (b"hello, this is a text file\n" * 10, r"not an MCAP file"),
+    (bytes(np.random.default_rng(1).integers(0, 256, 5000, dtype=np.uint8)), r"not an MCAP file"),
+    (b"\x89MCAP0\r\n\x01\xff\x00", r"header record is incomplete"),
+])
+def test_foreign_files(tmp_path: Path, content: bytes, match: str) -> None:
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(content)
+    with pytest.raises(SudsBagError, match=match) as info:
+        read_recording(path)
+    assert str(path) in str(info.value) and info.value.code == DAMAGED_BAG
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(SudsBagError, match=r"nope\.mcap: no such file"):
+        read_recording(tmp_path / "nope.mcap")
+
+
+
+
+def test_writer_argument_errors(tmp_path: Path) -> None:
+    with pytest.raises(SudsBagError, match=r"compression: expected one of .*got 'gzip'"):
+        BagWriter(tmp_path / "a.mcap", compression="gzip")
+    with BagWriter(tmp_path / "b.mcap") as w:
+        with pytest.raises(SudsBagError, match=r"'nav_msgs/msg/Odometry' has no schema"):
+            w.add_topic("/odom", "nav_msgs/msg/Odometry")
+        with pytest.raises(SudsBagError, match=r"topic '/x' was not added"):
+            w.write_raw("/x", b"", 0)
+        w.add_topic("/x", "std_msgs/msg/String", qos_yaml="- depth: 1")
+        w.add_topic("/x", "std_msgs/msg/String")
+        with pytest.raises(SudsBagError, match=r"cannot add it again as 'rosgraph_msgs/"):
+            w.add_topic("/x", "rosgraph_msgs/msg/Clock")
+        with pytest.raises(SudsBagError, match=r"keys and values must be str"):
+            w.write_metadata("suds", {"gait_hz": 1.0})  # type: ignore[dict-item]
+        w.write_raw("/x", cdr.serialize("std_msgs/msg/String", {"data": "hi"}), 5)
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "b.mcap", "rb") as f:
+        ch = next(iter(make_reader(f).get_summary().channels.values()))
+    assert ch.metadata == {"offered_qos_profiles": "- depth: 1",
+                           "topic_type_hash": msgdefs.type_hash("std_msgs/msg/String")}
+    [m] = iter_raw_messages(tmp_path / "b.mcap")
+    assert decode_message(m.type_name, m.data).data == "hi"
+
+
+def test_decode_message_errors() -> None:
+    with pytest.raises(SudsBagError, match=r"cannot decode 'sensor_msgs/msg/JointState'"):
+        decode_message(JS, b"\x00\x01\x00\x00\x01")
+
+
+
+
+def test_cut_at_any_offset_reads_or_raises_bag_error(tmp_path: Path) -> None:
+    path = tmp_path / "rec.mcap"
+    rec = make_rec(n=200)
+    with BagWriter(path, compression="lz4", chunk_size=1500) as w:
+        w.write_metadata("suds", {"system": "s", "actuated": "joint_1"})
+        w.add_topic("/suds/shape", JS)
+        w.add_topic("/suds/body_pose", PS)
+        for k in range(rec.n_samples):
+            ns = float_to_ns(rec.t[k])
+            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k]), ns)
+            w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (k, 0, 0), (0, 0, 0, 1)), ns)
+    data = path.read_bytes()
+    counts = []
+    for cut_at in np.linspace(0, len(data), 60).astype(int):
+        cut = tmp_path / "cut.mcap"
+        cut.write_bytes(data[:cut_at])
+        try:
+            counts.append(read_recording(cut).n_samples)
+        except SudsBagError as exc:
+            assert str(cut) in str(exc)
+            assert any(w in str(exc) for w in ("empty", "truncated", "not in the bag",
+                                               "no messages")), str(exc)
+            counts.append(0)
+    assert counts == sorted(counts) and counts[-1] == 200 and 0 < counts[30] < 200
+
+

@@ -1,0 +1,279 @@
+"""suds_ros.io.recording_bag: the recording contract, read and written."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _bags import BAGS, JS, META, PS, STAMPS, assert_rec_equal, js, make_rec, raw_bag, shared
+
+from suds_ros.core.errors import (
+    DUPLICATE_STAMP,
+    EXISTS,
+    MISSING_JOINT_ROLES,
+    MISSING_SYSTEM,
+    MISSING_TOPIC,
+    OUT_OF_ORDER_STAMP,
+    SudsBagError,
+    SudsDataError,
+)
+from suds_ros.io import cdr
+from suds_ros.io.mcap import bag_info, iter_raw_messages
+from suds_ros.io.recording_bag import read_recording, write_recording
+
+
+@pytest.mark.parametrize("name", BAGS)
+def test_read_shared_bags(name: str) -> None:
+    path = shared(name)
+    t0 = time.perf_counter()
+    rec = read_recording(path)
+    elapsed = time.perf_counter() - t0
+    assert elapsed < 2.0
+    assert rec.n_samples == 6000 and rec.pose_t.size == 6000
+    np.testing.assert_allclose(rec.t, 1.7e9 + 0.01 * np.arange(6000), rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(rec.t, rec.pose_t)
+    assert rec.gait_hz == 1.0 and rec.effort is None
+    if name.startswith("purcell3"):
+        assert rec.system == "purcell3"
+        assert rec.joint_names == ("joint_1", "joint_2")
+        assert rec.actuated == ("joint_1",) and rec.passive == ("joint_2",)
+    else:
+        assert rec.system == "swimmer9"
+        assert rec.joint_names == tuple(f"joint_{i}" for i in range(1, 9))
+        assert rec.actuated == ("joint_1", "joint_2", "joint_3", "joint_4")
+        assert rec.passive == ("joint_5", "joint_6", "joint_7", "joint_8")
+    if name == "purcell3_real_friction":
+        assert rec.r[:, 1].std() == pytest.approx(0.269, abs=0.005)
+    if name == "purcell3_nominal":
+        assert rec.r[:, 1].std() == pytest.approx(0.36, abs=0.01)
+    if name == "swimmer9_real_rest_offset":
+        assert rec.r[:, 5].mean() == pytest.approx(0.16, abs=0.01)
+        assert rec.r[:, 4].mean() == pytest.approx(-0.08, abs=0.01)
+
+
+
+
+def test_shared_bag_rewrite_equal(tmp_path: Path) -> None:
+    rec = read_recording(shared("swimmer9_nominal"))
+    out = tmp_path / "copy.mcap"
+    write_recording(out, rec)
+    assert_rec_equal(read_recording(out), rec)
+
+
+# --------------------------------------------------------------------------- roundtrip
+@pytest.mark.parametrize("effort", [False, True])
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_roundtrip(tmp_path: Path, effort: bool, compression: str) -> None:
+    rec = make_rec(effort=effort)
+    path = tmp_path / "rec.mcap"
+    write_recording(path, rec, compression=compression)
+    back = read_recording(path)
+    np.testing.assert_array_equal(back.t, rec.t)
+    np.testing.assert_array_equal(back.r, rec.r)
+    np.testing.assert_allclose(back.pose, rec.pose, rtol=0, atol=1e-12)
+    assert (back.joint_names, back.actuated, back.passive) == (
+        rec.joint_names, rec.actuated, rec.passive)
+    assert back.system == "swimmer4" and back.gait_hz == 1.5
+    if effort:
+        np.testing.assert_array_equal(back.effort, rec.effort)
+    else:
+        assert back.effort is None
+    info = bag_info(path)
+    assert info.compression == (compression,) and info.has_summary
+    assert info.metadata["suds"] == {"system": "swimmer4", "actuated": "joint_1",
+                                        "passive": "joint_2,joint_3", "gait_hz": "1.5"}
+
+
+def test_roundtrip_unaligned_streams_and_truth_not_written(tmp_path: Path) -> None:
+    rec = make_rec(n=30, pose_t=1.7e9 + 0.005 + 0.02 * np.arange(20),
+                   pose=np.zeros((20, 3)), truth={"xi": np.zeros((30, 3))})
+    path = tmp_path / "rec.mcap"
+    write_recording(path, rec)
+    back = read_recording(path)
+    back_pose = back.pose
+    np.testing.assert_allclose(back_pose, rec.pose, atol=1e-12)
+    assert back.truth == {}
+    np.testing.assert_array_equal(back.pose_t, rec.pose_t)
+    np.testing.assert_array_equal(back.r, rec.r)
+    logs = [m.log_time_ns for m in iter_raw_messages(path)]
+    assert logs == sorted(logs)
+
+
+def test_our_files_open_with_rosbags(tmp_path: Path) -> None:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    rec = make_rec(effort=True)
+    path = tmp_path / "rec.mcap"
+    write_recording(path, rec)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([path], default_typestore=store) as reader:
+        assert {c.topic: c.msgtype for c in reader.connections} == {
+            "/suds/shape": JS, "/suds/body_pose": PS}
+        shape = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(
+            connections=[c for c in reader.connections if c.topic == "/suds/shape"])]
+        pose_conn = [c for c in reader.connections if c.topic == "/suds/body_pose"]
+        poses = [store.deserialize_cdr(raw, PS) for _, _, raw in reader.messages(pose_conn)]
+    assert len(shape) == rec.n_samples
+    np.testing.assert_array_equal(np.array([m.position for m in shape]), rec.r)
+    np.testing.assert_array_equal(np.array([m.effort for m in shape]), rec.effort)
+    assert shape[3].name == list(rec.joint_names) and len(shape[3].velocity) == 0
+    yaw = [2 * np.arctan2(m.pose.orientation.z, m.pose.orientation.w) for m in poses]
+    np.testing.assert_allclose(np.unwrap(yaw), rec.pose[:, 2], atol=1e-12)
+    assert poses[0].header.frame_id == "world"
+
+
+
+
+def test_missing_topic(tmp_path: Path) -> None:
+    path = tmp_path / "rec.mcap"
+    write_recording(path, make_rec())
+    with pytest.raises(SudsBagError,
+                       match=r"topic '/robot/joints' is not in the bag; topics present: "
+                             r"/suds/body_pose, /suds/shape") as err:
+        read_recording(path, shape_topic="/robot/joints")
+    assert err.value.code == MISSING_TOPIC
+    with pytest.raises(SudsBagError, match=r"topic '/suds/shape' has type sensor_msgs/msg/Joint"
+                                           r"State, expected geometry_msgs/msg/PoseStamped"):
+        read_recording(path, pose_topic="/suds/shape")
+
+
+def test_refuses_to_overwrite(tmp_path: Path) -> None:
+    path = tmp_path / "rec.mcap"
+    path.write_bytes(b"precious")
+    with pytest.raises(SudsBagError, match=r"rec\.mcap: file exists; refusing to overwrite") as err:
+        write_recording(path, make_rec())
+    assert err.value.code == EXISTS
+    assert path.read_bytes() == b"precious"
+    write_recording(path, make_rec(), overwrite=True)
+    assert read_recording(path).n_samples == 50
+
+
+
+
+def test_joint_count_change(tmp_path: Path) -> None:
+    msgs = [js(ns) for ns in STAMPS]
+    msgs[7] = js(STAMPS[7], names=("joint_1", "joint_2", "joint_3"), pos=(1, 2, 3))
+    path = tmp_path / "bad.mcap"
+    raw_bag(path, msgs, STAMPS, meta=META)
+    with pytest.raises(SudsDataError, match=r"/suds/shape: sample 7 "
+                                            r"\(stamp 1700000000\.070000000 s\)"
+                                            r".*'joint_3'\], but sample 0 has"):
+        read_recording(path)
+
+
+def test_joint_order_change_and_bad_lengths(tmp_path: Path) -> None:
+    msgs = [js(ns) for ns in STAMPS]
+    msgs[3] = js(STAMPS[3], names=("joint_2", "joint_1"))
+    path = tmp_path / "bad.mcap"
+    raw_bag(path, msgs, STAMPS, meta=META)
+    with pytest.raises(SudsDataError, match=r"sample 3 .*\['joint_2', 'joint_1'\]"):
+        read_recording(path)
+    msgs[3] = js(STAMPS[3], vel=(1.0,))
+    raw_bag(path, msgs, STAMPS, meta=META)
+    with pytest.raises(SudsDataError, match=r"sample 3 .*velocity has 1 values for 2 joints"):
+        read_recording(path)
+
+
+def test_effort_only_if_in_all_samples(tmp_path: Path) -> None:
+    msgs = [js(ns, eff=(1.0, 2.0)) for ns in STAMPS]
+    path = tmp_path / "e.mcap"
+    raw_bag(path, msgs, STAMPS, meta=META)
+    assert read_recording(path).effort.shape == (20, 2)
+    msgs[5] = js(STAMPS[5])
+    raw_bag(path, msgs, STAMPS, meta=META)
+    assert read_recording(path).effort is None
+
+
+def test_nan_sample(tmp_path: Path) -> None:
+    msgs = [js(ns) for ns in STAMPS]
+    msgs[4] = js(STAMPS[4], pos=(0.1, float("nan")))
+    path = tmp_path / "nan.mcap"
+    raw_bag(path, msgs, STAMPS, meta=META)
+    with pytest.raises(SudsDataError, match=r"/suds/shape: sample 4 .*NaN"):
+        read_recording(path)
+    poses = [cdr.pose_stamped(ns, (0, 0, 0), (0, 0, 0, 1)) for ns in STAMPS]
+    poses[2] = cdr.pose_stamped(STAMPS[2], (float("nan"), 0, 0), (0, 0, 0, 1))
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta=META, pose_msgs=poses)
+    with pytest.raises(SudsDataError, match=r"/suds/body_pose: sample 2 .*NaN"):
+        read_recording(path)
+
+
+def test_duplicate_and_unsorted_stamps(tmp_path: Path) -> None:
+    path = tmp_path / "s.mcap"
+    stamps = list(STAMPS)
+    msgs = [js(ns) for ns in stamps]
+    msgs[6] = js(stamps[5])
+    raw_bag(path, msgs, stamps, meta=META)
+    with pytest.raises(SudsDataError, match=r"/suds/shape: duplicate stamp "
+                                            r"1700000000\.050000000 s at "
+                                            r"samples 5 and 6") as err:
+        read_recording(path)
+    assert err.value.code == DUPLICATE_STAMP
+    msgs[6] = js(stamps[2])
+    raw_bag(path, msgs, stamps, meta=META)
+    with pytest.raises(SudsDataError, match=r"/suds/shape: stamps are not sorted: sample 6") as err:
+        read_recording(path)
+    assert err.value.code == OUT_OF_ORDER_STAMP
+
+
+def test_stamps_are_header_stamps_not_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "s.mcap"
+    header = [ns - 3_000_000_000 for ns in STAMPS]  # stamped 3 s before logging
+    poses = [cdr.pose_stamped(ns, (0, 0, 0), (0, 0, 0, 1)) for ns in header]
+    raw_bag(path, [js(ns) for ns in header], STAMPS, meta=META, pose_msgs=poses)
+    rec = read_recording(path)
+    assert rec.t[0] == pytest.approx(1_699_999_997.0, abs=1e-6)
+
+
+
+
+def test_metadata_override(tmp_path: Path) -> None:
+    path = tmp_path / "m.mcap"
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta=META)
+    rec = read_recording(path, system="mine", actuated=["joint_2"])
+    assert rec.system == "mine" and rec.actuated == ("joint_2",) and rec.passive == ("joint_1",)
+    rec = read_recording(path, passive=[])
+    assert rec.actuated == ("joint_1", "joint_2") and rec.passive == ()
+    assert rec.gait_hz == 1.0
+
+
+def test_missing_metadata(tmp_path: Path) -> None:
+    path = tmp_path / "m.mcap"
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta=None)
+    with pytest.raises(SudsBagError, match=r"no 'system': the bag has no 'suds' metadata "
+                                           r"record$") as err:
+        read_recording(path)
+    assert err.value.code == MISSING_SYSTEM  # the CLI adds "pass --system" for this code
+    with pytest.raises(SudsBagError, match=r"no 'actuated' joints: the bag has no 'suds' "
+                                           r"metadata record \(joints in the bag: joint_1, "
+                                           r"joint_2\)") as err:
+        read_recording(path, system="purcell3")
+    assert err.value.code == MISSING_JOINT_ROLES
+    rec = read_recording(path, system="purcell3", passive=["joint_2"])
+    assert rec.actuated == ("joint_1",) and rec.gait_hz is None
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta={"system": "x"})
+    with pytest.raises(SudsBagError, match=r"record has neither 'actuated' nor 'passive'"):
+        read_recording(path)
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta={**META, "gait_hz": "fast"})
+    with pytest.raises(SudsBagError, match=r"gait_hz: expected a number, got 'fast'"):
+        read_recording(path)
+    raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta=META)
+    with pytest.raises(SudsDataError, match=r"joints \['joint_9'\] are not among"):
+        read_recording(path, actuated=["joint_9"])
+
+
+def test_io_does_not_import_rclpy() -> None:
+    code = ("import sys, suds_ros.io.recording_bag, suds_ros.io.mcap, suds_ros.io.stamps, "
+            "suds_ros.io.cdr, suds_ros.io.msgdefs; sys.exit('rclpy' in sys.modules)")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    assert subprocess.run([sys.executable, "-c", code], env=env, check=False).returncode == 0
+
+
+
+
