@@ -52,7 +52,10 @@ def test_live_pipeline_predicts_test_cycles(start_process, node_command, tmp_pat
     bag = tmp_path / "live.mcap"
     rec = start_process(node_command("recorder_node", f"output:={bag}", *RECORD), "recorder")
     est = start_process(node_command("estimator_node"), "estimator")
-    pred = start_process(node_command("predictor_node"), "predictor")
+    # the test scores what the live pipeline predicts, not how the predictor sheds load (its default
+    # depth 100 is 0.2 s of this 5x real-time stream): buffer the whole run, so an overloaded
+    # machine delays predictions instead of losing them
+    pred = start_process(node_command("predictor_node", f"depth:={N_SAMPLES}"), "predictor")
     graph = probe.node
     wait_for(lambda: "recording [" in rec.output(), 60, lambda: f"the recorder\n{rec.output()}")
     wait_for(lambda: graph.count_publishers("/suds/status") >= 1, 60,  # created as the estimator starts
