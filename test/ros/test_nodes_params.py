@@ -6,29 +6,11 @@ In-process tests build each node with ``parameter_overrides`` in its own
 
 from __future__ import annotations
 
-import itertools
-import os
 import time
 
 import pytest
 
 pytestmark = pytest.mark.ros
-
-_IDS = itertools.count()
-
-
-@pytest.fixture
-def context(tmp_path, monkeypatch):
-    """A fresh, isolated rclpy Context (shut down at teardown)."""
-    import rclpy
-    from rclpy.context import Context
-
-    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "ros_log"))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=101 + (os.getpid() * 7 + next(_IDS)) % 100)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def make(kind: str, context, **params):
@@ -62,26 +44,26 @@ def make(kind: str, context, **params):
     ("predictor", {"executor": "bogus"}, r"`executor`: expected 'events' or 'single'"),
     ("predictor", {"frame_id": ""}, r"`frame_id`"),
 ])
-def test_bad_parameter_is_refused_with_reason(context, kind, params, match):
+def test_bad_parameter_is_refused_with_reason(ros_context, kind, params, match):
     from suds_ros.core.errors import SudsConfigError
 
     with pytest.raises(SudsConfigError, match=match):
-        make(kind, context, **params)
+        make(kind, ros_context, **params)
 
 
-def test_unreadable_checkpoint_stops_the_estimator(context, tmp_path):
+def test_unreadable_checkpoint_stops_the_estimator(ros_context, tmp_path):
     from suds_ros.core.errors import SudsDataError
 
     bad = tmp_path / "garbage.ckpt"
     bad.write_bytes(b"not a pickle")
     with pytest.raises(SudsDataError, match="unreadable"):
-        make("estimator", context, checkpoint=str(bad))
+        make("estimator", ros_context, checkpoint=str(bad))
 
 
-def test_simulator_runtime_parameters(context):
+def test_simulator_runtime_parameters(ros_context):
     from rclpy.parameter import Parameter
 
-    node = make("simulator", context, real_time_factor=2.0, cycles=1)
+    node = make("simulator", ros_context, real_time_factor=2.0, cycles=1)
     try:
         assert node.config.samples_per_cycle == 100 and node.t0 == 1.7e9  # not real time: default t0
         res = node.set_parameters([Parameter("real_time_factor", value=-2.0)])[0]
@@ -97,18 +79,18 @@ def test_simulator_runtime_parameters(context):
         node.destroy_node()
 
 
-def test_real_time_default_t0_is_now(context):
-    node = make("simulator", context)
+def test_real_time_default_t0_is_now(ros_context):
+    node = make("simulator", ros_context)
     try:
         assert abs(node.t0 - time.time()) < 5.0
     finally:
         node.destroy_node()
 
 
-def test_estimator_runtime_parameters_and_status(context):
+def test_estimator_runtime_parameters_and_status(ros_context):
     from rclpy.parameter import Parameter
 
-    node = make("estimator", context, system="purcell3")
+    node = make("estimator", ros_context, system="purcell3")
     try:
         assert node.est is not None and node.est.actuated == ("joint_1",)
         res = node.set_parameters([Parameter("pose_stall", value=-1.0)])[0]
@@ -123,8 +105,8 @@ def test_estimator_runtime_parameters_and_status(context):
         node.destroy_node()
 
 
-def test_predictor_starts_and_counts_nothing(context):
-    node = make("predictor", context, executor="single")
+def test_predictor_starts_and_counts_nothing(ros_context):
+    node = make("predictor", ros_context, executor="single")
     try:
         assert node.predictor is None and node.before_model == 0
     finally:
