@@ -167,7 +167,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
     from suds_ros.core.ident.sysid import SudsConfig
 
-    from suds_ros.core.ident.identify import score_prediction
+    from suds_ros.core.ident.scoring import score_prediction
 
     rec = load_recording(args)
     if args.test_cycles == 0:
@@ -225,8 +225,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 def _identify_streaming(args: argparse.Namespace, rec, train, test) -> int:  # type: ignore[no-untyped-def]
     """The live estimator's algorithm run offline (same model as the estimator node on this data)."""
-    from suds_ros.core.ident.identify import score_prediction
-    from suds_ros.core.ident.online import OnlineConfig, evaluate_model, fit_streaming
+    from suds_ros.core.ident.scoring import score_prediction
+    from suds_ros.core.ident.online import OnlineConfig, fit_streaming
+    from suds_ros.core.ident.predictor import evaluate_model
     from suds_ros.core.ident.sysid import SudsConfig
 
     cfg = OnlineConfig(

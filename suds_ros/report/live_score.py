@@ -27,7 +27,7 @@ import numpy as np
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.intervals import make_intervals
 from suds_ros.core.phase.phaser import Phaser
-from suds_ros.core.ident.sysid import gamma
+from suds_ros.core.ident.scoring import gamma
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.io.bags import decode_message, iter_raw_messages, read_recording
 

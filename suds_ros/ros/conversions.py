@@ -32,7 +32,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
-from suds_ros.core.ident.online import SudsModel
+from suds_ros.core.ident.model import SudsModel
 
 _NS = 10**9
 _INT32 = (-(2**31), 2**31 - 1)

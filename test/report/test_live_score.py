@@ -16,7 +16,8 @@ import pytest
 from suds_ros.cli.main import main as suds_main
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.identify import split_cycles
-from suds_ros.core.ident.online import StreamingPredictor, fit_streaming
+from suds_ros.core.ident.online import fit_streaming
+from suds_ros.core.ident.predictor import StreamingPredictor
 from suds_ros.io import cdr
 from suds_ros.io.bags import POSE_TYPE, SHAPE_TYPE, BagWriter
 from suds_ros.report.live_score import BODY_TOPIC, PASSIVE_TOPIC, score_live_predictions
