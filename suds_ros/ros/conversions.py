@@ -31,7 +31,15 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.errors import (
+    BAD_QUATERNION,
+    BAD_STAMP,
+    NAN_OR_INF,
+    WRONG_JOINT_COUNT,
+    WRONG_JOINT_NAMES,
+    SudsConfigError,
+    SudsDataError,
+)
 from suds_ros.core.ident.model import SudsModel
 
 _NS = 10**9
@@ -123,17 +131,18 @@ def _floats(values: FloatArray, typestore: Any) -> Any:
 def _vector(name: str, values: Any, n: int | None) -> FloatArray:
     a = np.asarray(values, dtype=float).reshape(-1) if values is not None else np.empty(0)
     if n is not None and a.size != n:
-        raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}")
+        raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}",
+                            code=WRONG_JOINT_COUNT)
     if not np.all(np.isfinite(a)):
         bad = int(np.flatnonzero(~np.isfinite(a))[0])
-        raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})")
+        raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})", code=NAN_OR_INF)
     return a
 
 
 def _finite(name: str, value: Any) -> float:
     v = float(value)
     if not math.isfinite(v):
-        raise SudsDataError(f"`{name}`: expected a finite number, got {v!r}")
+        raise SudsDataError(f"`{name}`: expected a finite number, got {v!r}", code=NAN_OR_INF)
     return v
 
 
@@ -142,7 +151,7 @@ def float_to_ns(stamp: float) -> int:
     """Float seconds → integer nanoseconds, rounding the exact float value (half to even)."""
     s = float(stamp)
     if not math.isfinite(s):
-        raise SudsDataError(f"`stamp`: expected finite seconds, got {s!r}")
+        raise SudsDataError(f"`stamp`: expected finite seconds, got {s!r}", code=NAN_OR_INF)
     return round(Fraction(s) * _NS)
 
 
@@ -155,7 +164,8 @@ def ns_to_time(ns: int, *, typestore: Any = None) -> Any:
     """Integer nanoseconds → ``builtin_interfaces/msg/Time`` (``sec`` floored, ``0 ≤ nanosec < 1e9``)."""
     sec, nanosec = divmod(int(ns), _NS)
     if not _INT32[0] <= sec <= _INT32[1]:
-        raise SudsDataError(f"`stamp`: {ns} ns is outside the int32 seconds range of a ROS Time")
+        raise SudsDataError(f"`stamp`: {ns} ns is outside the int32 seconds range of a ROS Time",
+                            code=BAD_STAMP)
     return _msg_class("builtin_interfaces/msg/Time", typestore)(sec=sec, nanosec=nanosec)
 
 
@@ -163,7 +173,7 @@ def time_to_ns(msg: Any) -> int:
     """``builtin_interfaces/msg/Time`` → integer nanoseconds (exact)."""
     sec, nanosec = int(msg.sec), int(msg.nanosec)
     if not 0 <= nanosec < _NS:
-        raise SudsDataError(f"`stamp.nanosec`: expected 0 ≤ nanosec < 1e9, got {nanosec}")
+        raise SudsDataError(f"`stamp.nanosec`: expected 0 ≤ nanosec < 1e9, got {nanosec}", code=BAD_STAMP)
     return sec * _NS + nanosec
 
 
@@ -187,9 +197,10 @@ def _header(stamp: float, frame_id: str, typestore: Any) -> Any:
 def _names(names: Sequence[str]) -> tuple[str, ...]:
     out = tuple(names)
     if not all(isinstance(n, str) for n in out):
-        raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}")
+        raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}",
+                            code=WRONG_JOINT_NAMES)
     if len(set(out)) != len(out):
-        raise SudsDataError(f"`name`: joint names are not unique: {list(out)}")
+        raise SudsDataError(f"`name`: joint names are not unique: {list(out)}", code=WRONG_JOINT_NAMES)
     return out
 
 
@@ -238,7 +249,8 @@ def joint_state_from_msg(msg: Any, *, require_position: bool = True) -> JointSam
         fields[key] = None if raw.size == 0 else _vector(key, raw, n)
     if fields["position"] is None:
         if require_position and n:
-            raise SudsDataError(f"`position`: expected {n} values (one per joint name), got 0")
+            raise SudsDataError(f"`position`: expected {n} values (one per joint name), got 0",
+                                code=WRONG_JOINT_COUNT)
         fields["position"] = np.empty(0)
     return JointSample(
         time_to_float(msg.header.stamp), nm, fields["position"], fields["velocity"], fields["effort"]
@@ -265,8 +277,8 @@ def joint_velocity_from_msg(msg: Any) -> tuple[float, tuple[str, ...], FloatArra
     sample = joint_state_from_msg(msg, require_position=False)
     if sample.velocity is None and sample.names:
         raise SudsDataError(
-            f"`velocity`: expected {len(sample.names)} values (one per joint name), got 0"
-        )
+            f"`velocity`: expected {len(sample.names)} values (one per joint name), got 0",
+            code=WRONG_JOINT_COUNT)
     vel = sample.velocity if sample.velocity is not None else np.empty(0)
     return sample.stamp, sample.names, vel
 
@@ -294,7 +306,7 @@ def pose_from_msg(msg: Any) -> PlanarPose:
     qx, qy, qz, qw = (_finite(f"pose.orientation.{k}", getattr(q, k)) for k in "xyzw")
     norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if norm < 1e-9:
-        raise SudsDataError("`pose.orientation`: the quaternion is zero, not a rotation")
+        raise SudsDataError("`pose.orientation`: the quaternion is zero, not a rotation", code=BAD_QUATERNION)
     qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
     yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return PlanarPose(time_to_float(msg.header.stamp), x, y, yaw)
