@@ -61,6 +61,7 @@ class EstimatorNode(Node):
             self._subs[SYSTEM_TOPIC] = self.create_subscription(String, SYSTEM_TOPIC, self._on_system, MODEL_QOS)
         self.create_timer(0.1, self._housekeeping)
         self._discovery = self.create_timer(0.2, self._discover)
+        self.get_logger().info(f"ready: waiting for publishers of {SHAPE_TOPIC} and {POSE_TOPIC}")
         self._discover()
 
     @property
@@ -73,8 +74,13 @@ class EstimatorNode(Node):
         self.session.config = new
 
     def _log(self, level: str, text: str) -> None:
-        {"info": self.get_logger().info, "warning": self.get_logger().warning,
-         "error": self.get_logger().error}[level](text)
+        # one call site per severity: rclpy refuses a severity change at one call site
+        if level == "error":
+            self.get_logger().error(text)
+        elif level == "warning":
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
 
     def _discover(self) -> None:
         """Subscribe to shape and pose together once both have publishers."""

@@ -103,9 +103,10 @@ class SessionConfig:
         "range": (0.0, 86400.0), "read_only": False})
     status_period: float = field(default=1.0, metadata={
         "description": "wall s between /suds/status messages", "range": (0.05, 3600.0), "read_only": False})
-    pose_stall: float = field(default=5.0, metadata={
+    pose_stall: float = field(default=60.0, metadata={
         "description": "stamp s the shape stream may run ahead of the pose stream before a waiting "
-                       "shape sample is given up on (the pose stream counts as stalled)",
+                       "shape sample is given up on (the pose stream counts as stalled); longer than "
+                       "the lag of a history catch-up after a restart",
         "range": (0.01, 3600.0), "read_only": False})
     idle_flush: float = field(default=2.0, metadata={
         "description": "wall s without samples before the partial chunk is fitted and published",
@@ -247,21 +248,22 @@ class EstimatorSession:
             check_stamp("shape", sample.stamp, self._newest_shape)
             if self.est is not None:
                 self.est.check_shape(sample.stamp, sample.names, sample.position)
-            if len(self._shapes) >= self.config.history_depth:
-                raise SudsDataError(f"shape queue: {len(self._shapes)} samples already wait for the joint "
-                                    "roles or the pose stream", code=QUEUE_FULL)
         except SudsError as exc:
             self.skip("shape", exc)
             return None
         self._newest_shape = sample.stamp
         self._first_shape = min(self._first_shape, sample.stamp)
+        model = self._drain(now)  # first give up what this stamp shows unpairable: room in the queue
+        if len(self._shapes) >= self.config.history_depth:
+            self.skip("shape", SudsDataError(f"shape queue: {len(self._shapes)} samples already wait for the "
+                                             "joint roles or the pose stream", code=QUEUE_FULL))
+            return model
         self._shapes.append(sample)
-        return self._drain(now)
+        return self._drain(now) or model
 
     def on_pose(self, pose: Any, now: float) -> SudsModel | None:
         """A planar pose (``stamp``, ``x``, ``y``, ``yaw``); returns a model to publish, if any."""
         self._last_arrival = now
-        self._stall_logged = False
         if pose.stamp <= self._resume[1]:
             self.replayed_pose += 1
             return None
@@ -342,10 +344,12 @@ class EstimatorSession:
         idle = self._last_arrival is not None and now - self._last_arrival > cfg.idle_flush
         if self._dirty and (idle or (cfg.model_period > 0 and now - self._last_model >= cfg.model_period)):
             model = self._take_model(now)
+            if model is not None and idle:
+                self._log("info", f"idle for {cfg.idle_flush:g} s: published the model ({model.n_samples} rows)")
         stalled = self.pose_stalled()
         if stalled is not None and not self._stall_logged:
             self._log("warning", f"pose stream stalled since {stalled:.1f} s")
-            self._stall_logged = True
+        self._stall_logged = stalled is not None  # log once per stall
         status = None
         if now - self._last_status >= cfg.status_period:
             self._last_status = now
