@@ -228,10 +228,9 @@ def _identify_streaming(args: argparse.Namespace, rec, train, test) -> int:  # t
     from suds_ros.core.ident.scoring import score_prediction
     from suds_ros.core.ident.online import OnlineConfig, fit_streaming
     from suds_ros.core.ident.predictor import evaluate_model
-    from suds_ros.core.ident.sysid import SudsConfig
 
     cfg = OnlineConfig(
-        suds=SudsConfig(regressors=args.regressors, linear_order=6, bilinear_order=3),
+        suds=replace(OnlineConfig().suds, regressors=args.regressors),
         init_cycles=args.init_cycles,
         gait_hz=rec.gait_hz or 1.0,
     )

@@ -41,14 +41,28 @@ def _feed(est: OnlineSudsEstimator, rec, k0: int, k1: int) -> None:
         est.add_shape(float(rec.t[k]), rec.joint_names, rec.r[k])
 
 
-def test_hyperparameters_never_change_while_fitting(purcell3_run) -> None:
-    """The phaser needs more cycles than configured: the learned ``init_cycles_`` grows, the config does not."""
+def test_hyperparameters_never_change_while_fitting(purcell3_run, monkeypatch) -> None:
+    """The phaser refuses the first buffer: the learned ``init_cycles_`` grows, the config does not."""
+    import suds_ros.core.ident.online as online
+    from suds_ros.core.errors import SudsPhaseError
+
+    calls = []
+
+    class FirstTimeTooShort(online.Phaser):
+        def fit_transform(self, R):  # type: ignore[no-untyped-def]
+            calls.append(len(R))
+            if len(calls) == 1:
+                raise SudsPhaseError("too little data (test)")
+            return super().fit_transform(R)
+
+    monkeypatch.setattr(online, "Phaser", FirstTimeTooShort)
     rec = purcell3_run
     cfg = OnlineConfig(init_cycles=3.0)
     est = OnlineSudsEstimator(rec.joint_names, rec.actuated, cfg)
     _feed(est, rec, 0, 1000)
-    assert est.config is cfg and est.config.init_cycles == 3.0
-    assert est.initialised and est.init_cycles_ >= 3.0
+    assert len(calls) == 2 and calls[1] > calls[0] + 90  # one more cycle buffered
+    assert est.config is cfg and est.config == OnlineConfig(init_cycles=3.0)
+    assert est.init_cycles_ == 4.0 and est.initialised
     assert est.omega_ > 0 and est.template_ is not None
 
 
