@@ -289,10 +289,12 @@ class EstimatorSession:
         est = self.est
         if est is None:
             return None
+        # the pose stream is shown stalled (in stamp time) when the shapes have run more than
+        # `pose_stall` past its newest pose: then no waiting shape can expect a pose any more
+        stalled = self._newest_shape - max(est.last_pose_stamp, self._first_shape) > self.config.pose_stall
         while self._shapes:
             s = self._shapes[0]
-            covered = est.last_pose_stamp >= s.stamp
-            if not covered and self._newest_shape - s.stamp <= self.config.pose_stall:
+            if est.last_pose_stamp < s.stamp and not stalled:
                 break
             self._shapes.popleft()
             try:
@@ -330,7 +332,7 @@ class EstimatorSession:
     # ------------------------------------------------------------ periodic
     def pose_stalled(self) -> float | None:
         """Stamp s the shape stream has run ahead of the pose stream, when more than ``pose_stall``."""
-        if not self._shapes:
+        if self._newest_shape == -math.inf:
             return None
         last_pose = self.est.last_pose_stamp if self.est is not None else max(
             (p.stamp for p in self._poses), default=-math.inf)
