@@ -322,7 +322,7 @@ def check_joints(model: ChainModel, joint_names: Sequence[str], actuated: Sequen
                  source: str | None = None) -> None:
     """Refuse joints (names head to tail, actuated subset) that differ from ``model``'s.
 
-    ``source`` names the model in the message (default ``model '<name>'``).
+    ``source`` (the model file's path) starts the message when given.
 
     Raises
     ------
@@ -331,9 +331,9 @@ def check_joints(model: ChainModel, joint_names: Sequence[str], actuated: Sequen
     """
     diffs = model_differences(model, joint_names, actuated)
     if diffs:
-        where = source or f"model {model.name!r}"
+        where = f"{source}: " if source else ""
         raise SudsConfigError(
-            f"{where}: the recording's joints ({', '.join(joint_names)}) do not match the model "
+            f"{where}the recording's joints ({', '.join(joint_names)}) do not match the model "
             f"{model.name!r}: {'; '.join(diffs)}", code=MODEL_MISMATCH)
 
 
