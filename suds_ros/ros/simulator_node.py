@@ -111,9 +111,10 @@ class SimulatorConfig:
 
     def _check_gait(self) -> None:
         gait = self.gait_hz
-        if isinstance(gait, (bool, str)) or not (math.isfinite(float(gait)) and 0 < float(gait) <= 1000):  # type: ignore[arg-type]
+        number = isinstance(gait, (int, float)) and not isinstance(gait, bool)
+        if not (number and math.isfinite(gait) and 0 < gait <= 1000):  # type: ignore[arg-type]
             raise SudsConfigError(f"`gait_hz`: expected a frequency in (0, 1000] Hz, got {gait!r}")
-        object.__setattr__(self, "gait_hz", float(gait))  # type: ignore[arg-type]
+        object.__setattr__(self, "gait_hz", float(gait))
         spc = self.rate / self.gait_hz
         if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
             raise SudsConfigError(

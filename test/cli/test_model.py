@@ -245,6 +245,7 @@ def test_model_differences_are_listed_in_one_error() -> None:
                      "extra joints (in the recording, not in the model): fin",
                      "roles differ: waist (recording passive, model actuated)",
                      "joint order differs: recording waist, neck; model neck, waist"]
-    with pytest.raises(SudsConfigError, match="^the recording's joints .* do not match the model 'eel4': missing joints") as info:
+    pattern = "^the recording's joints .* do not match the model 'eel4': missing joints"
+    with pytest.raises(SudsConfigError, match=pattern) as info:
         check_joints(model, ("waist", "neck", "fin"), ("neck",))
     assert info.value.code == MODEL_MISMATCH and "\n" not in str(info.value)
