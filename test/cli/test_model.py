@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from suds_ros.cli.main import build_parser, main
-from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError
+from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.robot_model import dump_model, load_model
 from suds_ros.core.physics.systems import builtin_model
 from suds_ros.io.mcap import bag_info
@@ -233,19 +233,3 @@ def test_sensor_offset_alone_delays_the_pose_stream(tmp_path: Path) -> None:
         assert np.max(np.abs(rec.pose[:, col] - late)) < 2e-3
         on_time = np.interp(rec.pose_t, twin.t, twin.truth["pose"][:, col])
         assert np.max(np.abs(rec.pose[:, col] - on_time)) > 5 * np.max(np.abs(rec.pose[:, col] - late))
-
-
-def test_model_differences_are_listed_in_one_error() -> None:
-    from suds_ros.core.physics.robot_model import check_joints, model_differences
-
-    model = load_model(EEL4)
-    assert model_differences(model, ("neck", "waist", "tail"), ("neck", "waist")) == []
-    diffs = model_differences(model, ("waist", "neck", "fin"), ("neck",))
-    assert diffs == ["missing joints (in the model, not in the recording): tail",
-                     "extra joints (in the recording, not in the model): fin",
-                     "roles differ: waist (recording passive, model actuated)",
-                     "joint order differs: recording waist, neck; model neck, waist"]
-    pattern = "^the recording's joints .* do not match the model 'eel4': missing joints"
-    with pytest.raises(SudsConfigError, match=pattern) as info:
-        check_joints(model, ("waist", "neck", "fin"), ("neck",))
-    assert info.value.code == MODEL_MISMATCH and "\n" not in str(info.value)
