@@ -15,11 +15,11 @@ fi
 VPY="$VENV/bin/python"
 
 DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap
-      mcap-ros2-support matplotlib pytest rosbags)
+      mcap-ros2-support matplotlib pytest rosbags flake8 pydocstyle)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 
-if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel' 2>/dev/null; then
+if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle' 2>/dev/null; then
   echo "setup_env: installing dependencies"
   "$VPY" -m pip install --quiet --disable-pip-version-check "${DEPS[@]}" "${BUILD[@]}"
 fi

@@ -1,12 +1,33 @@
-"""Shared fixtures: short simulated runs (session scoped) and the public test recordings."""
+"""Shared fixtures: short simulated runs (session scoped) and the public test recordings.
+
+Tests marked ``ros`` (anywhere in the suite) are skipped when rclpy cannot be
+imported; this is the suite's one check of rclpy's availability.
+"""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import pytest
 
 SHARED_BAGS = Path(__file__).resolve().parents[1].parent / "shared" / "bags"
+
+
+@functools.cache
+def rclpy_missing() -> str:
+    """Why rclpy cannot be imported, "" when it can (imported at the first ``ros`` test only)."""
+    try:
+        import rclpy  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        return f"rclpy cannot be imported ({exc})"
+    return ""
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Skip ``ros`` tests where rclpy cannot be imported."""
+    if item.get_closest_marker("ros") and rclpy_missing():
+        pytest.skip(rclpy_missing())
 
 
 def _shared_bag(name: str) -> Path:

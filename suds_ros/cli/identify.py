@@ -35,7 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--test-cycles", type=int, default=30,
                    help="held-out cycles (default 30; fewer if the bag is short; 0 with "
                         "--streaming: train on everything)")
-    p.add_argument("--regressors", type=int, choices=(1, 2, 3), default=2,
+    p.add_argument("--regressors", type=int, choices=(1, 2, 3), default=None,
                    help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a] (default), "
                         "3 full second order")
     p.add_argument("--window", type=int, default=1,
@@ -74,9 +74,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Recording) -> int:
     """The batch identifier, scored on ``test``; prints the Γ table (or JSON)."""
-    from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, score_prediction
+    from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
+    from suds_ros.core.ident.scoring import score_prediction
     from suds_ros.core.ident.sysid import SudsConfig
 
+    if args.regressors is None:
+        args.regressors = SudsConfig().regressors
     cfg = IdentifyConfig(suds=SudsConfig(regressors=args.regressors), window=args.window)
     if args.torque and rec.effort is None:
         raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
@@ -127,10 +130,13 @@ def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
     """The live estimator's algorithm run offline (the estimator node's model on this data)."""
     from dataclasses import replace
 
-    from suds_ros.core.ident.identify import score_prediction
-    from suds_ros.core.ident.online import OnlineConfig, evaluate_model, fit_streaming
+    from suds_ros.core.ident.online import OnlineConfig, fit_streaming
+    from suds_ros.core.ident.predictor import evaluate_model
+    from suds_ros.core.ident.scoring import score_prediction
 
     defaults = OnlineConfig()
+    if args.regressors is None:
+        args.regressors = defaults.suds.regressors
     cfg = replace(defaults, suds=replace(defaults.suds, regressors=args.regressors),
                   init_cycles=defaults.init_cycles if args.init_cycles is None else args.init_cycles,
                   gait_hz=rec.gait_hz or 1.0)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from suds_ros.core.ident.identify import Prediction, SudsIdentifier
+from suds_ros.core.ident.identify import SudsIdentifier
+from suds_ros.core.ident.scoring import Prediction
 from suds_ros.core.recording import Recording
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from suds_ros.core.errors import MISSING_TOPIC, WRONG_JOINT_NAMES, SudsDataError
 from suds_ros.core.ident.intervals import make_intervals
-from suds_ros.core.ident.sysid import gamma
+from suds_ros.core.ident.scoring import gamma
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.core.recording import Recording

@@ -28,8 +28,15 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import BAD_STAMP, SudsConfigError, SudsDataError
-from suds_ros.core.ident.online import SudsModel
+from suds_ros.core.errors import (
+    BAD_STAMP,
+    NAN_OR_INF,
+    WRONG_JOINT_COUNT,
+    WRONG_JOINT_NAMES,
+    SudsConfigError,
+    SudsDataError,
+)
+from suds_ros.core.ident.model import SudsModel
 from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float, quaternion_yaw, split_ns, yaw_quaternion
 
@@ -121,17 +128,18 @@ def _floats(values: FloatArray, typestore: Any) -> Any:
 def _vector(name: str, values: Any, n: int | None) -> FloatArray:
     a = np.asarray(values, dtype=float).reshape(-1) if values is not None else np.empty(0)
     if n is not None and a.size != n:
-        raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}")
+        raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}",
+                            code=WRONG_JOINT_COUNT)
     if not np.all(np.isfinite(a)):
         bad = int(np.flatnonzero(~np.isfinite(a))[0])
-        raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})")
+        raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})", code=NAN_OR_INF)
     return a
 
 
 def _finite(name: str, value: Any) -> float:
     v = float(value)
     if not math.isfinite(v):
-        raise SudsDataError(f"`{name}`: expected a finite number, got {v!r}")
+        raise SudsDataError(f"`{name}`: expected a finite number, got {v!r}", code=NAN_OR_INF)
     return v
 
 
@@ -170,9 +178,10 @@ def _header(stamp: float, frame_id: str, typestore: Any) -> Any:
 def _names(names: Sequence[str]) -> tuple[str, ...]:
     out = tuple(names)
     if not all(isinstance(n, str) for n in out):
-        raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}")
+        raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}",
+                            code=WRONG_JOINT_NAMES)
     if len(set(out)) != len(out):
-        raise SudsDataError(f"`name`: joint names are not unique: {list(out)}")
+        raise SudsDataError(f"`name`: joint names are not unique: {list(out)}", code=WRONG_JOINT_NAMES)
     return out
 
 
@@ -221,7 +230,8 @@ def joint_state_from_msg(msg: Any, *, require_position: bool = True) -> JointSam
         fields[key] = None if raw.size == 0 else _vector(key, raw, n)
     if fields["position"] is None:
         if require_position and n:
-            raise SudsDataError(f"`position`: expected {n} values (one per joint name), got 0")
+            raise SudsDataError(f"`position`: expected {n} values (one per joint name), got 0",
+                                code=WRONG_JOINT_COUNT)
         fields["position"] = np.empty(0)
     return JointSample(
         time_to_float(msg.header.stamp), nm, fields["position"], fields["velocity"], fields["effort"]
@@ -248,8 +258,8 @@ def joint_velocity_from_msg(msg: Any) -> tuple[float, tuple[str, ...], FloatArra
     sample = joint_state_from_msg(msg, require_position=False)
     if sample.velocity is None and sample.names:
         raise SudsDataError(
-            f"`velocity`: expected {len(sample.names)} values (one per joint name), got 0"
-        )
+            f"`velocity`: expected {len(sample.names)} values (one per joint name), got 0",
+            code=WRONG_JOINT_COUNT)
     vel = sample.velocity if sample.velocity is not None else np.empty(0)
     return sample.stamp, sample.names, vel
 

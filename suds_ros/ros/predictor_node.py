@@ -24,27 +24,22 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
-from suds_ros.core.errors import SudsConfigError, SudsError
-from suds_ros.core.ident.online import StreamingPredictor, SudsModel
+from suds_ros.core.errors import SudsConfigError, SudsError, error_code
+from suds_ros.core.ident.predictor import StreamingPredictor, carry_over
+from suds_ros.io.recording_bag import MODEL_TOPIC, PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, SHAPE_TOPIC
 from suds_ros.ros.conversions import (
     joint_state_from_msg,
     joint_velocity_to_msg,
     model_from_msg,
     twist_to_msg,
 )
-from suds_ros.ros.estimator_node import reason_key
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
-
-SHAPE = "/suds/shape"
-BODY_TOPIC, PASSIVE_TOPIC = "/suds/predicted/body_velocity", "/suds/predicted/passive_velocity"
-
 
 @dataclass(frozen=True)
 class PredictorConfig:
@@ -64,25 +59,6 @@ class PredictorConfig:
             raise SudsConfigError("`frame_id`: expected a frame name, got ''")
 
 
-def carry_over(old: StreamingPredictor | None, model: SudsModel, last: Any) -> tuple[StreamingPredictor, str]:
-    """A predictor for ``model`` that keeps the running state of ``old`` or is primed with ``last``.
-
-    Returns the predictor and how continuity was kept: ``"tracker"`` (same template and
-    phase rate: the phase tracker carries over), ``"primed"`` (fed the last shape sample,
-    so the next one is predicted) or ``"fresh"``.
-    """
-    if old is not None and old.last_stamp > -np.inf and old.shares_phase_with(model):
-        return old.with_model(model), "tracker"
-    new = StreamingPredictor(model)
-    if last is not None:
-        try:
-            new.update(last.stamp, last.names, last.position)
-            return new, "primed"
-        except SudsError:
-            pass
-    return new, "fresh"
-
-
 class PredictorNode(Node):
     """Publish (ξ, ṙ_p) predictions for every shape sample once a model is known."""
 
@@ -93,11 +69,11 @@ class PredictorNode(Node):
         from sensor_msgs.msg import JointState
         from std_msgs.msg import String
 
-        self._body_pub = self.create_publisher(TwistStamped, BODY_TOPIC, ESTIMATE_QOS,
+        self._body_pub = self.create_publisher(TwistStamped, PREDICTED_BODY_TOPIC, ESTIMATE_QOS,
                                                qos_overriding_options=overriding_options())
-        self._passive_pub = self.create_publisher(JointState, PASSIVE_TOPIC, ESTIMATE_QOS,
+        self._passive_pub = self.create_publisher(JointState, PREDICTED_PASSIVE_TOPIC, ESTIMATE_QOS,
                                                   qos_overriding_options=overriding_options())
-        self.create_subscription(String, "/suds/model", self._on_model, MODEL_QOS)
+        self.create_subscription(String, MODEL_TOPIC, self._on_model, MODEL_QOS)
         self._shape_cls = JointState
         self._shape_sub: Any = None
         self.predictor: StreamingPredictor | None = None
@@ -112,19 +88,19 @@ class PredictorNode(Node):
     def _discover(self) -> None:
         if self._shape_sub is not None:
             return
-        offered = [i.qos_profile for i in self.get_publishers_info_by_topic(SHAPE)]
+        offered = [i.qos_profile for i in self.get_publishers_info_by_topic(SHAPE_TOPIC)]
         if not offered:
             return
         q = subscription_qos_for(offered, depth=self.config.depth)
         qos = QoSProfile(depth=self.config.depth, reliability=q.reliability,
                          durability=DurabilityPolicy.VOLATILE)  # live predictions: no history
-        self._shape_sub = self.create_subscription(self._shape_cls, SHAPE, self._on_shape, qos,
+        self._shape_sub = self.create_subscription(self._shape_cls, SHAPE_TOPIC, self._on_shape, qos,
                                                    qos_overriding_options=overriding_options())
         self._discovery.cancel()
-        self.get_logger().info(f"subscribed to {SHAPE} ({qos.reliability.name.lower()})")
+        self.get_logger().info(f"subscribed to {SHAPE_TOPIC} ({qos.reliability.name.lower()})")
 
     def _skip(self, stream: str, exc: Exception) -> None:
-        key = f"{stream}.{reason_key(exc)}"
+        key = f"{stream}.{error_code(exc)}"
         if not self.skipped[key]:
             self.get_logger().warning(f"skipping bad {stream} message(s) [{key}]: {exc} (logged once)")
         self.skipped[key] += 1

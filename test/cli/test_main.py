@@ -43,7 +43,7 @@ def test_identify_streaming_writes_model(p3_bag: Path, tmp_path: Path, capsys) -
                  "--model-out", str(model), "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
     assert res["gamma_body"] > 0.8
-    from suds_ros.core.ident.online import SudsModel
+    from suds_ros.core.ident.model import SudsModel
 
     m = SudsModel.from_dict(json.loads(model.read_text()))
     assert m.coef.shape[1] == 4 and np.all(np.isfinite(m.coef))

@@ -16,7 +16,8 @@ import pytest
 from suds_ros.cli.main import main as suds_main
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.identify import split_cycles
-from suds_ros.core.ident.online import StreamingPredictor, fit_streaming
+from suds_ros.core.ident.online import fit_streaming
+from suds_ros.core.ident.predictor import StreamingPredictor
 from suds_ros.io import cdr
 from suds_ros.io.mcap import BagWriter
 from suds_ros.io.recording_bag import (

@@ -4,8 +4,14 @@
 on /suds/shape (sensor-data QoS) and COUNT PoseStamped on /suds/body_pose
 (reliable) at HZ; stamps are 1.7e9 + i/100 s, joint_1 = sin(i/10),
 joint_2 = cos(i/10), pose (i/1000, -i/1000, i/100).  COUNT 0 publishes until
-interrupted.  With ``--wait`` it first waits (≤ 20 s) until both topics have a
-subscriber.  Prints ``published N`` at the end.
+interrupted.  With ``--wait`` it first waits (≤ 60 s) until both topics have a
+subscriber.  Before exiting it waits (≤ 30 s) until every reliable sample is
+acknowledged.  Prints ``publishing`` when it starts and ``published N`` at the end.
+
+The recorder subscribes to a topic only once it has discovered its publisher,
+so its reader has matched our writer when our writer counts it as matched:
+no sample published after the wait can be lost to discovery, even on the
+best-effort shape topic.
 """
 
 import math
@@ -13,10 +19,16 @@ import sys
 import time
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
+from _ros_helpers import wait_for  # this script's folder is sys.path[0]
 from suds_ros.ros.conversions import joint_state_to_msg, pose_to_msg
-from suds_ros.ros.qos import ESTIMATE_QOS, STATE_QOS
+from suds_ros.ros.qos import STATE_QOS
+
+#: reliable, with a history deep enough that no unacknowledged pose is ever dropped
+POSE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def main() -> int:
@@ -27,17 +39,12 @@ def main() -> int:
     from sensor_msgs.msg import JointState
 
     shape = node.create_publisher(JointState, "/suds/shape", STATE_QOS)
-    pose = node.create_publisher(PoseStamped, "/suds/body_pose", ESTIMATE_QOS)
+    pose = node.create_publisher(PoseStamped, "/suds/body_pose", POSE_QOS)
     i = 0
     try:
         if "--wait" in sys.argv:
-            deadline = time.monotonic() + 20.0
-            while shape.get_subscription_count() < 1 or pose.get_subscription_count() < 1:
-                if time.monotonic() > deadline:
-                    print("no subscriber", flush=True)
-                    return 2
-                time.sleep(0.05)
-            time.sleep(0.3)
+            wait_for(lambda: shape.get_subscription_count() >= 1 and pose.get_subscription_count() >= 1,
+                     60.0, "a subscriber on /suds/shape and /suds/body_pose")
         print("publishing", flush=True)
         while count == 0 or i < count:
             stamp = 1.7e9 + i / 100.0
@@ -45,8 +52,10 @@ def main() -> int:
                                              [math.sin(i / 10), math.cos(i / 10)]))
             pose.publish(pose_to_msg(stamp, i / 1000.0, -i / 1000.0, i / 100.0))
             i += 1
-            time.sleep(1.0 / hz)
-        time.sleep(0.5)
+            time.sleep(1.0 / hz)  # the publishing rate, not a wait for an event
+        if not pose.wait_for_all_acked(Duration(seconds=30.0)):
+            print("poses not acknowledged within 30 s", flush=True)
+            return 3
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -1,47 +1,62 @@
 """Fixtures for tests that run ROS 2 processes.
 
-Each test gets its own DDS world: a ``ROS_DOMAIN_ID`` derived from the pid and
-a counter, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a private
-``ROS_LOG_DIR``.  Processes started through :func:`start_process` are stopped
-(SIGINT, then SIGTERM, then SIGKILL of their process group) at teardown.
-Tests marked ``ros`` are skipped when rclpy cannot be imported.
+Each test gets its own DDS world: a ``ROS_DOMAIN_ID`` that no other test on
+this machine holds at the same time (a lock file per id, so concurrent test
+runs from other checkouts never share a domain), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+and a private ``ROS_LOG_DIR``.  Processes started through :func:`start_process`
+are stopped (:func:`_ros_helpers.stop`) at teardown.  ``ros_context`` and
+``probe`` give the test process its own rclpy ``Context`` in the same domain.
+Tests marked ``ros`` are skipped when rclpy cannot be imported (test/conftest.py).
 """
 
 from __future__ import annotations
 
+import fcntl
 import itertools
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
+    from ._ros_helpers import Probe, stop
+except ImportError:
+    from _ros_helpers import Probe, stop
+
 ROOT = Path(__file__).resolve().parents[2]
 _COUNTER = itertools.count()
-
-try:
-    import rclpy  # noqa: F401
-
-    RCLPY_ERROR = ""
-except ImportError as exc:  # pragma: no cover - depends on the environment
-    RCLPY_ERROR = f"rclpy cannot be imported ({exc})"
-
-
-def pytest_runtest_setup(item: pytest.Item) -> None:
-    if item.get_closest_marker("ros") and RCLPY_ERROR:
-        pytest.skip(RCLPY_ERROR)
-
-
-def unique_domain_id() -> int:
-    """A ROS domain id in 1..100 unlikely to collide with concurrent test runs."""
-    return 1 + (os.getpid() * 37 + next(_COUNTER)) % 100
+_DOMAIN_LOCKS = Path(tempfile.gettempdir()) / f"suds_ros_test_domains-{os.getuid()}"
 
 
 @pytest.fixture
-def ros_env(tmp_path: Path) -> dict[str, str]:
+def ros_domain_id() -> Iterator[int]:
+    """A ROS domain id in 1..100 held (flock on a lock file) by this test until its teardown."""
+    _DOMAIN_LOCKS.mkdir(exist_ok=True)
+    first = (os.getpid() * 37 + next(_COUNTER)) % 100
+    for k in range(100):
+        domain = 1 + (first + k) % 100
+        lock = open(_DOMAIN_LOCKS / f"{domain}.lock", "w")  # noqa: SIM115 - held until teardown
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        try:
+            yield domain
+        finally:
+            lock.close()  # releases the lock
+        return
+    pytest.fail(f"every ROS domain id 1..100 is held by another test (locks in {_DOMAIN_LOCKS})")
+
+
+@pytest.fixture
+def ros_env(tmp_path: Path, ros_domain_id: int) -> dict[str, str]:
     """Environment for ROS child processes, isolated from other tests and users."""
     env = dict(os.environ)
     log_dir = tmp_path / "ros_log"
@@ -50,7 +65,7 @@ def ros_env(tmp_path: Path) -> dict[str, str]:
     if sys.prefix not in prefixes:
         prefixes.insert(0, sys.prefix)
     env.update(
-        ROS_DOMAIN_ID=str(unique_domain_id()),
+        ROS_DOMAIN_ID=str(ros_domain_id),
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
         ROS_LOG_DIR=str(log_dir),
         AMENT_PREFIX_PATH=os.pathsep.join(prefixes),
@@ -62,21 +77,28 @@ def ros_env(tmp_path: Path) -> dict[str, str]:
     return env
 
 
-def stop_process(proc: subprocess.Popen, timeouts: tuple[float, float] = (5.0, 3.0)) -> int:
-    """Stop ``proc`` (SIGINT, SIGTERM, then SIGKILL of its group) and return its exit code."""
-    for sig, timeout in ((signal.SIGINT, timeouts[0]), (signal.SIGTERM, timeouts[1])):
-        if proc.poll() is not None:
-            return proc.returncode
-        proc.send_signal(sig)
-        try:
-            return proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            pass
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    return proc.wait()
+@pytest.fixture
+def ros_context(ros_env: dict[str, str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    """A fresh rclpy ``Context`` of the test process, in the domain of :func:`ros_env` (shut down at teardown)."""
+    import rclpy
+    from rclpy.context import Context
+
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOG_DIR"):
+        monkeypatch.setenv(key, ros_env[key])
+    for key in ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY"):
+        monkeypatch.delenv(key, raising=False)
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=int(ros_env["ROS_DOMAIN_ID"]))
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture
+def probe(ros_context: Any) -> Iterator[Probe]:
+    """A spinning node of the test process (:class:`_ros_helpers.Probe`): graph queries, ``listen``."""
+    p = Probe(ros_context)
+    yield p
+    p.close()
 
 
 class Started(subprocess.Popen):
@@ -114,7 +136,7 @@ def start_process(
 
     yield start
     for proc in procs:
-        stop_process(proc, timeouts=(3.0, 2.0))
+        stop(proc, signal.SIGINT, timeout=3.0, escalate=2.0)
 
 
 def _node_command(module: str, *params: str) -> list[str]:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -26,7 +24,7 @@ def _checkpoint_samples(path) -> int:
 
 
 def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_command, tmp_path):
-    from suds_ros.ros.estimator_node import EstimatorNodeConfig
+    from suds_ros.core.ident.session import SessionConfig
 
     bag = shared_bag("swimmer9_nominal.mcap")
     rec = read_recording(bag)
@@ -35,8 +33,8 @@ def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_comman
     est = start_process(node_command("estimator_node", f"actuated:={actuated}",
                                      f"gait_hz:={rec.gait_hz or 1.0}", f"checkpoint:={ckpt}",
                                      "checkpoint_period:=0.5"), "estimator")
-    time.sleep(1.5)
-    player = start_process(node_command("player_node", f"bag:={bag}", "rate:=5.0", "delay:=3.0",
+    wait_for(lambda: "ready: waiting for publishers" in est.output(), 60, "the estimator")
+    player = start_process(node_command("player_node", f"bag:={bag}", "rate:=5.0", "wait_subscribers:=1",
                                         "topics:=['/suds/shape', '/suds/body_pose']"), "player")
     assert player.wait(120) == 0, player.output()
     wait_for(lambda: _checkpoint_samples(ckpt) >= rec.n_samples, 60,
@@ -44,7 +42,7 @@ def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_comman
     assert stop(est) == 0, est.output()
 
     got = OnlineSudsEstimator.load(ckpt)
-    ref_est = fit_streaming(rec, EstimatorNodeConfig().online_config(rec.gait_hz or 1.0))
+    ref_est = fit_streaming(rec, SessionConfig().online_config(rec.gait_hz or 1.0))
     ref = ref_est.model()
     model = got.model()
     gap = float(np.abs(model.coef - ref.coef).max())

@@ -6,8 +6,6 @@ In-process tests build each node with ``parameter_overrides`` in its own
 
 from __future__ import annotations
 
-import itertools
-import os
 import time
 from pathlib import Path
 
@@ -15,22 +13,7 @@ import pytest
 
 pytestmark = pytest.mark.ros
 
-_IDS = itertools.count()
 EEL4 = Path(__file__).resolve().parents[1] / "data" / "robots" / "eel4.yaml"  # 4 links, gait 0.5 Hz
-
-
-@pytest.fixture
-def context(tmp_path, monkeypatch):
-    """A fresh, isolated rclpy Context (shut down at teardown)."""
-    import rclpy
-    from rclpy.context import Context
-
-    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "ros_log"))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=101 + (os.getpid() * 7 + next(_IDS)) % 100)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def make(kind: str, context, **params):
@@ -67,26 +50,26 @@ def make(kind: str, context, **params):
     ("predictor", {"executor": "bogus"}, r"`executor`: expected 'events' or 'single'"),
     ("predictor", {"frame_id": ""}, r"`frame_id`"),
 ])
-def test_bad_parameter_is_refused_with_reason(context, kind, params, match):
+def test_bad_parameter_is_refused_with_reason(ros_context, kind, params, match):
     from suds_ros.core.errors import SudsConfigError
 
     with pytest.raises(SudsConfigError, match=match):
-        make(kind, context, **params)
+        make(kind, ros_context, **params)
 
 
-def test_unreadable_checkpoint_stops_the_estimator(context, tmp_path):
+def test_unreadable_checkpoint_stops_the_estimator(ros_context, tmp_path):
     from suds_ros.core.errors import SudsDataError
 
     bad = tmp_path / "garbage.ckpt"
     bad.write_bytes(b"not a pickle")
     with pytest.raises(SudsDataError, match="unreadable"):
-        make("estimator", context, checkpoint=str(bad))
+        make("estimator", ros_context, checkpoint=str(bad))
 
 
-def test_simulator_runtime_parameters(context):
+def test_simulator_runtime_parameters(ros_context):
     from rclpy.parameter import Parameter
 
-    node = make("simulator", context, real_time_factor=2.0, cycles=1)
+    node = make("simulator", ros_context, real_time_factor=2.0, cycles=1)
     try:
         assert node.config.samples_per_cycle == 100 and node.t0 == 1.7e9  # not real time: default t0
         res = node.set_parameters([Parameter("real_time_factor", value=-2.0)])[0]
@@ -102,7 +85,7 @@ def test_simulator_runtime_parameters(context):
         node.destroy_node()
 
 
-def test_simulator_from_a_model_file(context):
+def test_simulator_from_a_model_file(ros_context):
     """`model_file` (or `system` given a path) is the simulated robot; its gait_hz is the default."""
     import json
 
@@ -113,13 +96,13 @@ def test_simulator_from_a_model_file(context):
     from suds_ros.ros.qos import MODEL_QOS
 
     got: list = []
-    listener = Node("listener", context=context)
+    listener = Node("listener", context=ros_context)
     listener.create_subscription(String, "/suds/system", got.append, MODEL_QOS)
-    node = make("simulator", context, model_file=str(EEL4), rate=50.0, cycles=1, real_time_factor=0.0)
+    node = make("simulator", ros_context, model_file=str(EEL4), rate=50.0, cycles=1, real_time_factor=0.0)
     try:
         assert node.system.name == "eel4" and node.names == ("neck", "waist", "tail")
         assert node.config.gait_hz == 0.5 and node.config.samples_per_cycle == 100
-        executor = SingleThreadedExecutor(context=context)
+        executor = SingleThreadedExecutor(context=ros_context)
         executor.add_node(listener)
         deadline = time.monotonic() + 30
         while not got and time.monotonic() < deadline:
@@ -134,25 +117,25 @@ def test_simulator_from_a_model_file(context):
     finally:
         node.destroy_node()
         listener.destroy_node()
-    node = make("simulator", context, system=str(EEL4), gait_hz=1.0)  # a path works as `system` too
+    node = make("simulator", ros_context, system=str(EEL4), gait_hz=1.0)  # a path works as `system` too
     try:
         assert node.system.name == "eel4" and node.config.samples_per_cycle == 100
     finally:
         node.destroy_node()
 
 
-def test_real_time_default_t0_is_now(context):
-    node = make("simulator", context)
+def test_real_time_default_t0_is_now(ros_context):
+    node = make("simulator", ros_context)
     try:
         assert abs(node.t0 - time.time()) < 5.0
     finally:
         node.destroy_node()
 
 
-def test_estimator_runtime_parameters_and_status(context):
+def test_estimator_runtime_parameters_and_status(ros_context):
     from rclpy.parameter import Parameter
 
-    node = make("estimator", context, system="purcell3")
+    node = make("estimator", ros_context, system="purcell3")
     try:
         assert node.est is not None and node.est.actuated == ("joint_1",)
         res = node.set_parameters([Parameter("pose_stall", value=-1.0)])[0]
@@ -167,8 +150,8 @@ def test_estimator_runtime_parameters_and_status(context):
         node.destroy_node()
 
 
-def test_predictor_starts_and_counts_nothing(context):
-    node = make("predictor", context, executor="single")
+def test_predictor_starts_and_counts_nothing(ros_context):
+    node = make("predictor", ros_context, executor="single")
     try:
         assert node.predictor is None and node.before_model == 0
     finally:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import signal
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +13,9 @@ from suds_ros.io.mcap import BagWriter, bag_info, iter_raw_messages
 from suds_ros.io.recording_bag import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from ._ros_helpers import wait_for
+    from ._ros_helpers import recorded_so_far, stop, wait_for
 except ImportError:
-    from _ros_helpers import wait_for
+    from _ros_helpers import recorded_so_far, stop, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -25,17 +24,29 @@ META = ("system:=purcell3", "actuated:=joint_1", "passive:=joint_2")
 
 
 def record(start_process, node_command, out: Path, count: int, *params: str):
-    rec = start_process(node_command("recorder_node", f"output:={out}", *META, *params), "recorder")
+    """Start a recorder (flushing every 0.2 s) and the test publisher of ``count`` samples."""
+    rec = start_process(node_command("recorder_node", f"output:={out}", "flush_period:=0.2", *META, *params),
+                        "recorder")
     pub = start_process([sys.executable, PUBLISHER, str(count), "100", "--wait"], "publisher")
     return rec, pub
+
+
+def wait_recorded(bag: Path, expected: dict[str, int], rec, timeout: float = 60.0) -> None:
+    """Wait until the recorder has flushed at least ``expected`` messages per topic into ``bag``."""
+    def done() -> bool:
+        counts = recorded_so_far(bag)[0]
+        return all(counts[t] >= n for t, n in expected.items())
+
+    wait_for(done, timeout, lambda: f"{expected} in {bag}; got {dict(recorded_so_far(bag)[0])}\n{rec.output()}",
+             interval=0.2)
 
 
 def test_record_then_read_with_suds_and_rosbags(start_process, node_command, tmp_path):
     out = tmp_path / "run.mcap"
     rec, pub = record(start_process, node_command, out, 40)
     assert pub.wait(60) == 0, pub.output()
-    rec.send_signal(signal.SIGINT)
-    assert rec.wait(20) == 0, rec.output()
+    wait_recorded(out, {"/suds/shape": 40, "/suds/body_pose": 40}, rec)
+    assert stop(rec) == 0, rec.output()
 
     info = bag_info(out)
     assert info.has_summary and not info.truncated
@@ -78,16 +89,16 @@ def test_record_then_read_with_suds_and_rosbags(start_process, node_command, tmp
 
 def test_sigkilled_recorder_leaves_readable_file(start_process, node_command, tmp_path):
     out = tmp_path / "killed.mcap"
-    rec, pub = record(start_process, node_command, out, 0, "flush_period:=0.2")
-    wait_for(lambda: "publishing" in pub.output(), 30, "the publisher to start")
-    time.sleep(1.5)
+    rec, pub = record(start_process, node_command, out, 0)
+    wait_recorded(out, {"/suds/shape": 20}, rec)  # flushed data in the file
+    before = recorded_so_far(out)[0]["/suds/shape"]
     rec.send_signal(signal.SIGKILL)
     assert rec.wait(10) == -signal.SIGKILL
 
     info = bag_info(out)
     assert not info.has_summary
     shapes = [m for m in iter_raw_messages(out) if m.topic == "/suds/shape"]
-    assert len(shapes) >= 20, info  # ~1.5 s at 100 Hz, minus at most one flush period
+    assert len(shapes) >= before >= 20, info  # what was flushed before the kill is still there
     rec_ = read_recording(out)  # metadata written at start, data up to the last flush
     assert rec_.n_samples == len(shapes)
     assert np.all(np.diff(rec_.t) > 0)
@@ -131,14 +142,14 @@ def _make_bag(path: Path, n: int = 30) -> list[bytes]:
 def test_player_replays_bytes_with_timing(start_process, node_command, tmp_path):
     src, out = tmp_path / "src.mcap", tmp_path / "replayed.mcap"
     datas = _make_bag(src)
-    rec = start_process(node_command("recorder_node", f"output:={out}", "topics:=['/suds/shape']"),
-                        "recorder")
+    rec = start_process(node_command("recorder_node", f"output:={out}", "topics:=['/suds/shape']",
+                                     "flush_period:=0.2"), "recorder")
     wait_for(lambda: "recording [" in rec.output(), 30, "the recorder to start")
     player = start_process(node_command("player_node", f"bag:={src}", "rate:=2.0", "delay:=0.5", "wait_subscribers:=1",
                                         "topics:=['/suds/shape']", "start_offset:=0.1"), "player")
     assert player.wait(60) == 0, player.output()
-    rec.send_signal(signal.SIGTERM)
-    assert rec.wait(20) == 0, rec.output()
+    wait_recorded(out, {"/suds/shape": len(datas) - 5}, rec)
+    assert stop(rec, signal.SIGTERM) == 0, rec.output()
 
     got = list(iter_raw_messages(out))
     assert bag_info(out).has_summary

@@ -1005,7 +1005,8 @@ def _coefficient_comparison(
     coefficient difference divided by a split-half noise scale of the recording's coefficients.
     """
     try:
-        from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, fourier_basis
+        from suds_ros.core.fourier import fourier_basis
+        from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
     except ImportError:  # hook: the SUDS regression lives in suds_ros.core.ident.sysid
         return ()
     n = data.n_train

@@ -16,10 +16,8 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
 from suds_ros.core.ident.intervals import Intervals, make_intervals
 from suds_ros.core.recording import Recording
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, gamma
-
-BODY_CHANNELS = ("xi_x", "xi_y", "xi_theta")
-
+from suds_ros.core.ident.scoring import BODY_CHANNELS, Prediction, Scores, score_prediction
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
 
 @dataclass(frozen=True)
 class IdentifyConfig:
@@ -60,59 +58,6 @@ class IdentifyConfig:
             raise SudsConfigError(f"`window`: expected ≥ 1, got {self.window!r}")
         if self.template_order < 1:
             raise SudsConfigError(f"`template_order`: expected ≥ 1, got {self.template_order!r}")
-
-
-@dataclass(frozen=True)
-class Prediction:
-    """Predictions on the intervals of one recording.
-
-    Attributes
-    ----------
-    t : (m,) interval midpoint stamps, s.
-    phase : (m,) gait phase at the midpoints, rad (unwrapped).
-    channels : names of the m outputs' columns.
-    truth : (m, c) measured outputs.
-    model : (m, c) SUDS model predictions.
-    template : (m, c) phase-only template predictions.
-    """
-
-    t: FloatArray
-    phase: FloatArray
-    channels: tuple[str, ...]
-    truth: FloatArray
-    model: FloatArray
-    template: FloatArray
-
-    def columns(self, prefix: str) -> list[int]:
-        """Indices of the channels whose name starts with ``prefix``."""
-        return [i for i, c in enumerate(self.channels) if c.startswith(prefix)]
-
-
-@dataclass(frozen=True)
-class Scores:
-    """Held-out accuracy.
-
-    ``gamma_body``/``gamma_passive``: Γ over the body-velocity / passive-velocity channels;
-    ``rms_model``/``rms_template``: per-channel RMS errors.
-    """
-
-    gamma_body: float
-    gamma_passive: float
-    gamma_torque: float | None
-    rms_model: dict[str, float]
-    rms_template: dict[str, float]
-    n_samples: int
-
-    def as_dict(self) -> dict[str, object]:
-        """JSON-ready dictionary."""
-        return {
-            "gamma_body": self.gamma_body,
-            "gamma_passive": self.gamma_passive,
-            "gamma_torque": self.gamma_torque,
-            "rms_model": self.rms_model,
-            "rms_template": self.rms_template,
-            "n_samples": self.n_samples,
-        }
 
 
 class SudsIdentifier:
@@ -265,31 +210,6 @@ class SudsIdentifier:
         if not hasattr(self, "regressor_"):
             raise NotFittedError("SudsIdentifier is not fitted yet; call fit first")
         return self.regressor_.n_parameters
-
-
-def score_prediction(p: Prediction) -> Scores:
-    """Γ per channel group and per-channel RMS of a :class:`Prediction`."""
-    body = p.columns("xi_")
-    # channels with no motion at all (1-D swimmers' ξy, ξθ) carry no information
-    body = [i for i in body if np.abs(p.template[:, i]).max() > 1e-9 or np.abs(p.truth[:, i]).max() > 1e-9]
-    pas = p.columns("rdot_")
-    tor = p.columns("tau_")
-
-    def g(cols: list[int]) -> float:
-        if not cols:
-            return float("nan")
-        return gamma(p.model[:, cols], p.template[:, cols], p.truth[:, cols])
-
-    rms_m = {c: float(np.sqrt(np.mean((p.model[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
-    rms_t = {c: float(np.sqrt(np.mean((p.template[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
-    return Scores(
-        gamma_body=g(body),
-        gamma_passive=g(pas),
-        gamma_torque=g(tor) if tor else None,
-        rms_model=rms_m,
-        rms_template=rms_t,
-        n_samples=int(p.t.size),
-    )
 
 
 def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tuple[Recording, Recording]:

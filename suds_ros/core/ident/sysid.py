@@ -33,10 +33,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.fourier import NormalEquations, fourier_basis
 
 
 @dataclass(frozen=True)
@@ -77,19 +77,6 @@ class SudsConfig:
             raise SudsConfigError(f"`ridge`: expected ≥ 0, got {self.ridge!r}")
         if not 0 < self.forgetting <= 1:
             raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
-
-
-def fourier_basis(phase: FloatArray, order: int) -> FloatArray:
-    """Design (n, 2·order + 1): [1, cos φ, sin φ, …, cos Mφ, sin Mφ]."""
-    phase = np.asarray(phase, dtype=float)
-    out = np.empty((phase.size, 2 * order + 1))
-    out[:, 0] = 1.0
-    if order:
-        m = np.arange(1, order + 1)
-        ang = phase[:, None] * m[None, :]
-        out[:, 1::2] = np.cos(ang)
-        out[:, 2::2] = np.sin(ang)
-    return out
 
 
 def _upper_products(a: FloatArray) -> FloatArray:
@@ -181,7 +168,7 @@ class SudsRegressor:
     ----------
     coef_ : (p, n_out) fitted coefficients.
     n_samples_seen_ : int
-    gram_, moment_ : accumulated XᵀX (p, p) and XᵀY (p, n_out).
+    normal_ : NormalEquations, the accumulated (forgetting-weighted) XᵀX (p, p) and XᵀY (p, n_out).
     layout_ : FeatureLayout
     """
 
@@ -222,7 +209,7 @@ class SudsRegressor:
     # ----------------------------------------------------------------- API
     def fit(self, X: FloatArray, y: FloatArray) -> "SudsRegressor":
         """Fit from scratch on (X, y) (resets any accumulated statistics)."""
-        for attr in ("coef_", "gram_", "moment_", "n_samples_seen_", "layout_", "n_outputs_"):
+        for attr in ("coef_", "normal_", "n_samples_seen_", "layout_", "n_outputs_"):
             if hasattr(self, attr):
                 delattr(self, attr)
         return self.partial_fit(X, y)
@@ -237,43 +224,22 @@ class SudsRegressor:
             raise SudsDataError(f"y: expected {A.shape[0]} rows like X, got {y.shape[0]}")
         if not np.all(np.isfinite(y)):
             raise SudsDataError("y contains NaN or Inf")
-        first = not hasattr(self, "gram_")
+        first = not hasattr(self, "normal_")
         if not first and y.shape[1] != self.n_outputs_:
             raise SudsDataError(f"y: expected {self.n_outputs_} outputs as before, got {y.shape[1]}")
         lam = self.config.forgetting
         m = A.shape[0]
-        if lam < 1.0:
-            w = lam ** np.arange(m - 1, -1, -1, dtype=float)
-            Aw = A * w[:, None]
-            decay = lam**m
-        else:
-            Aw = A
-            decay = 1.0
-        G = Aw.T @ A
-        h = Aw.T @ y
         if first:
             self.layout_ = feature_layout(self.config, self.n_joints, self.n_actuated)
             self.n_outputs_ = y.shape[1]
-            self.gram_ = G
-            self.moment_ = h
-            self.n_samples_seen_ = m
+            self.normal_ = NormalEquations(A.shape[1], y.shape[1])
+        if lam < 1.0:
+            self.normal_.add(A, y, lam ** np.arange(m - 1, -1, -1, dtype=float), decay=lam**m)
         else:
-            self.gram_ = decay * self.gram_ + G
-            self.moment_ = decay * self.moment_ + h
-            self.n_samples_seen_ += m
-        self.coef_ = self._solve()
+            self.normal_.add(A, y)
+        self.n_samples_seen_ = self.normal_.n
+        self.coef_ = self.normal_.solve(self.config.ridge)
         return self
-
-    def _solve(self) -> FloatArray:
-        G = self.gram_
-        p = G.shape[0]
-        scale = float(np.mean(np.diag(G))) or 1.0
-        reg = G + (self.config.ridge * scale) * np.eye(p)
-        try:
-            c, low = scipy.linalg.cho_factor(reg, check_finite=False)
-            return scipy.linalg.cho_solve((c, low), self.moment_, check_finite=False)
-        except np.linalg.LinAlgError:
-            return np.linalg.lstsq(reg, self.moment_, rcond=None)[0]
 
     def predict(self, X: FloatArray) -> FloatArray:
         """Predicted outputs (n, n_out)."""
@@ -305,12 +271,3 @@ class SudsRegressor:
                 val = val.reshape(phase.size, -1, self.n_joints, self.n_actuated)
             out[name] = val
         return out
-
-
-def gamma(pred: FloatArray, template: FloatArray, truth: FloatArray) -> float:
-    """Γ = 1 − Σ|pred − truth| / Σ|template − truth| over all samples and channels given."""
-    num = float(np.abs(pred - truth).sum())
-    den = float(np.abs(template - truth).sum())
-    if den == 0:
-        raise SudsDataError("Γ undefined: the template reproduces the truth exactly")
-    return 1.0 - num / den

@@ -23,6 +23,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.fourier import fourier_basis_and_derivative
 from suds_ros.core.phase.template import FourierTemplate
 
 #: Forgetting rate of the running residual scale (per accepted sample).
@@ -126,7 +127,6 @@ class PhaseTracker:
                 )
             w2 = w**2
         self._w2 = w2
-        self._m = np.arange(1, template.config.order + 1, dtype=float)
         # expected weighted residual per channel at the template's own fit
         self._s2 = max(float(np.mean(w2 * resid)), 1e-12)
         self.n_updates_ = 0
@@ -134,12 +134,8 @@ class PhaseTracker:
 
     def _eval(self, phi: float) -> tuple[FloatArray, FloatArray]:
         """θ(φ) and dθ/dφ, each shape (nj,), from one evaluation of the harmonics."""
-        c = self.template.coef_
-        m = self._m
-        cos, sin = np.cos(m * phi), np.sin(m * phi)
-        theta = c[0] + cos @ c[1::2] + sin @ c[2::2]
-        dtheta = (m * cos) @ c[2::2] - (m * sin) @ c[1::2]
-        return theta, dtheta
+        B, dB = fourier_basis_and_derivative(phi, self.template.config.order)
+        return B[0] @ self.template.coef_, dB[0] @ self.template.coef_
 
     def _check_r(self, r: FloatArray) -> FloatArray:
         r = np.asarray(r, dtype=float)

@@ -42,7 +42,7 @@ import scipy.signal
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError, SudsPhaseError
-from suds_ros.core.phase.template import FourierTemplate
+from suds_ros.core.fourier import fourier_basis
 
 _TWO_PI = 2.0 * np.pi
 #: A channel whose standard deviation is below this fraction of the largest is "constant".
@@ -153,7 +153,7 @@ def _correction(psi: FloatArray, order: int) -> FloatArray:
     c = np.concatenate([[0.0], np.cumsum(psi - psi[0])])
     trend = (c[P:] - c[:-P]) / P + psi[0]
     centre = psi[h : n - h]
-    B = FourierTemplate.basis(centre, order)
+    B = fourier_basis(centre, order)
     coef, *_ = np.linalg.lstsq(B, centre - trend, rcond=None)
     coef[0] = 0.0  # keep only the periodic part: a constant is an offset, handled later
     return np.asarray(coef, dtype=float)
@@ -161,7 +161,7 @@ def _correction(psi: FloatArray, order: int) -> FloatArray:
 
 def _apply_correction(psi: FloatArray, coef: FloatArray, order: int) -> FloatArray:
     """Φ = ψ − P(ψ), with ψ of shape (n,) and coefficients (2·order + 1,)."""
-    return np.asarray(psi - FourierTemplate.basis(psi, order) @ coef, dtype=float)
+    return np.asarray(psi - fourier_basis(psi, order) @ coef, dtype=float)
 
 
 def _combine(Phi: FloatArray, offsets: FloatArray, weights: FloatArray, anchor: int) -> FloatArray:
@@ -305,7 +305,7 @@ class Phaser:
             loadings = np.zeros(idx.size)
             loadings[keep] = v
             y = Z @ loadings
-        B = FourierTemplate.basis(phase, 1)
+        B = fourier_basis(phase, 1)
         (a0, a, b), *_ = np.linalg.lstsq(B, y, rcond=None)
         zero = float(np.arctan2(a, b))  # y ≈ a0 + A sin(φ + zero)
 

@@ -7,7 +7,7 @@ phase φ (rad).  Each output channel is modelled as
 
 which is periodic in φ by construction, so the phase may be given wrapped or
 unwrapped.  The sufficient statistics are the weighted normal equations
-BᵀWB, BᵀWY (B the design of :meth:`FourierTemplate.basis`), so ``partial_fit``
+BᵀWB, BᵀWY (B the design of :func:`~suds_ros.core.fourier.fourier_basis`), so ``partial_fit``
 on chunks reproduces ``fit`` on the whole data up to rounding.
 """
 
@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.fourier import NormalEquations, fourier_basis, n_coefficients
 
 #: Smallest accepted eigenvalue ratio λ_min/λ_max of the normal matrix.
 _RCOND = 1e-12
@@ -64,15 +64,16 @@ class FourierTemplate:
     Attributes
     ----------
     coef_ : ndarray, shape (2·order + 1, d)
-        Coefficients in the column order of :meth:`basis`: [1, cos φ, sin φ, …, cos Mφ, sin Mφ].
+        Coefficients in the column order of :func:`~suds_ros.core.fourier.fourier_basis`:
+        [1, cos φ, sin φ, …, cos Mφ, sin Mφ].
     n_samples_seen_ : int
         Number of samples accumulated since the last reset.
     n_features_in_ : int
         Number of output channels d.
     residual_var_ : ndarray, shape (d,)
         Weighted mean squared residual of each channel (units of Y squared).
-    XtX_, XtY_ : ndarray
-        Accumulated normal equations, shapes (p, p) and (p, d) with p = 2·order + 1.
+    normal_ : NormalEquations
+        Accumulated weighted normal equations (p = 2·order + 1 features, d outputs).
 
     Examples
     --------
@@ -85,46 +86,14 @@ class FourierTemplate:
     def __init__(self, config: FourierTemplateConfig = FourierTemplateConfig()) -> None:
         self.config = config
 
-    # ------------------------------------------------------------ basis
-    @staticmethod
-    def basis(phase: FloatArray | float, order: int) -> FloatArray:
-        """Design matrix [1, cos φ, sin φ, …, cos Mφ, sin Mφ].
-
-        Parameters
-        ----------
-        phase : array_like, shape (n,)
-            Phase in rad.
-        order : int
-            Number of harmonics M.
-
-        Returns
-        -------
-        ndarray, shape (n, 2·M + 1)
-        """
-        return FourierTemplate.basis_derivative(phase, order, 0)
-
-    @staticmethod
-    def basis_derivative(phase: FloatArray | float, order: int, k: int = 1) -> FloatArray:
-        """k-th derivative in φ of :meth:`basis`, shape (n, 2·M + 1) (units rad⁻ᵏ)."""
-        phase = _as_phase(phase)
-        out = np.empty((phase.size, 2 * order + 1))
-        out[:, 0] = 1.0 if k == 0 else 0.0
-        if order:
-            m = np.arange(1, order + 1, dtype=float)
-            ang = phase[:, None] * m[None, :] + k * np.pi / 2  # d^k cos(x) = cos(x + kπ/2)
-            gain = m[None, :] ** k
-            out[:, 1::2] = gain * np.cos(ang)
-            out[:, 2::2] = gain * np.sin(ang)
-        return out
-
     @property
     def n_coefficients(self) -> int:
         """Coefficients per channel, 2·order + 1."""
-        return 2 * self.config.order + 1
+        return n_coefficients(self.config.order)
 
     # -------------------------------------------------------------- fit
     def _reset(self) -> None:
-        for name in ("coef_", "XtX_", "XtY_", "YtY_", "sw_", "n_samples_seen_", "n_features_in_", "residual_var_"):
+        for name in ("coef_", "normal_", "n_samples_seen_", "n_features_in_", "residual_var_"):
             self.__dict__.pop(name, None)
 
     def fit(
@@ -198,39 +167,25 @@ class FourierTemplate:
             if not np.all(np.isfinite(w)) or np.any(w < 0):
                 raise SudsDataError("`sample_weight`: expected finite values ≥ 0, got negative or non-finite entries")
 
-        p = self.n_coefficients
         if not hasattr(self, "n_samples_seen_"):
             self.n_features_in_ = Y.shape[1]
-            self.XtX_ = np.zeros((p, p))
-            self.XtY_ = np.zeros((p, Y.shape[1]))
-            self.YtY_ = np.zeros(Y.shape[1])
-            self.sw_ = 0.0
+            self.normal_ = NormalEquations(self.n_coefficients, Y.shape[1])
             self.n_samples_seen_ = 0
         elif Y.shape[1] != self.n_features_in_:
             raise SudsDataError(
                 f"`Y`: expected {self.n_features_in_} channels as in earlier calls, got {Y.shape[1]}"
             )
 
-        B = self.basis(phase, self.config.order)
-        Bw = B * w[:, None]
-        self.XtX_ += Bw.T @ B
-        self.XtY_ += Bw.T @ Y
-        self.YtY_ += w @ (Y * Y)
-        self.sw_ += float(w.sum())
+        self.normal_.add(fourier_basis(phase, self.config.order), Y, w)
         self.n_samples_seen_ += phase.size
         self._solve()
         return self
 
     def _solve(self) -> None:
-        if self.n_samples_seen_ < self.n_coefficients:
+        if not self.normal_.well_posed(_RCOND):
             return
-        eig = np.linalg.eigvalsh(self.XtX_)
-        if not eig[-1] > 0 or eig[0] < _RCOND * eig[-1]:
-            return
-        coef = scipy.linalg.solve(self.XtX_, self.XtY_, assume_a="pos")
-        rss = self.YtY_ - 2 * np.einsum("pd,pd->d", coef, self.XtY_) + np.einsum("pd,pq,qd->d", coef, self.XtX_, coef)
-        self.coef_ = coef
-        self.residual_var_ = np.maximum(rss, 0.0) / max(self.sw_, np.finfo(float).tiny)
+        self.coef_ = self.normal_.solve()
+        self.residual_var_ = self.normal_.residual_ss(self.coef_) / max(self.normal_.sw, np.finfo(float).tiny)
 
     # ---------------------------------------------------------- predict
     def _check_fitted(self) -> None:
@@ -252,7 +207,7 @@ class FourierTemplate:
         ndarray, shape (n, d)
         """
         self._check_fitted()
-        return self.basis(phase, self.config.order) @ self.coef_
+        return fourier_basis(_as_phase(phase), self.config.order) @ self.coef_
 
     def derivative(self, phase: FloatArray | float, k: int = 1) -> FloatArray:
         """k-th phase derivative d^kθ/dφ^k.
@@ -272,4 +227,4 @@ class FourierTemplate:
         self._check_fitted()
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
             raise SudsConfigError(f"`k`: expected an integer ≥ 0, got {k!r}")
-        return self.basis_derivative(phase, self.config.order, int(k)) @ self.coef_
+        return fourier_basis(_as_phase(phase), self.config.order, int(k)) @ self.coef_

@@ -1,4 +1,4 @@
-"""Identification pipeline: phase accuracy, Γ targets, streaming = batch, errors."""
+"""Identification pipeline: phase accuracy, Γ targets, errors."""
 
 from __future__ import annotations
 
@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core.errors import NotFittedError, SudsDataError, SudsPhaseError
-from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, score_prediction, split_cycles
-from suds_ros.core.ident.online import OnlineConfig, evaluate_model, fit_streaming
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.ident.sysid import SudsConfig
@@ -86,30 +85,6 @@ def test_regressor_sets_and_torque(purcell3_run) -> None:
         counts.append(ident.n_parameters)
         assert sc.gamma_torque is not None and sc.gamma_torque > 0.85
     assert counts[0] < counts[1] < counts[2]
-
-
-def test_streaming_chunking_is_exact_and_matches_batch_accuracy(purcell3_run) -> None:
-    train, test = split_cycles(purcell3_run, 12, 8)
-    a = fit_streaming(train, OnlineConfig(chunk=100)).model()
-    b = fit_streaming(train, OnlineConfig(chunk=7)).model()
-    scale = np.abs(a.coef).max()
-    np.testing.assert_allclose(b.coef, a.coef, atol=1e-9 * scale)
-    sc = score_prediction(evaluate_model(a, test))
-    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).score(test)
-    assert sc.gamma_body > batch.gamma_body - 0.05
-    assert sc.gamma_passive > batch.gamma_passive - 0.05
-
-
-def test_model_json_roundtrip(purcell3_run) -> None:
-    import json
-
-    from suds_ros.core.ident.online import SudsModel
-
-    m = fit_streaming(purcell3_run.slice(0, 1000)).model()
-    back = SudsModel.from_dict(json.loads(json.dumps(m.to_dict())))
-    np.testing.assert_array_equal(back.coef, m.coef)
-    np.testing.assert_array_equal(back.template_coef, m.template_coef)
-    assert back.suds == m.suds and back.channels == m.channels
 
 
 def test_errors(purcell3_run) -> None:

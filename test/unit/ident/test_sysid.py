@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, design_matrix, feature_layout, fourier_basis, gamma
+from suds_ros.core.ident.scoring import gamma
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, design_matrix, feature_layout
 
 
 def _data(n: int = 900, nj: int = 4, na: int = 2, n_out: int = 3, seed: int = 0):
@@ -78,11 +79,6 @@ def test_recovers_a_model_of_its_own_form_exactly() -> None:
     manual = c["C"] + np.einsum("kor,kr->ko", c["C_r"], d) + np.einsum("koa,ka->ko", c["B"], a) \
         + np.einsum("kora,kr,ka->ko", c["B_r"], d, a)
     np.testing.assert_allclose(manual, est.predict(X[:5]), atol=1e-9)
-
-
-def test_fourier_basis() -> None:
-    B = fourier_basis(np.array([0.0, np.pi / 2]), 2)
-    np.testing.assert_allclose(B, [[1, 1, 0, 1, 0], [1, 0, 1, -1, 0]], atol=1e-12)
 
 
 def test_errors() -> None:

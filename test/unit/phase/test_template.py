@@ -98,12 +98,6 @@ def test_derivative_zero_is_predict_and_scalar_phase() -> None:
     assert tmpl.predict(0.3).shape == (1, 3)
 
 
-def test_basis_layout() -> None:
-    B = FourierTemplate.basis(np.array([0.0, np.pi / 2]), 2)
-    np.testing.assert_allclose(B, [[1, 1, 0, 1, 0], [1, 0, 1, -1, 0]], atol=1e-15)
-    assert FourierTemplate.basis(np.zeros(3), 0).shape == (3, 1)
-
-
 def test_one_dimensional_Y() -> None:
     phase, Y = _data()
     tmpl = FourierTemplate().fit(phase, Y[:, 0])

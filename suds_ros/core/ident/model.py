@@ -1,0 +1,161 @@
+"""The identified SUDS model: a snapshot that predicts without the estimator.
+
+:class:`SudsModel` holds the gait template θ(φ), the mean phase rate ω̄, the
+regression coefficients and the phase-only output template; it round-trips
+through a JSON-ready dictionary (the ``/suds/model`` message and ``--model-out``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import (
+    DUPLICATE_STAMP,
+    NAN_OR_INF,
+    OUT_OF_ORDER_STAMP,
+    WRONG_JOINT_COUNT,
+    WRONG_JOINT_NAMES,
+    SudsDataError,
+)
+from suds_ros.core.fourier import fourier_basis, fourier_basis_and_derivative
+from suds_ros.core.ident.sysid import SudsConfig, design_matrix
+from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+
+
+@dataclass(frozen=True)
+class SudsModel:
+    """A snapshot of an identified model, enough to predict without the estimator.
+
+    Attributes
+    ----------
+    joint_names, actuated, passive : joint bookkeeping.
+    template_coef : (2·To + 1, nj) Fourier coefficients of θ(φ).
+    template_residual_var : (nj,) residual variance of the shape about θ (phase-tracking weights).
+    template_order : int
+    omega : mean phase rate ω̄, rad/s.
+    suds : SudsConfig
+    coef : (p, n_out) regression coefficients.
+    output_template_coef : (2·To + 1, n_out) phase-only template of the outputs.
+    channels : output names.
+    n_samples : interval rows the model was fitted on.
+    """
+
+    joint_names: tuple[str, ...]
+    actuated: tuple[str, ...]
+    passive: tuple[str, ...]
+    template_coef: FloatArray
+    template_residual_var: FloatArray
+    template_order: int
+    omega: float
+    suds: SudsConfig
+    coef: FloatArray
+    output_template_coef: FloatArray
+    channels: tuple[str, ...]
+    n_samples: int
+
+    def _theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
+        B, dB = fourier_basis_and_derivative(phase, self.template_order)
+        return B @ self.template_coef, dB @ self.template_coef
+
+    def predict(self, phase: FloatArray, r: FloatArray, rdot: FloatArray) -> FloatArray:
+        """Outputs (n, n_out) at interval midpoints: phase (n,), r (n, nj), ṙ (n, nj)."""
+        phase = np.atleast_1d(np.asarray(phase, dtype=float))
+        theta, dtheta = self._theta(phase)
+        delta = np.atleast_2d(r) - theta
+        ddelta = np.atleast_2d(rdot) - dtheta * self.omega
+        act = [self.joint_names.index(j) for j in self.actuated]
+        return design_matrix(self.suds, phase, delta, ddelta[:, act]) @ self.coef
+
+    def template(self, phase: FloatArray) -> FloatArray:
+        """Phase-only template prediction (n, n_out)."""
+        return fourier_basis(np.atleast_1d(phase), self.template_order) @ self.output_template_coef
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready description (coefficients as nested lists)."""
+        return {
+            "joint_names": list(self.joint_names),
+            "actuated": list(self.actuated),
+            "passive": list(self.passive),
+            "template_order": self.template_order,
+            "template_coef": self.template_coef.tolist(),
+            "template_residual_var": self.template_residual_var.tolist(),
+            "omega": self.omega,
+            "suds": {
+                "regressors": self.suds.regressors,
+                "intercept_order": self.suds.intercept_order,
+                "linear_order": self.suds.linear_order,
+                "bilinear_order": self.suds.bilinear_order,
+                "ridge": self.suds.ridge,
+                "forgetting": self.suds.forgetting,
+            },
+            "coef": self.coef.tolist(),
+            "output_template_coef": self.output_template_coef.tolist(),
+            "channels": list(self.channels),
+            "n_samples": self.n_samples,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object]) -> "SudsModel":
+        """Inverse of :meth:`to_dict`."""
+        s = dict(d["suds"])  # type: ignore[call-overload]
+        return cls(
+            joint_names=tuple(d["joint_names"]),  # type: ignore[arg-type]
+            actuated=tuple(d["actuated"]),  # type: ignore[arg-type]
+            passive=tuple(d["passive"]),  # type: ignore[arg-type]
+            template_coef=np.asarray(d["template_coef"], dtype=float),
+            template_residual_var=np.asarray(d["template_residual_var"], dtype=float),
+            template_order=int(d["template_order"]),  # type: ignore[call-overload]
+            omega=float(d["omega"]),  # type: ignore[arg-type]
+            suds=SudsConfig(**s),
+            coef=np.asarray(d["coef"], dtype=float),
+            output_template_coef=np.asarray(d["output_template_coef"], dtype=float),
+            channels=tuple(d["channels"]),  # type: ignore[arg-type]
+            n_samples=int(d["n_samples"]),  # type: ignore[call-overload]
+        )
+
+
+def model_template(model: SudsModel) -> FourierTemplate:
+    """The fitted :class:`FourierTemplate` θ(φ) stored in a :class:`SudsModel`."""
+    tmpl = FourierTemplate(FourierTemplateConfig(order=model.template_order))
+    tmpl.coef_ = np.asarray(model.template_coef, dtype=float)
+    tmpl.residual_var_ = np.asarray(model.template_residual_var, dtype=float)
+    tmpl.n_features_in_ = tmpl.coef_.shape[1]
+    return tmpl
+
+
+def check_stamp(stream: str, t: float, last: float) -> None:
+    """Raise unless the ``stream`` sample stamp ``t`` (s) comes after ``last``.
+
+    Raises
+    ------
+    SudsDataError
+        Code ``duplicate_stamp`` or ``out_of_order_stamp``.
+    """
+    if t <= last:
+        kind, code = ("duplicate", DUPLICATE_STAMP) if t == last else ("out-of-order", OUT_OF_ORDER_STAMP)
+        raise SudsDataError(f"{kind} {stream} stamp {t:.6f} s (last {last:.6f} s)", code=code)
+
+
+def check_shape_sample(t: float, names: tuple[str, ...], position: FloatArray,
+                       joint_names: tuple[str, ...]) -> FloatArray:
+    """The positions of a shape sample as floats (nj,), checked against the model's ``joint_names``.
+
+    Raises
+    ------
+    SudsDataError
+        Code ``wrong_joint_names``, ``wrong_joint_count`` or ``nan_or_inf``.
+    """
+    position = np.asarray(position, dtype=float)
+    if tuple(names) != joint_names:
+        raise SudsDataError(f"shape sample at {t:.6f} s has joints {list(names)}; expected {list(joint_names)}",
+                            code=WRONG_JOINT_NAMES)
+    if position.shape != (len(joint_names),):
+        raise SudsDataError(
+            f"shape sample at {t:.6f} s has {position.size} positions for {len(joint_names)} joints",
+            code=WRONG_JOINT_COUNT)
+    if not (np.isfinite(t) and np.all(np.isfinite(position))):
+        raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
+    return position

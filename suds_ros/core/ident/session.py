@@ -1,0 +1,418 @@
+"""A live identification session: what the estimator node does, without ROS.
+
+The node converts messages and hands them here; this module decides what to do
+with them and reports what to publish.
+
+* **Joint roles**: from the ``actuated`` parameter (joint names from the first
+  shape sample), else the ``system`` parameter (registry), else the system
+  description the node receives (:meth:`EstimatorSession.on_system`), else a
+  resumed checkpoint's.  Samples that arrive before the roles are known wait.
+* **Pairing** (by stamps only, never by arrival time): a shape sample waits in
+  a queue until the pose stream has passed its stamp (a pose with stamp ≥ the
+  shape's has been given to the estimator, so the pose at the shape's stamp can
+  be interpolated), or until the pose stream is shown stalled in stamp time:
+  shape stamps have advanced more than ``pose_stall`` seconds past the waiting
+  shape with no pose reaching it.  So a late, slow or bursty delivery of either
+  stream (a restarted node catching up on history) never loses a pairable
+  sample, as long as one stream runs less than ``pose_stall`` stamp seconds
+  ahead of the other.
+* **Resume**: with a ``checkpoint`` file the estimator is restored from it;
+  samples at or before its last stamps are counted as ``replayed`` and skipped.
+* **Bad samples** (NaN, duplicate or out-of-order stamp, wrong joint names or
+  count, ...) are skipped, logged once per reason and counted per
+  ``<stream>.<error code>``; the session never stops on traffic.
+* **Cadence** (wall clock, given as ``now``): the model is published after each
+  fitted chunk (``model_period`` = 0) or every ``model_period`` s, and once no
+  sample has arrived for ``idle_flush`` s (the partial chunk); the status every
+  ``status_period`` s; the checkpoint every ``checkpoint_period`` s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from suds_ros.core.errors import (
+    QUEUE_FULL,
+    SudsConfigError,
+    SudsDataError,
+    SudsError,
+    SudsPhaseError,
+    error_code,
+)
+from suds_ros.core.ident.model import SudsModel, check_stamp
+from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator
+from suds_ros.core.ident.sysid import SudsConfig
+
+_ONLINE = OnlineConfig()  # the estimator's defaults: the one source of the defaults below
+_SUDS = _ONLINE.suds
+
+Log = Callable[[str, str], None]  # (level "info" | "warning" | "error", text)
+
+
+def _no_log(level: str, text: str) -> None:
+    pass
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """Parameters of a session (the estimator node's parameters; periods and ``pose_stall`` may change)."""
+
+    system: str = field(default="", metadata={
+        "description": "system id giving the joint roles (empty: `actuated`, else /suds/system)"})
+    actuated: tuple[str, ...] = field(default=(), metadata={
+        "description": "actuated joint names (empty: from `system` or /suds/system)"})
+    gait_hz: float = field(default=0.0, metadata={
+        "description": "nominal gait frequency, Hz (0: from /suds/system, else 1)", "range": (0.0, 1000.0)})
+    init_cycles: float = field(default=_ONLINE.init_cycles, metadata={
+        "description": "gait cycles buffered before the phase is initialised", "range": (3.0, 1000.0)})
+    chunk: int = field(default=_ONLINE.chunk, metadata={
+        "description": "interval rows per regression update", "range": (1, 1_000_000)})
+    max_pose_wait: float = field(default=_ONLINE.max_pose_wait, metadata={
+        "description": "stamp s a shape sample given up on by the pairing may still wait in the "
+                       "estimator for a covering pose before it is dropped", "range": (1e-3, 3600.0)})
+    regressors: int = field(default=_SUDS.regressors, metadata={
+        "description": "SUDS regressor set 1, 2 or 3", "range": (1, 3)})
+    intercept_order: int = field(default=_SUDS.intercept_order, metadata={
+        "description": "Fourier order of the intercept C(φ)", "range": (0, 64)})
+    linear_order: int = field(default=_SUDS.linear_order, metadata={
+        "description": "Fourier order of the linear gains", "range": (0, 64)})
+    bilinear_order: int = field(default=_SUDS.bilinear_order, metadata={
+        "description": "Fourier order of the bilinear gains", "range": (0, 64)})
+    ridge: float = field(default=_SUDS.ridge, metadata={
+        "description": "relative Tikhonov weight", "range": (0.0, 1e6)})
+    forgetting: float = field(default=_SUDS.forgetting, metadata={
+        "description": "per-sample forgetting factor in (0, 1]", "range": (0.0, 1.0)})
+    template_order: int = field(default=_ONLINE.template_order, metadata={
+        "description": "Fourier order of the gait template θ(φ)", "range": (1, 64)})
+    phaser_order: int = field(default=_ONLINE.phaser_order, metadata={
+        "description": "Fourier order of the phaser correction", "range": (1, 64)})
+    history_depth: int = field(default=6000, metadata={
+        "description": "subscription depth of shape/pose and length of the pairing queue",
+        "range": (1, 10_000_000)})
+    checkpoint: str = field(default="", metadata={
+        "description": "checkpoint file: resumed from at start if it exists (empty: none)"})
+    checkpoint_period: float = field(default=5.0, metadata={
+        "description": "wall s between checkpoints", "range": (0.01, 86400.0), "read_only": False})
+    model_period: float = field(default=0.0, metadata={
+        "description": "wall s between /suds/model updates (0: after each fitted chunk)",
+        "range": (0.0, 86400.0), "read_only": False})
+    status_period: float = field(default=1.0, metadata={
+        "description": "wall s between /suds/status messages", "range": (0.05, 3600.0), "read_only": False})
+    pose_stall: float = field(default=60.0, metadata={
+        "description": "stamp s the shape stream may run ahead of the pose stream before a waiting "
+                       "shape sample is given up on (the pose stream counts as stalled); longer than "
+                       "the lag of a history catch-up after a restart",
+        "range": (0.01, 3600.0), "read_only": False})
+    idle_flush: float = field(default=2.0, metadata={
+        "description": "wall s without samples before the partial chunk is fitted and published",
+        "range": (0.01, 3600.0), "read_only": False})
+
+    def __post_init__(self) -> None:
+        if not 0 < self.forgetting <= 1:
+            raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
+        if self.system and self.actuated:
+            raise SudsConfigError("`system` and `actuated`: give one of them, not both")
+
+    def online_config(self, gait_hz: float) -> OnlineConfig:
+        """The :class:`OnlineConfig` these parameters describe."""
+        suds = SudsConfig(regressors=self.regressors, intercept_order=self.intercept_order,
+                          linear_order=self.linear_order, bilinear_order=self.bilinear_order,
+                          ridge=self.ridge, forgetting=self.forgetting)
+        return OnlineConfig(suds=suds, init_cycles=self.init_cycles, gait_hz=gait_hz,
+                            template_order=self.template_order, phaser_order=self.phaser_order,
+                            chunk=self.chunk, max_pose_wait=self.max_pose_wait)
+
+
+class Status(NamedTuple):
+    """What /suds/status reports: level ``OK``/``WARN``/``ERROR``, a message and key/values."""
+
+    level: str
+    message: str
+    values: dict[str, str]
+
+
+class EstimatorSession:
+    """Pairing, roles, resume, cadence and status around an :class:`OnlineSudsEstimator`.
+
+    Parameters
+    ----------
+    config : SessionConfig
+    log : callable (level, text), optional
+        Where log lines go (the node's logger).
+
+    Raises
+    ------
+    SudsDataError
+        The checkpoint exists but cannot be read.
+    SudsConfigError
+        ``actuated`` differs from the checkpoint's, or ``system`` is unknown.
+    """
+
+    def __init__(self, config: SessionConfig, log: Log = _no_log, now: float = 0.0) -> None:
+        self.config = config
+        self._log = log
+        self.est: OnlineSudsEstimator | None = None
+        self.skipped: Counter[str] = Counter()
+        self.replayed = self.replayed_pose = self.model_updates = 0
+        self.error = ""
+        self.resumed_from = ""
+        self._resume = (-math.inf, -math.inf)  # last shape / pose stamps of a resumed checkpoint
+        self._shapes: deque[Any] = deque()  # waiting shape samples, in stamp order
+        self._poses: deque[Any] = deque(maxlen=config.history_depth)  # before the roles are known
+        self._newest_shape = -math.inf  # newest shape stamp accepted in this session
+        self._first_shape = math.inf  # first shape stamp accepted in this session
+        self._last_arrival: float | None = None
+        self._stall_logged = False
+        self._dirty = False
+        self._rows_published = -1
+        self._last_status = self._last_ckpt = self._last_model = now
+        self._saved_at = (-1, -1)
+        if config.checkpoint and Path(config.checkpoint).exists():
+            self._load(config.checkpoint)
+        elif config.system:
+            from suds_ros.core.physics.systems import make_system
+
+            s = make_system(config.system)
+            names = tuple(s.joint_names)
+            self.start(names, tuple(names[i] for i in s.actuated), config.gait_hz or 1.0, config.system)
+
+    # ------------------------------------------------------------ roles and resume
+    @property
+    def needs_system(self) -> bool:
+        """True while the joint roles can only come from a system description."""
+        return self.est is None and not self.config.actuated
+
+    def _load(self, path: str) -> None:
+        est = OnlineSudsEstimator.load(path)
+        if self.config.actuated and tuple(self.config.actuated) != est.actuated:
+            raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} differs from the checkpoint's "
+                                  f"{list(est.actuated)} ({path}); remove the checkpoint or fix the parameter")
+        self.est = est
+        self._resume = (est.last_shape_stamp, est.last_pose_stamp)
+        self._newest_shape = est.last_shape_stamp
+        self.resumed_from = path
+        self._dirty = True
+        self._log("info", f"resumed from checkpoint {path}: {est.n_shape} shape samples, "
+                          f"{est.cycles_seen:.2f} cycles, last stamp {est.last_shape_stamp:.6f} s")
+
+    def start(self, names: tuple[str, ...], actuated: tuple[str, ...], gait_hz: float, source: str) -> None:
+        """Create the estimator (once) and hand it the samples that waited for the roles."""
+        if self.est is not None:
+            return
+        self.est = OnlineSudsEstimator(names, actuated, self.config.online_config(gait_hz))
+        self._log("info", f"joints {list(names)}, actuated {list(actuated)} (from {source}), gait {gait_hz:g} Hz")
+        poses, self._poses = list(self._poses), deque(maxlen=self.config.history_depth)
+        for p in poses:
+            self._feed_pose(p)
+        shapes, self._shapes = list(self._shapes), deque()
+        for s in shapes:  # now checkable against the joints
+            try:
+                self.est.check_shape(s.stamp, s.names, s.position)
+            except SudsError as exc:
+                self.skip("shape", exc)
+                continue
+            self._shapes.append(s)
+        self._drain()
+
+    def on_system(self, info: Mapping[str, Any]) -> None:
+        """A system description (``joint_names``, ``actuated``, ``gait_hz``, ``system``) gives the roles."""
+        if self.est is not None:
+            return
+        self.start(tuple(info["joint_names"]), tuple(info["actuated"]),
+                   self.config.gait_hz or info.get("gait_hz") or 1.0, f"system description ({info.get('system')})")
+
+    # ------------------------------------------------------------ traffic
+    def skip(self, stream: str, exc: BaseException) -> None:
+        """Count a rejected ``stream`` sample under ``<stream>.<code>``; log the first of each reason."""
+        key = f"{stream}.{error_code(exc)}"
+        if not self.skipped[key]:
+            self._log("warning", f"skipping bad {stream} sample(s) [{key}]: {exc} "
+                                 "(logged once per reason; counted in /suds/status)")
+        self.skipped[key] += 1
+
+    def on_shape(self, sample: Any, now: float) -> SudsModel | None:
+        """A shape sample (``stamp``, ``names``, ``position``); returns a model to publish, if any."""
+        self._last_arrival = now
+        if sample.stamp <= self._resume[0]:
+            self.replayed += 1  # already in the resumed checkpoint
+            return None
+        if self.est is None and self.config.actuated and set(self.config.actuated) <= set(sample.names):
+            self.start(tuple(sample.names), tuple(self.config.actuated), self.config.gait_hz or 1.0,
+                       "`actuated` and the first shape message")
+        try:
+            check_stamp("shape", sample.stamp, self._newest_shape)
+            if self.est is not None:
+                self.est.check_shape(sample.stamp, sample.names, sample.position)
+        except SudsError as exc:
+            self.skip("shape", exc)
+            return None
+        self._newest_shape = sample.stamp
+        self._first_shape = min(self._first_shape, sample.stamp)
+        model = self._drain(now)  # first give up what this stamp shows unpairable: room in the queue
+        if len(self._shapes) >= self.config.history_depth:
+            self.skip("shape", SudsDataError(f"shape queue: {len(self._shapes)} samples already wait for the "
+                                             "joint roles or the pose stream", code=QUEUE_FULL))
+            return model
+        self._shapes.append(sample)
+        return self._drain(now) or model
+
+    def on_pose(self, pose: Any, now: float) -> SudsModel | None:
+        """A planar pose (``stamp``, ``x``, ``y``, ``yaw``); returns a model to publish, if any."""
+        self._last_arrival = now
+        if pose.stamp <= self._resume[1]:
+            self.replayed_pose += 1
+            return None
+        if self.est is None:
+            self._poses.append(pose)
+            return None
+        self._feed_pose(pose)
+        return self._drain(now)
+
+    def _feed_pose(self, pose: Any) -> None:
+        assert self.est is not None
+        try:
+            self.est.add_pose(pose.stamp, pose.x, pose.y, pose.yaw)
+        except SudsPhaseError as exc:
+            self._phase_error(exc)
+        except Exception as exc:  # noqa: BLE001 - the session never stops on traffic
+            self.skip("pose", exc)
+        else:
+            self._dirty = True
+
+    def _drain(self, now: float | None = None) -> SudsModel | None:
+        """Hand the waiting shape samples the pose stream has passed (or given up on) to the estimator."""
+        est = self.est
+        if est is None:
+            return None
+        while self._shapes:
+            s = self._shapes[0]
+            covered = est.last_pose_stamp >= s.stamp
+            if not covered and self._newest_shape - s.stamp <= self.config.pose_stall:
+                break
+            self._shapes.popleft()
+            try:
+                est.add_shape(s.stamp, s.names, s.position)
+            except SudsPhaseError as exc:
+                self._phase_error(exc)
+            except Exception as exc:  # noqa: BLE001 - the session never stops on traffic
+                self.skip("shape", exc)
+            else:
+                self._dirty = True
+        if self.config.model_period == 0 and est.n_rows != self._rows_published:
+            return self._take_model(now)
+        return None
+
+    def _phase_error(self, exc: Exception) -> None:
+        if not self.error:
+            self._log("error", f"initialisation failed: {exc}")
+        self.error = f"initialisation failed: {exc}"
+
+    def _take_model(self, now: float | None = None) -> SudsModel | None:
+        est = self.est
+        if est is None or not est.initialised:
+            return None
+        try:
+            model = est.model()
+        except SudsError:
+            return None
+        self._rows_published = est.n_rows
+        self._dirty = False
+        self.model_updates += 1
+        if now is not None:
+            self._last_model = now
+        return model
+
+    # ------------------------------------------------------------ periodic
+    def pose_stalled(self) -> float | None:
+        """Stamp s the shape stream has run ahead of the pose stream, when more than ``pose_stall``."""
+        if not self._shapes:
+            return None
+        last_pose = self.est.last_pose_stamp if self.est is not None else max(
+            (p.stamp for p in self._poses), default=-math.inf)
+        ahead = self._newest_shape - max(last_pose, self._first_shape)
+        return ahead if ahead > self.config.pose_stall else None
+
+    def tick(self, now: float) -> tuple[SudsModel | None, Status | None]:
+        """Periodic work at wall time ``now``: (model to publish or None, status to publish or None)."""
+        cfg = self.config
+        model = None
+        idle = self._last_arrival is not None and now - self._last_arrival > cfg.idle_flush
+        if self._dirty and (idle or (cfg.model_period > 0 and now - self._last_model >= cfg.model_period)):
+            model = self._take_model(now)
+            if model is not None and idle:
+                self._log("info", f"idle for {cfg.idle_flush:g} s: published the model ({model.n_samples} rows)")
+        stalled = self.pose_stalled()
+        if stalled is not None and not self._stall_logged:
+            self._log("warning", f"pose stream stalled since {stalled:.1f} s")
+        self._stall_logged = stalled is not None  # log once per stall
+        status = None
+        if now - self._last_status >= cfg.status_period:
+            self._last_status = now
+            status = self.status(stalled)
+        if cfg.checkpoint and now - self._last_ckpt >= cfg.checkpoint_period:
+            self._last_ckpt = now
+            self.save_checkpoint()
+        return model, status
+
+    def status_values(self) -> dict[str, str]:
+        """The key/values of the status."""
+        est = self.est
+        v: dict[str, str] = {}
+        if est is not None:
+            g = est.running_gamma()
+            v.update({
+                "phase": f"{est.phase:.6g}", "cycles_seen": f"{est.cycles_seen:.3f}",
+                "initialised": str(est.initialised).lower(), "samples": str(est.n_shape),
+                "poses": str(est.n_pose), "rows": str(est.n_rows),
+                "gamma_body": f"{g['body']:.4f}", "gamma_passive": f"{g['passive']:.4f}",
+                "dropped_no_pose": str(est.dropped_no_pose),
+            })
+            v.update({f"residual.{c}": f"{r:.6g}" for c, r in zip(est.channels, est.last_residual)})
+        else:
+            v.update({"initialised": "false", "samples": "0", "joint_roles": "unknown"})
+        v.update({"replayed": str(self.replayed), "replayed_pose": str(self.replayed_pose),
+                  "waiting_for_pose": str(len(self._shapes)), "model_updates": str(self.model_updates),
+                  "skipped_total": str(sum(self.skipped.values()))})
+        v.update({f"skipped.{k}": str(n) for k, n in sorted(self.skipped.items())})
+        if self.resumed_from:
+            v["resumed_from"] = self.resumed_from
+        return v
+
+    def status(self, stalled: float | None = None) -> Status:
+        """ERROR on a failed initialisation, WARN on a stalled pose stream, else OK."""
+        level, message = "OK", "running"
+        if self.est is None:
+            message = "waiting for joint roles (`actuated`, `system` or /suds/system)"
+        elif not self.est.initialised:
+            message = f"initialising ({self.est.cycles_seen:.1f}/{self.est.init_cycles_:g} cycles)"
+        if stalled is not None:
+            level, message = "WARN", f"pose stream stalled since {stalled:.1f} s"
+        if self.error:
+            level, message = "ERROR", self.error
+        return Status(level, message, self.status_values())
+
+    def save_checkpoint(self) -> None:
+        """Atomically save the estimator state (if it changed since the last save)."""
+        est = self.est
+        if est is None or not self.config.checkpoint:
+            return
+        mark = (est.n_shape, est.n_pose)
+        if mark == self._saved_at:
+            return
+        try:
+            est.save(self.config.checkpoint)
+        except OSError as exc:
+            self._log("error", f"cannot write checkpoint {self.config.checkpoint}: {exc}")
+            return
+        self._saved_at = mark
+
+    def close(self) -> SudsModel | None:
+        """At shutdown: save the checkpoint; returns the final model if it changed since the last one."""
+        model = self._take_model() if self._dirty else None
+        self.save_checkpoint()
+        return model

@@ -1,0 +1,127 @@
+"""The streaming estimator: chunking is exact, pairing by stamps, coded errors, fixed hyperparameters."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import (
+    DUPLICATE_STAMP,
+    NAN_OR_INF,
+    OUT_OF_ORDER_STAMP,
+    TOO_LITTLE_DATA,
+    WRONG_JOINT_COUNT,
+    WRONG_JOINT_NAMES,
+    SudsConfigError,
+    SudsDataError,
+)
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator, fit_streaming
+from suds_ros.core.ident.predictor import evaluate_model
+from suds_ros.core.ident.scoring import score_prediction
+
+
+def test_streaming_chunking_is_exact_and_matches_batch_accuracy(purcell3_run) -> None:
+    train, test = split_cycles(purcell3_run, 12, 8)
+    a = fit_streaming(train, OnlineConfig(chunk=100)).model()
+    b = fit_streaming(train, OnlineConfig(chunk=7)).model()
+    scale = np.abs(a.coef).max()
+    np.testing.assert_allclose(b.coef, a.coef, atol=1e-9 * scale)
+    sc = score_prediction(evaluate_model(a, test))
+    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).score(test)
+    assert sc.gamma_body > batch.gamma_body - 0.05
+    assert sc.gamma_passive > batch.gamma_passive - 0.05
+
+
+def _feed(est: OnlineSudsEstimator, rec, k0: int, k1: int) -> None:
+    for k in range(k0, k1):
+        est.add_pose(float(rec.pose_t[k]), *map(float, rec.pose[k]))
+        est.add_shape(float(rec.t[k]), rec.joint_names, rec.r[k])
+
+
+def test_hyperparameters_never_change_while_fitting(purcell3_run, monkeypatch) -> None:
+    """The phaser refuses the first buffer: the learned ``init_cycles_`` grows, the config does not."""
+    import suds_ros.core.ident.online as online
+    from suds_ros.core.errors import SudsPhaseError
+
+    calls = []
+
+    class FirstTimeTooShort(online.Phaser):
+        def fit_transform(self, R):  # type: ignore[no-untyped-def]
+            calls.append(len(R))
+            if len(calls) == 1:
+                raise SudsPhaseError("too little data (test)")
+            return super().fit_transform(R)
+
+    monkeypatch.setattr(online, "Phaser", FirstTimeTooShort)
+    rec = purcell3_run
+    cfg = OnlineConfig(init_cycles=3.0)
+    est = OnlineSudsEstimator(rec.joint_names, rec.actuated, cfg)
+    _feed(est, rec, 0, 1000)
+    assert len(calls) == 2 and calls[1] > calls[0] + 90  # one more cycle buffered
+    assert est.config is cfg and est.config == OnlineConfig(init_cycles=3.0)
+    assert est.init_cycles_ == 4.0 and est.initialised
+    assert est.omega_ > 0 and est.template_ is not None
+
+
+def test_shape_waits_for_a_covering_pose_then_is_dropped_in_stamp_time(purcell3_run) -> None:
+    rec = purcell3_run
+    est = OnlineSudsEstimator(rec.joint_names, rec.actuated, OnlineConfig(max_pose_wait=0.05))
+    est.add_pose(float(rec.t[0]), *map(float, rec.pose[0]))
+    for k in range(1, 4):
+        assert est.add_shape(float(rec.t[k]), rec.joint_names, rec.r[k]) == 0  # no covering pose yet
+    assert est.add_pose(float(rec.t[3]), *map(float, rec.pose[3])) == 3  # all three interpolated
+    for k in range(4, 12):  # the pose stream stops: samples more than 50 ms behind are dropped
+        est.add_shape(float(rec.t[k]), rec.joint_names, rec.r[k])
+    assert est.dropped_no_pose == 2 and est.n_shape == 11  # t4, t5 lie > 50 ms behind t11
+
+
+def test_bad_samples_carry_codes(purcell3_run) -> None:
+    rec = purcell3_run
+    est = OnlineSudsEstimator(rec.joint_names, rec.actuated)
+    t, names, r = float(rec.t[5]), rec.joint_names, rec.r[5]
+    est.add_shape(t, names, r)
+    cases = [
+        ((t + 1, ("a", "b"), r), WRONG_JOINT_NAMES, "has joints"),
+        ((t + 1, names, np.r_[r, 0.0]), WRONG_JOINT_COUNT, "positions for"),
+        ((t + 1, names, np.full_like(r, np.nan)), NAN_OR_INF, "NaN"),
+        ((t, names, r), DUPLICATE_STAMP, "duplicate shape stamp"),
+        ((t - 1, names, r), OUT_OF_ORDER_STAMP, "out-of-order shape stamp"),
+    ]
+    for args, code, match in cases:
+        with pytest.raises(SudsDataError, match=match) as info:
+            est.add_shape(*args)
+        assert info.value.code == code
+    est.add_pose(1.0, 0.0, 0.0, 0.0)
+    for args, code in (((1.0, 0.0, 0.0, 0.0), DUPLICATE_STAMP), ((0.5, 0.0, 0.0, 0.0), OUT_OF_ORDER_STAMP),
+                       ((2.0, np.nan, 0.0, 0.0), NAN_OR_INF)):
+        with pytest.raises(SudsDataError) as info:
+            est.add_pose(*args)
+        assert info.value.code == code
+    with pytest.raises(SudsDataError, match="no model yet") as info:
+        est.model()
+    assert info.value.code == TOO_LITTLE_DATA
+    with pytest.raises(SudsConfigError, match="`actuated`"):
+        OnlineSudsEstimator(names, ("nope",))
+    with pytest.raises(SudsConfigError, match="`init_cycles`"):
+        OnlineConfig(init_cycles=2.0)
+    with pytest.raises(SudsConfigError, match="`max_pose_wait`"):
+        replace(OnlineConfig(), max_pose_wait=0.0)
+
+
+def test_checkpoint_resumes_to_the_same_model(purcell3_run, tmp_path) -> None:
+    rec = purcell3_run.slice(0, 1200)
+    ref = fit_streaming(rec)
+    est = OnlineSudsEstimator(rec.joint_names, rec.actuated)
+    _feed(est, rec, 0, 700)
+    est.save(tmp_path / "est.ckpt")
+    back = OnlineSudsEstimator.load(tmp_path / "est.ckpt")
+    assert back.already_seen(float(rec.t[699])) and not back.already_seen(float(rec.t[700]))
+    _feed(back, rec, 700, rec.n_samples)
+    np.testing.assert_allclose(back.model().coef, ref.model().coef, rtol=0, atol=1e-9)
+    assert back.running_gamma().keys() == {"body", "passive"}
+    (tmp_path / "bad.ckpt").write_bytes(b"nope")
+    with pytest.raises(SudsDataError, match="unreadable"):
+        OnlineSudsEstimator.load(tmp_path / "bad.ckpt")
