@@ -63,7 +63,7 @@ def existing_bag(path_text: str) -> Path:
 
 
 def model_path(args: argparse.Namespace) -> str | None:
-    """The robot model file named by ``--model`` (or by ``--system`` given a path); None for none.
+    """Return the robot model file named by ``--model`` (or by ``--system`` given a path), or None.
 
     Raises
     ------
@@ -82,7 +82,7 @@ def model_path(args: argparse.Namespace) -> str | None:
 
 
 def load_model_argument(args: argparse.Namespace) -> ChainModel | None:
-    """The :class:`ChainModel` of :func:`model_path`'s file, or None when no model file is named."""
+    """Load the :class:`ChainModel` of :func:`model_path`'s file; None when no model file is named."""
     from suds_ros.core.physics.robot_model import load_model
 
     path = model_path(args)

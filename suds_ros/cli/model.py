@@ -51,7 +51,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
 
 
 def chain_model(spec: str) -> ChainModel:
-    """The :class:`ChainModel` of a built-in chain id or of a model file path."""
+    """Return the :class:`ChainModel` of a built-in chain id or of a model file path."""
     from suds_ros.core.physics.robot_model import load_model
     from suds_ros.core.physics.systems import builtin_model, is_model_file
 
@@ -125,7 +125,7 @@ def _joint_line(model: ChainModel, j: int) -> str:
 
 
 def describe(model: ChainModel, source: str, summary: dict[str, Any]) -> str:
-    """The text ``suds model check`` prints."""
+    """Format what ``suds model check`` prints."""
     lines = [f"{source}: robot {model.name!r}, {model.n_links} links, {model.n_links - 1} joints "
              f"({len(model.actuated)} actuated), gait {model.gait_hz:g} Hz",
              "links (head to tail):", f"  {'link':<6}{'length m':>10}{'c_par':>8}{'c_perp':>8}"]

@@ -95,7 +95,7 @@ def parse_effect(text: str) -> dict[str, object]:
 
 
 def _system_spec(args: argparse.Namespace) -> str:
-    """The system id or model file path of SYSTEM / --model (exactly one of them)."""
+    """Return the system id or model file path of SYSTEM / --model (exactly one of them)."""
     if args.system and args.model:
         raise SudsConfigError(f"SYSTEM {args.system!r} and --model {args.model!r}: give one of them")
     if not (args.system or args.model):
@@ -104,7 +104,7 @@ def _system_spec(args: argparse.Namespace) -> str:
 
 
 def lab_conditions(args: argparse.Namespace) -> object | None:
-    """The :class:`~suds_ros.core.physics.lab.LabConditions` of the lab options; None when none is given.
+    """Build the :class:`~suds_ros.core.physics.lab.LabConditions` of the lab options; None when none is given.
 
     Raises
     ------

@@ -137,7 +137,7 @@ def _param(name: str, value: object) -> list[str]:
 
 
 def model_file(args: argparse.Namespace) -> str | None:
-    """The robot model file of ``--model`` (or of ``--system`` given a path), absolute; None for none."""
+    """Return the robot model file of ``--model`` (or ``--system`` given a path), absolute, or None."""
     from suds_ros.core.physics.systems import is_model_file
 
     path = args.model or (args.system if is_model_file(args.system) else None)

@@ -127,7 +127,7 @@ class SimulatorConfig:
         return self.model_file or self.system
 
     def resolved(self, default_gait_hz: float) -> "SimulatorConfig":
-        """This config with ``gait_hz`` set (to ``default_gait_hz`` when unset), checked against ``rate``."""
+        """Return this config with ``gait_hz`` set (``default_gait_hz`` when unset), checked against ``rate``."""
         return self if self.gait_hz is not None else replace(self, gait_hz=default_gait_hz)
 
     @property
