@@ -1,12 +1,13 @@
-"""The ``suds`` command: simulate, inspect, identify, score and diagnose recordings.
+"""The ``suds`` command: simulate, inspect, identify, score and diagnose recordings; robot model files.
 
 One parser (:func:`build_parser`) assembled from the command modules
 (:mod:`~suds_ros.cli.simulate`, :mod:`~suds_ros.cli.inspect`,
-:mod:`~suds_ros.cli.identify`, :mod:`~suds_ros.cli.diagnose`), each of which
+:mod:`~suds_ros.cli.identify`, :mod:`~suds_ros.cli.diagnose`,
+:mod:`~suds_ros.cli.model`), each of which
 registers its subcommands and a ``run(args) -> int``; and one error handler
 (:func:`main`): a deliberate error (:class:`~suds_ros.core.errors.SudsError`,
 or a command line argparse refuses) prints one ``ERROR: …`` line on stderr and
-returns 2, never a traceback.  Options are never abbreviated: ``--model`` is
+returns 2, never a traceback.  Options are never abbreviated: ``--model-o`` is
 refused, not taken for ``--model-out``.
 """
 
@@ -47,7 +48,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``suds``."""
-    from suds_ros.cli import diagnose, identify, inspect, simulate
+    from suds_ros.cli import diagnose, identify, inspect, model, simulate
 
     parser = _Parser(
         prog="suds",
@@ -60,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     inspect.add_parsers(sub)
     identify.add_parser(sub)
     diagnose.add_parser(sub)
+    model.add_parser(sub)
     return parser
 
 

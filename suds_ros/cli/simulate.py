@@ -16,6 +16,14 @@ examples:
   suds simulate purcell3 -o purcell3.mcap                 # 60 cycles, seed 0, noise 1e-3
   suds simulate swimmer9 -o s9.mcap --cycles 30 --seed 4 --effect spring_rest_offset:joint_6:offset=0.25
   suds simulate nlink15 -o n15.mcap --noise 0             # a 15-link chain, noise free
+  suds simulate --model robot.yaml -o robot.mcap           # your own robot (suds-robot/1 file)
+  suds simulate purcell3 -o lab.mcap --pose-rate 120 --pose-phase-ms 3.7 --jitter-ms 0.4 \
+      --drop 0.01 --compression lz4                        # recorded the way a lab records
+
+Lab options (--pose-rate, --pose-phase-ms, --jitter-ms, --drop, --sensor-offset-ms) record
+shape and pose as separate streams at their own stamps from the same physics, drive and
+seed as the aligned run; an option not given is ideal (pose at the shape rate and stamps,
+no jitter, nothing dropped).
 
 The drive is r_a = r_ref(t) + η(t), η an Ornstein–Uhlenbeck process
 (dη = −κη dt + σ dW, σ = ou_std·√(2κ)), linearly interpolated between samples.
@@ -26,7 +34,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     """Register ``simulate`` on the ``suds`` subcommand parser."""
     p = subparsers.add_parser("simulate", help="simulate a system and write an MCAP recording",
                               epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("system", help="purcell3, swimmer9, linear_passive, pushmepullyou or nlinkN")
+    p.add_argument("system", nargs="?",
+                   help="purcell3, swimmer9, linear_passive, pushmepullyou, nlinkN, or a model file")
+    p.add_argument("--model", metavar="FILE", help="robot model file (suds-robot/1) instead of SYSTEM")
     p.add_argument("-o", "--output", required=True,
                    help="output .mcap (never overwritten without --overwrite)")
     p.add_argument("--cycles", type=int, default=60, help="gait cycles to record (default 60)")
@@ -36,15 +46,34 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--ou-std", type=float, default=0.175,
                    help="stationary std of the OU drive perturbation, rad")
     p.add_argument("--kappa", type=float, default=8.0, help="OU attraction rate κ, 1/s (default 8)")
-    p.add_argument("--gait-hz", type=float, default=1.0, help="gait frequency, Hz (default 1)")
+    p.add_argument("--gait-hz", type=float, default=None,
+                   help="gait frequency, Hz (default: the model file's gait_hz, else 1)")
     p.add_argument("--substeps", type=int, default=None,
                    help="RK4 steps per sample (default: from the stiffest passive mode)")
     p.add_argument("--effect", action="append", metavar="NAME[:JOINT][:P=V,...]",
                    help="inject a physical effect (repeatable), e.g. "
                         "joint_coulomb_friction:joint_2:mu=0.7")
     p.add_argument("--effort", action="store_true", help="record actuator effort on /suds/shape")
+    lab = p.add_argument_group("lab recording conditions")
+    lab.add_argument("--pose-rate", type=float, metavar="HZ",
+                     help="pose (motion capture) rate, Hz (default: the shape rate)")
+    lab.add_argument("--pose-phase-ms", type=float, metavar="MS",
+                     help="start of the pose stream after the shape stream, ms (default 0)")
+    lab.add_argument("--jitter-ms", type=float, metavar="MS",
+                     help="std of each stamp around its nominal grid point, ms (default 0)")
+    lab.add_argument("--drop", type=float, metavar="FRACTION",
+                     help="fraction of messages lost on each stream (default 0)")
+    lab.add_argument("--sensor-offset-ms", type=float, metavar="MS",
+                     help="pose stamps late by this much, ms (any value; default 0)")
+    p.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd",
+                   help="chunk compression of the bag (default zstd)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.set_defaults(func=run)
+
+
+#: lab option (argparse dest) → the LabConditions field it sets and its unit factor
+LAB_OPTIONS = {"pose_rate": ("pose_hz", 1.0), "pose_phase_ms": ("pose_phase", 1e-3),
+               "jitter_ms": ("jitter", 1e-3), "drop": ("drop", 1.0)}
 
 
 def parse_effect(text: str) -> dict[str, object]:
@@ -65,32 +94,80 @@ def parse_effect(text: str) -> dict[str, object]:
     return out
 
 
+def _system_spec(args: argparse.Namespace) -> str:
+    """Return the system id or model file path of SYSTEM / --model (exactly one of them)."""
+    if args.system and args.model:
+        raise SudsConfigError(f"SYSTEM {args.system!r} and --model {args.model!r}: give one of them")
+    if not (args.system or args.model):
+        raise SudsConfigError("no system: give SYSTEM (e.g. purcell3) or --model FILE")
+    return str(args.model or args.system)
+
+
+def lab_conditions(args: argparse.Namespace) -> object | None:
+    """Build the :class:`~suds_ros.core.physics.lab.LabConditions` of the lab options; None when none is given.
+
+    Raises
+    ------
+    SudsConfigError
+        For a value out of range, naming the option.
+    """
+    from suds_ros.core.physics.lab import LabConditions
+
+    given = {dest: getattr(args, dest) for dest in (*LAB_OPTIONS, "sensor_offset_ms")
+             if getattr(args, dest) is not None}
+    if not given:
+        return None
+    values: dict[str, object] = {"pose_hz": None, "pose_phase": 0.0, "jitter": 0.0, "drop": 0.0}
+    for dest, (name, unit) in LAB_OPTIONS.items():
+        if dest in given:
+            values[name] = given[dest] * unit
+    try:
+        return LabConditions(**values)  # type: ignore[arg-type]
+    except SudsConfigError as exc:
+        flags = {name: dest for dest, (name, _) in LAB_OPTIONS.items()}
+        name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
+        flag = "--" + flags.get(name, name).replace("_", "-")
+        raise SudsConfigError(f"{flag}: {exc}", code=exc.code) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds simulate``; returns the exit code."""
     from suds_ros.core.physics.sim import SimConfig, simulate
-    from suds_ros.core.physics.systems import make_system
+    from suds_ros.core.physics.systems import load_system
     from suds_ros.io.recording_bag import write_recording
 
     out = Path(args.output)
     if out.exists() and not args.overwrite:
         raise SudsConfigError(f"output {str(out)!r} exists; pass --overwrite to replace it")
-    system = make_system(args.system)
-    pose_delay = 0.0
+    system = load_system(_system_spec(args))
+    lab = lab_conditions(args)
+    if lab is not None and args.effort:
+        raise SudsConfigError("--effort: not recorded with the lab options (effort is defined on "
+                              "the aligned sample grid)")
+    gait_hz = args.gait_hz or getattr(getattr(system, "model", None), "gait_hz", 1.0)
+    pose_delay = 1e-3 * (args.sensor_offset_ms or 0.0)
     if args.effect:
         from suds_ros.core.physics.effects import apply_effects
 
-        model, pose_delay = apply_effects(system.model,  # type: ignore[attr-defined]
-                                          [parse_effect(e) for e in args.effect])
+        model, effect_delay = apply_effects(system.model,  # type: ignore[attr-defined]
+                                            [parse_effect(e) for e in args.effect])
         system = type(system)(model)  # type: ignore[call-arg]
+        pose_delay += effect_delay
     cfg = SimConfig(cycles=args.cycles, seed=args.seed, noise_std=args.noise, ou_std=args.ou_std,
-                    kappa=args.kappa, substeps=args.substeps, gait_hz=args.gait_hz,
+                    kappa=args.kappa, substeps=args.substeps, gait_hz=gait_hz,
                     pose_delay=pose_delay)
-    rec = simulate(system, cfg, progress=progress_bar(f"simulating {args.system}"))
+    if lab is None:
+        rec = simulate(system, cfg, progress=progress_bar(f"simulating {system.name}"))
+    else:
+        from suds_ros.core.physics.lab import simulate_lab
+
+        rec = simulate_lab(system, cfg, lab)  # type: ignore[arg-type]
     if args.effort:
         eff = np.zeros_like(rec.r)
         eff[:, rec.actuated_index] = rec.truth["effort"]
         rec = replace(rec, effort=eff)
-    write_recording(out, rec, overwrite=args.overwrite)
-    print(f"wrote {out}: {args.system}, {args.cycles} cycles, {rec.n_samples} samples, "
-          f"seed {args.seed}")
+    write_recording(out, rec, overwrite=args.overwrite, compression=args.compression)
+    poses = "" if lab is None else f", {rec.pose_t.size} poses"
+    print(f"wrote {out}: {system.name}, {args.cycles} cycles at {gait_hz:g} Hz, {rec.n_samples} samples"
+          f"{poses}, seed {args.seed}")
     return 0

@@ -14,6 +14,12 @@ When the recorder ran, the recorded live predictions are scored at the end
 Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
 ``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
 ``system``, ``actuated``, ``passive`` (the recorder runs only with ``--output``).
+
+With ``--model FILE`` (or ``--system`` given a path) the robot model file is loaded
+here first (a bad file stops the pipeline before any node starts): the simulator
+gets ``model_file`` (and ``rate`` = 100 samples per cycle at the file's ``gait_hz``
+unless ``--rate``), the estimator the file's ``actuated`` joints and ``gait_hz``,
+the predictor and recorder its name, roles and ``gait_hz``.
 """
 
 from __future__ import annotations
@@ -130,29 +136,74 @@ def _param(name: str, value: object) -> list[str]:
     return ["-p", f"{name}:={text}"]
 
 
-def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
-    """argv of every node to start, from the parsed pipeline options."""
-    sim = _param("system", args.system)
-    for opt, pname in (("cycles", "cycles"), ("rate", "rate"), ("seed", "seed"),
-                       ("realtime_factor", "real_time_factor")):
-        if getattr(args, opt) is not None:
-            sim += _param(pname, getattr(args, opt))
-    params = {"simulator": sim, "estimator": _param("system", args.system),
+def model_file(args: argparse.Namespace) -> str | None:
+    """Return the robot model file of ``--model`` (or ``--system`` given a path), absolute, or None."""
+    from suds_ros.core.physics.systems import is_model_file
+
+    path = args.model or (args.system if is_model_file(args.system) else None)
+    return None if path is None else os.path.abspath(path)
+
+
+def _role_names(names: Sequence[str], indices: Sequence[int]) -> str:
+    return ",".join(names[i] for i in indices)
+
+
+def _model_params(path: str, args: argparse.Namespace) -> dict[str, list[str]]:
+    """Node parameters for a robot model file (see the module doc)."""
+    from suds_ros.core.physics.robot_model import load_model
+
+    model = load_model(path)
+    names = model.joint_names
+    sim = _param("model_file", path)
+    if args.rate is None:
+        sim += _param("rate", 100.0 * model.gait_hz)
+    gait = _param("gait_hz", float(model.gait_hz))
+    params = {"simulator": sim,
+              "estimator": _param("actuated", f"[{_role_names(names, model.actuated)}]") + gait,
+              "predictor": _param("system", model.name)}
+    if args.output:
+        params["recorder"] = (_param("system", model.name)
+                              + _param("actuated", _role_names(names, model.actuated))
+                              + _param("passive", _role_names(names, model.passive)) + gait)
+    return params
+
+
+def _system_params(args: argparse.Namespace) -> dict[str, list[str]]:
+    """Node parameters for a built-in system id."""
+    params = {"simulator": _param("system", args.system), "estimator": _param("system", args.system),
               "predictor": _param("system", args.system)}
     if args.output:
         from suds_ros.core.physics.systems import make_system
 
         system = make_system(args.system)
         names = system.joint_names
-        params["recorder"] = (
-            _param("output", os.path.abspath(args.output)) + _param("system", args.system)
-            + _param("actuated", ",".join(names[i] for i in system.actuated))
-            + _param("passive", ",".join(names[i] for i in system.passive))
-            + _param("overwrite", "true" if args.overwrite else "false"))
+        params["recorder"] = (_param("system", args.system)
+                              + _param("actuated", _role_names(names, system.actuated))
+                              + _param("passive", _role_names(names, system.passive)))
+    return params
+
+
+def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
+    """argv of every node to start, from the parsed pipeline options.
+
+    Raises
+    ------
+    SudsError
+        For unknown nodes, an unknown system id or a model file that does not load.
+    """
     nodes = [n for n in args.nodes.split(",") if n]
     unknown = [n for n in nodes if n not in NODES]
     if unknown:
         raise SudsError(f"--nodes: unknown node(s) {unknown}; expected some of {list(NODES)}")
+    path = model_file(args)
+    params = _system_params(args) if path is None else _model_params(path, args)
+    for opt, pname in (("cycles", "cycles"), ("rate", "rate"), ("seed", "seed"),
+                       ("realtime_factor", "real_time_factor")):
+        if getattr(args, opt) is not None:
+            params["simulator"] += _param(pname, getattr(args, opt))
+    if "recorder" in params:
+        params["recorder"] = (_param("output", os.path.abspath(args.output)) + params["recorder"]
+                              + _param("overwrite", "true" if args.overwrite else "false"))
     return {
         n: [sys.executable, "-m", NODES[n], "--ros-args", *params[n], *args.ros_args]
         for n in nodes if n in params
@@ -181,7 +232,10 @@ def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0],
                                 allow_abbrev=False)
-    p.add_argument("--system", default="purcell3", help="system id (default purcell3)")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--system", default="purcell3",
+                       help="system id (default purcell3), or the path of a robot model file")
+    which.add_argument("--model", metavar="FILE", help="robot model file (suds-robot/1) to simulate")
     p.add_argument("--cycles", type=int, help="gait cycles the simulator runs before the pipeline stops")
     p.add_argument("--rate", type=float, help="simulator sample rate, Hz")
     p.add_argument("--seed", type=int, help="simulator seed")

@@ -17,6 +17,14 @@ restarts gets back the samples it missed (up to ``history_depth`` of them).
 ``/clock`` (rosgraph_msgs/Clock): the simulated time, only when
 ``real_time_factor`` != 1.
 
+System
+------
+``system`` is a built-in id or the path of a robot model file (``suds-robot/1``);
+``model_file``, when set, names the model file instead (and ``system`` is then
+ignored).  With a model file the published names, roles and system id are the
+file's, and ``gait_hz`` defaults to the file's ``gait_hz`` (``rate`` / gait_hz
+must still be an integer number of samples per cycle).
+
 Time
 ----
 ``t0`` is the stamp of the first sample; when not set, it is the wall-clock
@@ -31,7 +39,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -43,7 +51,7 @@ from rclpy.task import Future
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
-from suds_ros.core.physics.systems import make_system
+from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
 from suds_ros.io.recording_bag import POSE_TOPIC, SHAPE_TOPIC, SYSTEM_TOPIC
 from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
@@ -60,7 +68,11 @@ class SimulatorConfig:
     """Parameters of the simulator node (all read-only except ``real_time_factor``)."""
 
     system: str = field(default="purcell3", metadata={
-        "description": "system id: purcell3, swimmer9, linear_passive, pushmepullyou or nlinkN"})
+        "description": "system id: purcell3, swimmer9, linear_passive, pushmepullyou, nlinkN, or the "
+                       "path of a robot model file"})
+    model_file: str = field(default="", metadata={
+        "description": "robot model file (suds-robot/1); when set it is the simulated system and "
+                       "`system` is ignored"})
     seed: int = field(default=0, metadata={
         "description": "seed of the drive perturbation and the measurement noise", "range": (0, 2**31 - 1)})
     noise: float = field(default=1e-3, metadata={
@@ -69,8 +81,8 @@ class SimulatorConfig:
     rate: float = field(default=100.0, metadata={
         "description": "samples per second of simulated time, Hz; rate / gait_hz = samples per cycle "
                        "(an integer ≥ 8)", "range": (1.0, 100000.0)})
-    gait_hz: float = field(default=1.0, metadata={
-        "description": "gait frequency, Hz", "range": (1e-3, 1000.0)})
+    gait_hz: float | None = field(default=None, metadata={
+        "description": "gait frequency, Hz, in (0, 1000] (unset: the model file's gait_hz, else 1)"})
     real_time_factor: float = field(default=1.0, metadata={
         "description": "simulated seconds per wall-clock second (1: real time; 0: as fast as possible)",
         "range": (0.0, 1e6), "read_only": False})
@@ -86,11 +98,8 @@ class SimulatorConfig:
         "description": "wall-clock s between publishing timer ticks", "range": (1e-4, 1.0)})
 
     def __post_init__(self) -> None:
-        spc = self.rate / self.gait_hz
-        if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
-            raise SudsConfigError(
-                f"`rate`: rate / gait_hz must be an integer ≥ 8 (samples per cycle), got "
-                f"{self.rate!r} / {self.gait_hz!r} = {spc:.6g}")
+        if self.gait_hz is not None:
+            self._check_gait()
         if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
             raise SudsConfigError(
                 f"`real_time_factor`: expected ≥ 0 (0: as fast as possible), got {self.real_time_factor!r}")
@@ -100,10 +109,31 @@ class SimulatorConfig:
         if self.noise < 0:
             raise SudsConfigError(f"`noise`: expected ≥ 0, got {self.noise!r}")
 
+    def _check_gait(self) -> None:
+        gait = self.gait_hz
+        number = isinstance(gait, (int, float)) and not isinstance(gait, bool)
+        if not (number and math.isfinite(gait) and 0 < gait <= 1000):  # type: ignore[arg-type]
+            raise SudsConfigError(f"`gait_hz`: expected a frequency in (0, 1000] Hz, got {gait!r}")
+        object.__setattr__(self, "gait_hz", float(gait))
+        spc = self.rate / self.gait_hz
+        if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
+            raise SudsConfigError(
+                f"`rate`: rate / gait_hz must be an integer ≥ 8 (samples per cycle), got "
+                f"{self.rate!r} / {gait!r} = {spc:.6g}")
+
+    @property
+    def system_spec(self) -> str:
+        """What :func:`~suds_ros.core.physics.systems.load_system` builds: ``model_file``, else ``system``."""
+        return self.model_file or self.system
+
+    def resolved(self, default_gait_hz: float) -> "SimulatorConfig":
+        """Return this config with ``gait_hz`` set (``default_gait_hz`` when unset), checked against ``rate``."""
+        return self if self.gait_hz is not None else replace(self, gait_hz=default_gait_hz)
+
     @property
     def samples_per_cycle(self) -> int:
-        """Samples per gait cycle."""
-        return samples_per_cycle(1.0 / self.rate, self.gait_hz)
+        """Samples per gait cycle (of a :meth:`resolved` config)."""
+        return samples_per_cycle(1.0 / self.rate, self.gait_hz)  # type: ignore[arg-type]
 
     def first_stamp(self) -> float:
         """``t0``, or its default (wall clock now in real time, 1.7e9 otherwise)."""
@@ -122,10 +152,11 @@ class SimulatorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("suds_simulator", **kwargs)
-        self.config = config_from_parameters(self, SimulatorConfig)
+        params = config_from_parameters(self, SimulatorConfig)
+        self.system = load_system(params.system_spec)
+        self.config = params.resolved(getattr(getattr(self.system, "model", None), "gait_hz", 1.0))
         add_validator(self, lambda: self.config, on_valid=self._on_config)
         cfg = self.config
-        self.system = make_system(cfg.system)
         self.t0 = cfg.first_stamp()
         self.sim = StreamingSimulator(self.system, cfg.sim_config(self.t0))
         names = self.system.joint_names
@@ -144,7 +175,7 @@ class SimulatorNode(Node):
         self._clock_cls = Clock
         self._clock_pub = self.create_publisher(Clock, "/clock", 10)
         self._system_pub.publish(system_info_to_msg({
-            "system": cfg.system, "joint_names": list(self.names),
+            "system": self.system.name, "joint_names": list(self.names),
             "actuated": [names[i] for i in self.system.actuated],
             "passive": [names[i] for i in self.system.passive],
             "gait_hz": cfg.gait_hz, "rate": cfg.rate}))
@@ -155,8 +186,10 @@ class SimulatorNode(Node):
         self._anchor: tuple[float, int] | None = None  # (wall monotonic, sample index) of the pacing
         self.finished: Future = Future()
         self._timer = self.create_timer(cfg.tick, self._on_tick)
+        source = f" (model file {cfg.system_spec})" if self.system.name != cfg.system_spec else ""
         self.get_logger().info(
-            f"simulating {cfg.system} at {cfg.rate:g} Hz ({cfg.samples_per_cycle} samples/cycle), "
+            f"simulating {self.system.name}{source}, gait {cfg.gait_hz:g} Hz, {cfg.rate:g} Hz "
+            f"({cfg.samples_per_cycle} samples/cycle), "
             f"real_time_factor {cfg.real_time_factor:g}, t0 {self.t0:.3f} s, "
             f"{'forever' if not cfg.cycles else f'{cfg.cycles} cycles'}")
 

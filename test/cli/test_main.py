@@ -84,7 +84,7 @@ def test_bad_input_gives_one_line_error(tmp_path: Path, make, args, message) -> 
 
 
 @pytest.mark.parametrize("args", [
-    ["identify", "{bag}", "--model", "x"],       # not --model-out
+    ["identify", "{bag}", "--model-o", "x"],     # not --model-out (--model is a model file)
     ["identify", "{bag}", "--stream"],           # not --streaming
     ["info", "{bag}", "--js"],                   # not --json
     ["simulate", "purcell3", "--out", "{d}/z.mcap"],

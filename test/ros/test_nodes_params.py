@@ -7,10 +7,13 @@ In-process tests build each node with ``parameter_overrides`` in its own
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import pytest
 
 pytestmark = pytest.mark.ros
+
+EEL4 = Path(__file__).resolve().parents[1] / "data" / "robots" / "eel4.yaml"  # 4 links, gait 0.5 Hz
 
 
 def make(kind: str, context, **params):
@@ -36,6 +39,9 @@ def make(kind: str, context, **params):
     ("simulator", {"system": "nope"}, r"unknown system 'nope'"),
     ("simulator", {"t0": "yesterday"}, r"`t0`"),
     ("simulator", {"seed": "x"}, r"`seed`"),
+    ("simulator", {"model_file": "/nonexistent/robot.yaml"}, r"robot.yaml: cannot read the model file"),
+    ("simulator", {"system": str(EEL4), "gait_hz": 0.3}, r"`rate`.*333.3"),
+    ("simulator", {"model_file": str(EEL4), "rate": 75.3}, r"`rate`.*150.6"),
     ("estimator", {"forgetting": 0.0}, r"`forgetting`"),
     ("estimator", {"init_cycles": 2.0}, r"`init_cycles`"),
     ("estimator", {"system": "purcell3", "actuated": ["joint_1"]}, r"`system` and `actuated`"),
@@ -75,6 +81,45 @@ def test_simulator_runtime_parameters(ros_context):
         d = node.describe_parameter("real_time_factor")
         assert d.description and not d.read_only and d.floating_point_range[0].from_value == 0.0
         assert node.describe_parameter("system").read_only
+    finally:
+        node.destroy_node()
+
+
+def test_simulator_from_a_model_file(ros_context):
+    """`model_file` (or `system` given a path) is the simulated robot; its gait_hz is the default."""
+    import json
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    from suds_ros.ros.qos import MODEL_QOS
+
+    got: list = []
+    listener = Node("listener", context=ros_context)
+    listener.create_subscription(String, "/suds/system", got.append, MODEL_QOS)
+    node = make("simulator", ros_context, model_file=str(EEL4), rate=50.0, cycles=1, real_time_factor=0.0)
+    try:
+        assert node.system.name == "eel4" and node.names == ("neck", "waist", "tail")
+        assert node.config.gait_hz == 0.5 and node.config.samples_per_cycle == 100
+        executor = SingleThreadedExecutor(context=ros_context)
+        executor.add_node(listener)
+        deadline = time.monotonic() + 30
+        while not got and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        executor.shutdown()
+        assert got, "no /suds/system message"
+        info = json.loads(got[-1].data)
+        assert info["system"] == "eel4" and info["gait_hz"] == 0.5 and info["rate"] == 50.0
+        assert info["actuated"] == ["neck", "waist"] and info["passive"] == ["tail"]
+        chunk = node.sim.step(100)
+        assert chunk.r.shape == (100, 3) and abs((chunk.t[-1] - chunk.t[0]) - 99 / 50) < 1e-6
+    finally:
+        node.destroy_node()
+        listener.destroy_node()
+    node = make("simulator", ros_context, system=str(EEL4), gait_hz=1.0)  # a path works as `system` too
+    try:
+        assert node.system.name == "eel4" and node.config.samples_per_cycle == 100
     finally:
         node.destroy_node()
 

@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -147,3 +148,47 @@ def test_output_is_prepared_before_any_node_starts(tmp_path, capsys):
     assert nested.read_bytes() == b"recorded"
     assert pipeline.main(["--output", str(tmp_path), "--nodes", "recorder"]) == 2
     assert "is a directory" in capsys.readouterr().err
+
+
+EEL4 = Path(__file__).resolve().parents[1] / "data" / "robots" / "eel4.yaml"  # 0.5 Hz gait
+
+
+def _params(argv: list[str]) -> list[str]:
+    """The ``-p`` values of one node's argv."""
+    return [argv[i + 1] for i, a in enumerate(argv) if a == "-p"]
+
+
+@pytest.mark.parametrize("how", [["--model", str(EEL4)], ["--system", str(EEL4)]])
+def test_model_file_configures_every_node(tmp_path, how):
+    args = pipeline.parse_args([*how, "--output", str(tmp_path / "x.mcap"), "--cycles", "3"])
+    cmds = pipeline.build_commands(args)
+    assert set(cmds) == {"simulator", "estimator", "predictor", "recorder"}
+    sim = _params(cmds["simulator"])
+    assert sim == [f"model_file:={EEL4}", "rate:=50.0", "cycles:=3"]  # 100 samples per 0.5 Hz cycle
+    assert _params(cmds["estimator"]) == ["actuated:=[neck,waist]", "gait_hz:=0.5"]
+    assert _params(cmds["predictor"]) == ["system:=eel4"]
+    assert _params(cmds["recorder"]) == [f"output:={tmp_path / 'x.mcap'}", "system:=eel4", "actuated:=neck,waist",
+                                         "passive:=tail", "gait_hz:=0.5", "overwrite:=false"]
+
+
+def test_model_file_with_an_explicit_rate_and_a_relative_path(tmp_path, monkeypatch):
+    monkeypatch.chdir(EEL4.parent)
+    cmds = pipeline.build_commands(pipeline.parse_args(["--model", EEL4.name, "--rate", "200",
+                                                        "--nodes", "simulator"]))
+    assert list(cmds) == ["simulator"]
+    assert _params(cmds["simulator"]) == [f"model_file:={EEL4}", "rate:=200.0"]  # absolute for the child
+
+
+def test_bad_model_file_stops_the_pipeline_before_any_node(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(EEL4.read_text().replace("gait_hz: 0.5", "gait_hz: fast"))
+    code = ("import sys; sys.modules['rclpy'] = None\n"
+            "from suds_ros.ros import pipeline\n"
+            f"sys.exit(pipeline.main(['--model', {str(bad)!r}, '--output', {str(tmp_path / 'x.mcap')!r}]))")
+    proc = subprocess.run(py(code), capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.strip() == f"ERROR: {bad}: `gait_hz`: expected a finite number, got 'fast'"
+    assert "starting" not in proc.stdout and not (tmp_path / "x.mcap").exists()
+    proc = subprocess.run([sys.executable, "-m", "suds_ros.ros.pipeline", "--model", str(EEL4),
+                           "--system", "purcell3"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "--system: not allowed with argument --model" in proc.stderr

@@ -7,6 +7,8 @@ The loader accepts exactly the documented keys and refuses anything else with
 a :class:`~suds_ros.core.errors.SudsConfigError` (code ``bad_model_file``) that
 names the key, what was expected and what was found.  :func:`model_to_dict`
 writes the file of a chain, so the built-in swimmers round-trip.
+:func:`model_differences` / :func:`check_recording` compare a recording's joint
+names and actuated/passive split with a model (code ``model_mismatch``).
 """
 
 from __future__ import annotations
@@ -14,13 +16,15 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError
 from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.recording import Recording
 from suds_ros.core.recording import joint_names as default_joint_names
 
 FORMAT = "suds-robot/1"
@@ -269,3 +273,76 @@ def dump_model(model: ChainModel) -> str:
     """The model file text of a chain (YAML, keys in the order of the format's documentation)."""
     header = f"# {model.name}: {model.n_links}-link chain, robot model file ({FORMAT}, shared/spec/robot_model.md)\n"
     return header + yaml.safe_dump(model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
+
+
+def _role(actuated: bool) -> str:
+    return "actuated" if actuated else "passive"
+
+
+def model_differences(model: ChainModel, joint_names: Sequence[str], actuated: Sequence[str]) -> list[str]:
+    """How a recording's joints differ from ``model``'s; empty when names, order and roles all match.
+
+    Parameters
+    ----------
+    model : ChainModel
+        The robot model (its ``joint_names`` and ``actuated`` indices).
+    joint_names : sequence of str
+        The recording's joint names, head to tail (as on ``/suds/shape``).
+    actuated : sequence of str
+        The recording's actuated joints; every other joint counts as passive.
+
+    Returns
+    -------
+    list of str
+        One phrase per kind of difference: joints of the model missing from the recording,
+        joints of the recording the model does not have, joints whose role differs, order.
+    """
+    rec_names, mod_names = list(joint_names), list(model.joint_names)
+    mod_act = {mod_names[i] for i in model.actuated}
+    rec_act = set(actuated)
+    out = []
+    missing = [n for n in mod_names if n not in rec_names]
+    extra = [n for n in rec_names if n not in mod_names]
+    if missing:
+        out.append(f"missing joints (in the model, not in the recording): {', '.join(missing)}")
+    if extra:
+        out.append(f"extra joints (in the recording, not in the model): {', '.join(extra)}")
+    differ = [f"{n} (recording {_role(n in rec_act)}, model {_role(n in mod_act)})"
+              for n in mod_names if n in rec_names and (n in rec_act) != (n in mod_act)]
+    if differ:
+        out.append(f"roles differ: {', '.join(differ)}")
+    common_rec = [n for n in rec_names if n in mod_names]
+    common_mod = [n for n in mod_names if n in rec_names]
+    if common_rec != common_mod:
+        out.append(f"joint order differs: recording {', '.join(common_rec)}; model {', '.join(common_mod)}")
+    return out
+
+
+def check_joints(model: ChainModel, joint_names: Sequence[str], actuated: Sequence[str], *,
+                 source: str | None = None) -> None:
+    """Refuse joints (names head to tail, actuated subset) that differ from ``model``'s.
+
+    ``source`` (the model file's path) starts the message when given.
+
+    Raises
+    ------
+    SudsConfigError
+        (code ``model_mismatch``) one line listing every difference (:func:`model_differences`).
+    """
+    diffs = model_differences(model, joint_names, actuated)
+    if diffs:
+        where = f"{source}: " if source else ""
+        raise SudsConfigError(
+            f"{where}the recording's joints ({', '.join(joint_names)}) do not match the model "
+            f"{model.name!r}: {'; '.join(diffs)}", code=MODEL_MISMATCH)
+
+
+def check_recording(rec: Recording, model: ChainModel, source: str | None = None) -> None:
+    """Refuse a recording whose joint names, order or actuated/passive split differ from ``model``.
+
+    Raises
+    ------
+    SudsConfigError
+        (code ``model_mismatch``) one line listing every difference (:func:`model_differences`).
+    """
+    check_joints(model, rec.joint_names, rec.actuated, source=source)

@@ -15,6 +15,7 @@ from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import builtin_model, is_model_file, load_system, make_system
 
 SNAKE5 = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
+EEL4 = Path(__file__).resolve().parents[2] / "data" / "robots" / "eel4.yaml"  # the tests' own robot
 
 SPEC_EXAMPLE = """
 format: suds-robot/1
@@ -185,3 +186,20 @@ def test_model_file_or_system_id() -> None:
     assert not is_model_file("purcell3") and not is_model_file("nlink7")
     with pytest.raises(SudsConfigError, match="unknown system 'purcel3'"):
         load_system("purcel3")
+
+
+def test_model_differences_are_listed_in_one_error() -> None:
+    from suds_ros.core.errors import MODEL_MISMATCH
+    from suds_ros.core.physics.robot_model import check_joints, model_differences
+
+    model = load_model(EEL4)
+    assert model_differences(model, ("neck", "waist", "tail"), ("neck", "waist")) == []
+    diffs = model_differences(model, ("waist", "neck", "fin"), ("neck",))
+    assert diffs == ["missing joints (in the model, not in the recording): tail",
+                     "extra joints (in the recording, not in the model): fin",
+                     "roles differ: waist (recording passive, model actuated)",
+                     "joint order differs: recording waist, neck; model neck, waist"]
+    pattern = "^the recording's joints .* do not match the model 'eel4': missing joints"
+    with pytest.raises(SudsConfigError, match=pattern) as info:
+        check_joints(model, ("waist", "neck", "fin"), ("neck",))
+    assert info.value.code == MODEL_MISMATCH and "\n" not in str(info.value)
