@@ -36,7 +36,9 @@ def test_shared_bag_info_and_raw() -> None:
     assert info.duration_s == pytest.approx(59.99) and info.start_ns == 1_700_000_000 * 10**9
     assert list(info.as_dict()) == ["path", "profile", "library", "topics", "message_count",
                                     "start_ns", "end_ns", "duration_s", "metadata",
-                                    "compression", "has_summary", "truncated", "problem"]
+                                    "compression", "has_summary", "truncated", "problem",
+                                    "damage", "messages_lost"]
+    assert info.damage == () and info.messages_lost == 0
     assert read_metadata(path)["suds"]["system"] == "purcell3"
     msgs = list(iter_raw_messages(path, ["/suds/body_pose"]))
     assert len(msgs) == 6000 and {m.type_name for m in msgs} == {PS}
