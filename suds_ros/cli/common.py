@@ -53,11 +53,14 @@ def existing_bag(path_text: str) -> Path:
 
 def load_recording(path_text: str, args: argparse.Namespace) -> Recording:
     """Read the recording at ``path_text`` with the overrides of :func:`add_recording_options`."""
-    from suds_ros.io.recording_bag import read_recording
+    from suds_ros.io.recording_bag import read_recording_report
 
     path = existing_bag(path_text)
-    rec = read_recording(path, system=args.system, actuated=split_names(args.actuated),
-                         passive=split_names(args.passive))
+    read = read_recording_report(path, system=args.system, actuated=split_names(args.actuated),
+                                 passive=split_names(args.passive))
+    if read.warning():
+        print(f"WARNING: {read.warning()}", file=sys.stderr)
+    rec = read.recording
     if args.gait_hz:
         rec = replace(rec, gait_hz=args.gait_hz)
     return rec

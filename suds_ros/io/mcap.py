@@ -1,4 +1,4 @@
-"""Generic MCAP (ROS 2 profile): a writer like rosbag2's, a truncation-tolerant reader, bag summaries.
+"""Generic MCAP (ROS 2 profile): a writer like rosbag2's, the readers, bag summaries.
 
 Writing uses the ``mcap`` writer with the ``ros2msg`` schema texts of
 ``msg_defs/``, closing a chunk (and flushing the file) every ``chunk_interval``
@@ -22,7 +22,8 @@ from typing import Any, BinaryIO, Callable
 
 from suds_ros.core.errors import EXISTS, SudsBagError
 from suds_ros.io import msgdefs
-from suds_ros.io.mcap_scan import Damage, scan
+from suds_ros.io.mcap_records import Damage
+from suds_ros.io.mcap_scan import scan
 from suds_ros.io.stamps import ns_to_float
 
 LIBRARY = "suds_ros.io.mcap (mcap-python)"
@@ -93,7 +94,8 @@ class BagWriter:
         if chunk_size <= 0:
             raise SudsBagError(f"chunk_size: expected a positive byte count, got {chunk_size!r}")
         if chunk_interval is not None and not chunk_interval > 0:
-            msg = f"chunk_interval: expected a positive number of seconds or None, got {chunk_interval!r}"
+            msg = (f"chunk_interval: expected a positive number of seconds or None, got "
+                   f"{chunk_interval!r}")
             raise SudsBagError(msg)
         self.path = Path(path)
         if self.path.exists() and not overwrite:
@@ -106,7 +108,8 @@ class BagWriter:
         except OSError as exc:
             raise SudsBagError(f"{self.path}: cannot create: {exc.strerror}") from None
         # chunks are closed here (size or log-time span), never by the mcap writer itself
-        self._writer = Writer(self._file, chunk_size=_NEVER, compression=kinds[compression])
+        self._writer = Writer(self._file, chunk_size=_NEVER, compression=kinds[compression],
+                              enable_data_crcs=True)
         self._writer.start(profile="ros2", library=LIBRARY)
         self._chunk_size = chunk_size
         self._interval_ns = None if chunk_interval is None else round(chunk_interval * 1e9)
@@ -198,7 +201,7 @@ class BagWriter:
         self._sync()
 
     def flush(self) -> None:
-        """End the open chunk and push everything written so far to the file (and disk with ``fsync``)."""
+        """End the open chunk; push everything written to the file (and the disk with ``fsync``)."""
         self._check_open()
         self._writer.flush()
         self._open_bytes = 0

@@ -31,100 +31,47 @@ knows the recording contract; the writer and bag summaries are in
 
 from __future__ import annotations
 
-import re
 import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
-from suds_ros.io.stamps import format_ns
-
-MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 1, 2, 3, 4, 5, 6
-OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS = 0x07, 0x08, 0x0B
-OP_METADATA, OP_DATA_END = 0x0C, 0x0F
-#: every opcode MCAP v0 defines (0x80–0xFF are for private records)
-_KNOWN_OPS = frozenset(range(0x01, 0x10))
-_SUMMARY_OPS = frozenset({0x03, 0x04, 0x08, 0x0A, 0x0B, 0x0D, 0x0E})
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
-_MSG_HEAD = struct.Struct("<HIQQ")
-_CHUNK_HEAD = struct.Struct("<QQQI")
-_FOOTER = struct.Struct("<QQI")
-_FOOTER_LEN = 9 + _FOOTER.size
-_COMPRESSIONS = ("", "zstd", "lz4")
-#: a record start worth checking when searching for the next record after a bad one:
-#: a data-section opcode and a length below 2**32
-_RESYNC = re.compile(rb"[\x03-\x07\x09\x0c\x0f][\x00-\xff]{4}\x00\x00\x00\x00", re.DOTALL)
-#: decompressed chunks are at most this many times their compressed size (plus 1 MiB)…
-_MAX_RATIO = 1024
-#: …and never larger than this (bytes)
-_MAX_CHUNK = 1 << 31
-
-
-class _Bad(ValueError):
-    """A record that cannot be right; the message says why."""
-
-
-@dataclass
-class ChannelInfo:
-    """One MCAP channel: topic, schema (type) name, message encoding, metadata."""
-
-    topic: str
-    schema_name: str
-    schema_data: bytes
-    message_encoding: str
-    metadata: dict[str, str]
-
-
-@dataclass(frozen=True)
-class Damage:
-    """One damaged part of a bag that the reader skipped.
-
-    Attributes
-    ----------
-    offset : int
-        Byte offset of the record (or region) in the file (-1: not tied to one place).
-    record : str
-        What was skipped: ``'chunk'``, ``'summary'``, ``'bytes'`` (an unreadable region),
-        ``'channel'`` (messages whose channel record was lost), ``'data section'``, or the
-        record kind (``'metadata'``, ``'message'``, ``'schema'``).
-    reason : str
-        Why, in words (decompression error, CRC mismatch, truncation, …).
-    start_ns, end_ns : int or None
-        Log-time range of the lost messages, ns (None: unknown).
-    messages : int or None
-        Messages lost (0: none; None: unknown).
-    topics : tuple of (str, int)
-        Messages lost per topic, where known.
-    """
-
-    offset: int
-    record: str
-    reason: str
-    start_ns: int | None = None
-    end_ns: int | None = None
-    messages: int | None = None
-    topics: tuple[tuple[str, int], ...] = ()
-
-    def describe(self) -> str:
-        """One line: offset, record, reason, time range, messages lost."""
-        where = f"byte {self.offset}: " if self.offset >= 0 else ""
-        text = f"{where}{self.record}: {self.reason}"
-        if self.start_ns is not None and self.end_ns is not None:
-            text += f"; log time {format_ns(self.start_ns)} – {format_ns(self.end_ns)}"
-        lost = "unknown" if self.messages is None else str(self.messages)
-        text += f"; messages lost: {lost}"
-        if self.topics:
-            text += " (" + ", ".join(f"{t} {n}" for t, n in self.topics) + ")"
-        return text
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary of every attribute (topics as a topic → count map)."""
-        return {"offset": self.offset, "record": self.record, "reason": self.reason,
-                "start_ns": self.start_ns, "end_ns": self.end_ns, "messages": self.messages,
-                "topics": dict(self.topics)}
+from suds_ros.io.mcap_records import (
+    FOOTER,
+    FOOTER_LEN,
+    ChannelInfo,
+    Damage,
+    Summary,
+    KNOWN_OPS,
+    MAGIC,
+    MSG_HEAD,
+    OP_CHANNEL,
+    OP_CHUNK,
+    OP_DATA_END,
+    OP_FOOTER,
+    OP_HEADER,
+    OP_MESSAGE,
+    OP_MESSAGE_INDEX,
+    OP_METADATA,
+    OP_SCHEMA,
+    RESYNC,
+    SUMMARY_OPS,
+    U16,
+    U32,
+    U64,
+    RecordError,
+    check_start,
+    chunk_header,
+    decompress,
+    plausible,
+    read_bytes,
+    read_file,
+    read_int,
+    read_map,
+    read_string,
+    take,
+)
 
 
 @dataclass
@@ -155,107 +102,6 @@ class ScanResult:
     messages_lost: int | None = 0
 
 
-# ---------------------------------------------------------------- field parsers
-def _take(buf: memoryview, pos: int, n: int) -> tuple[memoryview, int]:
-    if n < 0 or pos + n > len(buf):
-        raise _Bad(f"field of {n} bytes at {pos} overruns its record ({len(buf)} bytes)")
-    return buf[pos:pos + n], pos + n
-
-
-def _int(fmt: struct.Struct, buf: memoryview, pos: int) -> tuple[int, int]:
-    if pos + fmt.size > len(buf):
-        raise _Bad(f"record of {len(buf)} bytes too short for its fields")
-    return fmt.unpack_from(buf, pos)[0], pos + fmt.size
-
-
-def _string(buf: memoryview, pos: int) -> tuple[str, int]:
-    n, pos = _int(_U32, buf, pos)
-    raw, pos = _take(buf, pos, n)
-    return bytes(raw).decode("utf-8"), pos
-
-
-def _bytes(buf: memoryview, pos: int, size: struct.Struct = _U32) -> tuple[memoryview, int]:
-    n, pos = _int(size, buf, pos)
-    return _take(buf, pos, n)
-
-
-def _map(buf: memoryview, pos: int) -> tuple[dict[str, str], int]:
-    raw, end = _bytes(buf, pos)
-    out: dict[str, str] = {}
-    p = 0
-    while p < len(raw):
-        key, p = _string(raw, p)
-        out[key], p = _string(raw, p)
-    return out, end
-
-
-def _chunk_header(body: memoryview) -> tuple[int, int, int, int, str, memoryview]:
-    """``(start_ns, end_ns, uncompressed_size, crc, compression, compressed records)``."""
-    if len(body) < _CHUNK_HEAD.size:
-        raise _Bad(f"chunk of {len(body)} bytes is shorter than its header")
-    start, end, size, crc = _CHUNK_HEAD.unpack_from(body, 0)
-    compression, pos = _string(body, _CHUNK_HEAD.size)
-    data, pos = _bytes(body, pos, _U64)
-    if pos != len(body):
-        raise _Bad(f"chunk length {len(body)} does not match its fields ({pos} bytes)")
-    return start, end, size, crc, compression, data
-
-
-def _plausible(op: int, body: memoryview) -> bool:
-    """Whether ``body`` parses as a record of ``op`` (used to find records after a bad one)."""
-    try:
-        if op == OP_CHUNK:
-            start, end, _, _, compression, _ = _chunk_header(body)
-            return start <= end and compression in _COMPRESSIONS
-        if op == OP_MESSAGE:
-            return len(body) >= _MSG_HEAD.size
-        if op == OP_MESSAGE_INDEX:
-            return len(body) >= 6 and (len(body) - 6) % 16 == 0
-        if op == OP_DATA_END:
-            return len(body) == 4
-        if op == OP_METADATA:
-            _, pos = _string(body, 0)
-            return _map(body, pos)[1] == len(body)
-        if op in (OP_SCHEMA, OP_CHANNEL):
-            pos = 2 if op == OP_SCHEMA else 4
-            _, pos = _string(body, pos)
-            return len(body) >= pos
-        return op in _KNOWN_OPS
-    except (_Bad, UnicodeDecodeError):
-        return False
-
-
-# ---------------------------------------------------------------- decompression
-def _decompress(compression: str, data: memoryview, size: int) -> bytes | memoryview:
-    """Records of a chunk, exactly ``size`` bytes (raises :class:`_Bad` otherwise)."""
-    if size > min(_MAX_CHUNK, _MAX_RATIO * len(data) + (1 << 20)):
-        raise _Bad(f"implausible uncompressed size {size} for {len(data)} compressed bytes")
-    if compression == "":
-        out: bytes | memoryview = data
-    elif compression == "zstd":
-        import zstandard
-
-        try:
-            declared = zstandard.frame_content_size(data)
-            if declared not in (-1, size):
-                raise _Bad(f"zstd frame holds {declared} bytes, the chunk header says {size}")
-            out = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        except zstandard.ZstdError as exc:
-            raise _Bad(f"zstd: {exc}") from None
-    elif compression == "lz4":
-        import lz4.frame
-
-        try:
-            out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
-        except RuntimeError as exc:
-            raise _Bad(f"lz4: {exc}") from None
-    else:
-        raise _Bad(f"unsupported chunk compression {compression!r}")
-    if len(out) != size:
-        raise _Bad(f"decompressed to {len(out)} bytes, the chunk header says {size}")
-    return out
-
-
 # ---------------------------------------------------------------- the walk
 @dataclass
 class _Skip:
@@ -268,13 +114,6 @@ class _Skip:
     end_ns: int | None = None
     counts: dict[int, int] | None = None  # lost per channel; None: unknown
     read: dict[int, int] = field(default_factory=dict)  # read per channel (chunk cut short)
-
-
-@dataclass
-class _Summary:
-    chunk_index: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
-    stats_total: int | None = None
-    stats_counts: dict[int, int] = field(default_factory=dict)
 
 
 class _Walker:
@@ -290,45 +129,47 @@ class _Walker:
         self.read_keys: dict[tuple[int, int, int, int], int] = {}
         self.visited: set[int] = set()
         self.after_chunk: _Skip | None = None
-        self.summary: _Summary | None = None
+        #: offset and (log time, offset) pairs by channel of the chunk just read
+        self.last_read: tuple[int, dict[int, list[tuple[int, int]]]] | None = None
+        self.summary: Summary | None = None
         self.footer_ok = False
 
     # ------------------------------------------------------------ records
     def record(self, op: int, body: memoryview, pos: int) -> None:
-        """Apply one complete record; :class:`_Bad` and decoding errors propagate."""
+        """Apply one complete record; :class:`RecordError` and decoding errors propagate."""
         r = self.r
         if op == OP_MESSAGE:
             self.message(body)
         elif op == OP_SCHEMA:
-            sid, p = _int(_U16, body, 0)
-            name, p = _string(body, p)
-            encoding, p = _string(body, p)
-            data, _ = _bytes(body, p)
+            sid, p = read_int(U16, body, 0)
+            name, p = read_string(body, p)
+            encoding, p = read_string(body, p)
+            data, _ = read_bytes(body, p)
             r.schemas[sid] = (name, encoding, bytes(data))
         elif op == OP_CHANNEL:
-            cid, p = _int(_U16, body, 0)
-            sid, p = _int(_U16, body, p)
-            topic, p = _string(body, p)
-            encoding, p = _string(body, p)
-            meta, _ = _map(body, p)
+            cid, p = read_int(U16, body, 0)
+            sid, p = read_int(U16, body, p)
+            topic, p = read_string(body, p)
+            encoding, p = read_string(body, p)
+            meta, _ = read_map(body, p)
             name, _, data = r.schemas.get(sid, ("", "", b""))
             r.channels[cid] = ChannelInfo(topic, name, data, encoding, meta)
         elif op == OP_CHUNK:
             if self.chunks:
                 self.chunk(pos, body)
         elif op == OP_MESSAGE_INDEX:
-            self.message_index(body)
+            self.message_index(body, pos)
         elif op == OP_METADATA:
-            name, p = _string(body, 0)
-            r.metadata[name], _ = _map(body, p)
+            name, p = read_string(body, 0)
+            r.metadata[name], _ = read_map(body, p)
         elif op == OP_HEADER:
-            r.profile, p = _string(body, 0)
-            r.library, _ = _string(body, p)
+            r.profile, p = read_string(body, 0)
+            r.library, _ = read_string(body, p)
 
     def message(self, body: memoryview) -> None:
-        if len(body) < _MSG_HEAD.size:
-            raise _Bad(f"message record of {len(body)} bytes is shorter than its header")
-        cid, _seq, log_time, pub_time = _MSG_HEAD.unpack_from(body, 0)
+        if len(body) < MSG_HEAD.size:
+            raise RecordError(f"message record of {len(body)} bytes is shorter than its header")
+        cid, _seq, log_time, pub_time = MSG_HEAD.unpack_from(body, 0)
         r = self.r
         r.counts[cid] = r.counts.get(cid, 0) + 1
         span = self.times.setdefault(cid, [log_time, log_time])
@@ -336,15 +177,23 @@ class _Walker:
         if self.keep:
             ch = r.channels.get(cid)
             if ch is None or self.topics is None or ch.topic in self.topics:
-                r.messages.append((cid, log_time, pub_time, bytes(body[_MSG_HEAD.size:])))
+                r.messages.append((cid, log_time, pub_time, bytes(body[MSG_HEAD.size:])))
 
-    def message_index(self, body: memoryview) -> None:
-        """The message index after a damaged chunk says how many messages it held."""
+    def message_index(self, body: memoryview, pos: int) -> None:
+        """Check a message index against the chunk before it, or count what a damaged one held."""
+        cid, p = read_int(U16, body, 0)
+        entries, _ = read_bytes(body, p)
         skip = self.after_chunk
         if skip is None:
+            if self.last_read is not None:
+                chunk_pos, found = self.last_read
+                listed = sorted(struct.iter_unpack("<QQ", entries)) if len(entries) % 16 == 0 \
+                    else None
+                if listed != sorted(found.get(cid, [])):
+                    self.skip(pos, "message index", f"channel {cid}: does not match the chunk at "
+                              f"byte {chunk_pos} (only the index is damaged; the chunk was read)"
+                              ).counts = {}
             return
-        cid, p = _int(_U16, body, 0)
-        entries, _ = _bytes(body, p)
         lost = len(entries) // 16 - skip.read.get(cid, 0)
         skip.counts = skip.counts or {}
         if lost > 0:
@@ -352,12 +201,12 @@ class _Walker:
 
     def chunk(self, pos: int, body: memoryview) -> None:
         """Read one chunk, or record why not (never raises for a bad chunk)."""
-        self.after_chunk = None
+        self.after_chunk, self.last_read = None, None
         self.visited.add(pos)
         indexed = self.summary.chunk_index.get(pos) if self.summary else None
         try:
-            start, end, size, crc, compression, data = _chunk_header(body)
-        except (_Bad, UnicodeDecodeError) as exc:
+            start, end, size, crc, compression, data = chunk_header(body)
+        except (RecordError, UnicodeDecodeError) as exc:
             times = indexed[:2] if indexed else (None, None)
             self.skip(pos, "chunk", f"malformed chunk header: {exc}", *times)
             return
@@ -370,32 +219,38 @@ class _Walker:
             return
         self.r.compressions.add(compression or "none")
         try:
-            records = _decompress(compression, data, size)
-            if crc and zlib.crc32(records) != crc:
-                raise _Bad(f"CRC of the uncompressed records is 0x{zlib.crc32(records):08x}, "
-                           f"the chunk header says 0x{crc:08x}")
-        except (_Bad, MemoryError) as exc:
+            records = decompress(compression, data, size)
+            got = zlib.crc32(records) if crc else 0
+            if got != crc:
+                raise RecordError(f"CRC of the uncompressed records is 0x{got:08x}, the chunk "
+                                  f"header says 0x{crc:08x}")
+        except (RecordError, MemoryError) as exc:
             self.after_chunk = self.skip(pos, "chunk", str(exc) or "out of memory", start, end)
             return
         self.read_keys[key] = pos
         before = dict(self.r.counts)
+        found: dict[int, list[tuple[int, int]]] = {}
         inner = memoryview(records)
         p = 0
         while p < len(inner):
             try:
                 if p + 9 > len(inner):
-                    raise _Bad(f"{len(inner) - p} stray bytes at the end of the chunk")
-                op, length = inner[p], _U64.unpack_from(inner, p + 1)[0]
+                    raise RecordError(f"{len(inner) - p} stray bytes at the end of the chunk")
+                op, length = inner[p], U64.unpack_from(inner, p + 1)[0]
                 if p + 9 + length > len(inner):
-                    raise _Bad(f"record at chunk offset {p} overruns the chunk")
+                    raise RecordError(f"record at chunk offset {p} overruns the chunk")
                 if op in (OP_MESSAGE, OP_SCHEMA, OP_CHANNEL):
                     self.record(op, inner[p + 9:p + 9 + length], -1)
-            except (_Bad, UnicodeDecodeError) as exc:
+                if op == OP_MESSAGE:
+                    cid, _, log, _ = MSG_HEAD.unpack_from(inner, p + 9)
+                    found.setdefault(cid, []).append((log, p))
+            except (RecordError, UnicodeDecodeError) as exc:
                 skip = self.skip(pos, "chunk", f"{exc}; rest of the chunk skipped", start, end)
                 skip.read = {c: k - before.get(c, 0) for c, k in self.r.counts.items()}
                 self.after_chunk = skip
                 return
             p += 9 + length
+        self.last_read = (pos, found)
 
     def skip(self, offset: int, record: str, reason: str, start: int | None = None,
              end: int | None = None) -> _Skip:
@@ -407,12 +262,12 @@ class _Walker:
     def read_summary(self) -> int:
         """Read the summary section if the footer and its CRC are intact; returns the data end."""
         n, buf = self.n, self.buf
-        fpos = n - 8 - _FOOTER_LEN
+        fpos = n - 8 - FOOTER_LEN
         if fpos < 8 or buf[n - 8:] != MAGIC or buf[fpos] != OP_FOOTER or \
-                _U64.unpack_from(buf, fpos + 1)[0] != _FOOTER.size:
+                U64.unpack_from(buf, fpos + 1)[0] != FOOTER.size:
             return n
         self.footer_ok = True
-        start, _, crc = _FOOTER.unpack_from(buf, fpos + 9)
+        start, _, crc = FOOTER.unpack_from(buf, fpos + 9)
         if start == 0:
             return fpos
         if not 8 < start <= fpos:
@@ -423,17 +278,17 @@ class _Walker:
             self.skip(start, "summary", "summary section CRC mismatch; ignored it and scanned "
                       "the data section").counts = {}
             return fpos
-        summary = _Summary()
+        summary = Summary()
         saved = (dict(self.r.schemas), dict(self.r.channels))
         try:
             pos = start
             while pos < fpos:
-                op, length = buf[pos], _U64.unpack_from(buf, pos + 1)[0]
-                body, pos = _take(self.view, pos + 9, length)
+                op, length = buf[pos], U64.unpack_from(buf, pos + 1)[0]
+                body, pos = take(self.view, pos + 9, length)
                 if pos > fpos:
-                    raise _Bad("a record overruns the footer")
+                    raise RecordError("a record overruns the footer")
                 self.summary_record(op, body, summary)
-        except (_Bad, UnicodeDecodeError, struct.error) as exc:
+        except (RecordError, UnicodeDecodeError, struct.error) as exc:
             self.r.schemas, self.r.channels = saved
             self.skip(start, "summary", f"malformed summary section ({exc}); ignored it and "
                       "scanned the data section").counts = {}
@@ -442,32 +297,22 @@ class _Walker:
         self.r.has_summary = True
         return start
 
-    def summary_record(self, op: int, body: memoryview, summary: _Summary) -> None:
+    def summary_record(self, op: int, body: memoryview, summary: Summary) -> None:
         if op in (OP_SCHEMA, OP_CHANNEL):
             self.record(op, body, -1)
-        elif op == OP_CHUNK_INDEX:
-            if len(body) < 32:
-                raise _Bad("chunk index record too short")
-            start, end, offset, length = struct.unpack_from("<QQQQ", body, 0)
-            summary.chunk_index[offset] = (start, end, length, offset)
-        elif op == OP_STATISTICS:
-            total, p = _int(_U64, body, 0)
-            counts, _ = _bytes(body, p + 2 + 4 * 4 + 16)
-            if len(counts) % 10:
-                raise _Bad("statistics channel counts have a bad length")
-            summary.stats_total = total
-            summary.stats_counts = {c: k for c, k in struct.iter_unpack("<HQ", counts)}
+        else:
+            summary.add(op, body)
 
     # ------------------------------------------------------------ the data section
     def walk(self, end: int) -> int:
         """Walk records from after the header up to ``end``; returns where the walk stopped."""
         buf, view = self.buf, self.view
-        pos = 8 + 9 + _U64.unpack_from(buf, 9)[0]
+        pos = 8 + 9 + U64.unpack_from(buf, 9)[0]
         while pos < end:
             op = buf[pos]
-            length = _U64.unpack_from(buf, pos + 1)[0] if pos + 9 <= end else end
+            length = U64.unpack_from(buf, pos + 1)[0] if pos + 9 <= end else end
             nxt = pos + 9 + length
-            if nxt > end or op not in _KNOWN_OPS and (op < 0x80 or not self.next_ok(nxt, end)):
+            if nxt > end or op not in KNOWN_OPS and (op < 0x80 or not self.next_ok(nxt, end)):
                 if nxt > end and not self.footer_ok and self.find_record(pos + 1, end) is None:
                     self.cut_short(pos, op)
                     return end
@@ -478,10 +323,10 @@ class _Walker:
             if op == OP_HEADER:
                 self.skip(pos, "bytes", "a second header record in the data section"
                           ).counts = {}
-            elif op in _KNOWN_OPS:
+            elif op in KNOWN_OPS:
                 try:
                     self.record(op, view[pos + 9:nxt], pos)
-                except (_Bad, UnicodeDecodeError) as exc:
+                except (RecordError, UnicodeDecodeError) as exc:
                     self.bad_record(pos, op, view[pos + 9:nxt], str(exc))
             if op == OP_DATA_END:
                 self.check_data_crc(pos, view[pos + 9:nxt])
@@ -493,8 +338,8 @@ class _Walker:
         names = {OP_MESSAGE: "message", OP_SCHEMA: "schema", OP_CHANNEL: "channel",
                  OP_METADATA: "metadata", OP_MESSAGE_INDEX: "message index"}
         skip = self.skip(pos, names.get(op, f"record 0x{op:02x}"), f"malformed: {why}")
-        if op == OP_MESSAGE and len(body) >= _MSG_HEAD.size:
-            cid, _, log, _ = _MSG_HEAD.unpack_from(body, 0)
+        if op == OP_MESSAGE and len(body) >= MSG_HEAD.size:
+            cid, _, log, _ = MSG_HEAD.unpack_from(body, 0)
             skip.start_ns = skip.end_ns = log
             skip.counts = {cid: 1}
         elif op == OP_MESSAGE:
@@ -508,9 +353,9 @@ class _Walker:
             return True
         if pos + 9 > end:
             return False
-        op, length = self.buf[pos], _U64.unpack_from(self.buf, pos + 1)[0]
-        return op in _KNOWN_OPS and pos + 9 + length <= end and \
-            _plausible(op, self.view[pos + 9:pos + 9 + length])
+        op, length = self.buf[pos], U64.unpack_from(self.buf, pos + 1)[0]
+        return op in KNOWN_OPS and pos + 9 + length <= end and \
+            plausible(op, self.view[pos + 9:pos + 9 + length])
 
     def find_record(self, pos: int, end: int) -> int | None:
         """The first offset ≥ ``pos`` where a plausible record followed by another one starts."""
@@ -519,10 +364,10 @@ class _Walker:
             for o in later:
                 if self.next_ok(o, end):
                     return o
-        for m in _RESYNC.finditer(self.buf, pos, end):
+        for m in RESYNC.finditer(self.buf, pos, end):
             q = m.start()
             if self.next_ok(q, end):
-                nxt = q + 9 + _U64.unpack_from(self.buf, q + 1)[0]
+                nxt = q + 9 + U64.unpack_from(self.buf, q + 1)[0]
                 if self.next_ok(nxt, end) or (nxt + 9 > end and not self.footer_ok):
                     return q
         return None
@@ -553,36 +398,60 @@ class _Walker:
             self.skip(pos, "message", f"file ends inside this message (cut at byte {self.n})")
 
     def check_data_crc(self, pos: int, body: memoryview) -> None:
-        crc = _U32.unpack_from(body, 0)[0] if len(body) >= 4 else 0
-        if crc and zlib.crc32(self.view[:pos]) != crc and not self.skips:
+        crc = U32.unpack_from(body, 0)[0] if len(body) >= 4 else 0
+        if crc and crc not in (zlib.crc32(self.view[:pos]), zlib.crc32(self.view[8:pos])) \
+                and not self.skips:
             self.skip(pos, "data section", "data section CRC mismatch outside the chunks "
                       "(chunks passed their own CRC checks)").counts = None
 
     def tail(self, pos: int) -> None:
-        """After the data section of a file without an intact footer: summary records, if any."""
+        """After the data section when the summary was not used: its schemas and channels, if any.
+
+        They fill in only ids the data section did not define (its channel records may
+        have been in a damaged chunk).  Without an intact footer the file is truncated.
+        """
         buf, n = self.buf, self.n
         while pos + 9 <= n:
-            op, length = buf[pos], _U64.unpack_from(buf, pos + 1)[0]
-            if pos + 9 + length > n:
-                break
-            if op in _SUMMARY_OPS:
+            op, length = buf[pos], U64.unpack_from(buf, pos + 1)[0]
+            if pos + 9 + length > n or op not in KNOWN_OPS:
+                q = self.find_record(pos + 1, n) if self.footer_ok else None
+                if q is None:
+                    break
+                pos = q
+                continue
+            if op in SUMMARY_OPS and not self.footer_ok:
                 self.r.has_summary = True
+            if op in (OP_SCHEMA, OP_CHANNEL):
+                self.salvage(op, self.view[pos + 9:pos + 9 + length])
             if op == OP_FOOTER:
                 pos += 9 + length
                 if buf[pos:pos + 8] == MAGIC:
                     return
                 break
             pos += 9 + length
+        if self.footer_ok:
+            return
         self.r.truncated = True
         self.r.problem = (f"file ends at byte {n} without a complete footer; read up to "
                           f"byte {pos}")
+
+    def salvage(self, op: int, body: memoryview) -> None:
+        """A schema or channel record outside the data section, for an id still unknown."""
+        r = self.r
+        saved = (dict(r.schemas), dict(r.channels))
+        try:
+            self.record(op, body, -1)
+        except (RecordError, UnicodeDecodeError):
+            return
+        for old, new in zip(saved, (r.schemas, r.channels)):
+            new.update(old)  # what the data section said wins
 
     def unread_indexed_chunks(self) -> None:
         """Read chunks the summary indexes but the walk never reached (stepped over)."""
         if self.summary is None:
             return
         read = {(k[0], k[1]) for k in self.read_keys}
-        for offset, (start, end, length, _) in sorted(self.summary.chunk_index.items()):
+        for offset, (start, end, length) in sorted(self.summary.chunk_index.items()):
             if offset in self.visited or (start, end) in read:
                 continue
             if offset + length <= self.n and length >= 9 and self.buf[offset] == OP_CHUNK:
@@ -640,47 +509,6 @@ class _Walker:
         unknown[0].counts = missing
 
 
-def _read_file(path: str | Path) -> tuple[Path, bytes]:
-    """Resolve ``path`` (a file, or a rosbag2 directory with one ``.mcap``) and read it.
-
-    Raises
-    ------
-    SudsBagError
-        Missing path, unreadable file, or a directory without exactly one ``.mcap``.
-    """
-    p = Path(path)
-    if p.is_dir():
-        found = sorted(p.glob("*.mcap"))
-        if len(found) != 1:
-            msg = f"{p}: is a directory with {len(found)} .mcap files; expected exactly one"
-            raise SudsBagError(msg)
-        p = found[0]
-    try:
-        return p, p.read_bytes()
-    except FileNotFoundError:
-        raise SudsBagError(f"{p}: no such file") from None
-    except OSError as exc:
-        raise SudsBagError(f"{p}: cannot read: {exc.strerror}") from None
-
-
-def _check_start(p: Path, buf: bytes) -> None:
-    """Raise :class:`SudsBagError` unless ``buf`` starts with the magic and a complete header."""
-    n = len(buf)
-    if n == 0:
-        raise SudsBagError(f"{p}: file is empty (0 bytes), not an MCAP recording",
-                           code=DAMAGED_BAG)
-    if buf[:8] != MAGIC:
-        if n < 8 and MAGIC.startswith(buf):
-            raise SudsBagError(f"{p}: truncated MCAP file: only {n} bytes of the 8-byte magic",
-                               code=DAMAGED_BAG)
-        raise SudsBagError(
-            f"{p}: not an MCAP file (starts with {buf[:8]!r}, expected the magic {MAGIC!r})",
-            code=DAMAGED_BAG)
-    if n < 17 or buf[8] != OP_HEADER or 17 + _U64.unpack_from(buf, 9)[0] > n:
-        msg = f"{p}: truncated MCAP file: the header record is incomplete ({n} bytes)"
-        raise SudsBagError(msg, code=DAMAGED_BAG)
-
-
 def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_messages: bool = True,
          chunks: bool = True) -> ScanResult:
     """Read every intact record of an MCAP file; report what was damaged.
@@ -706,16 +534,16 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
     SudsBagError
         Missing, empty or foreign file, or one cut before the end of its header.
     """
-    p, buf = _read_file(path)
-    _check_start(p, buf)
+    p, buf = read_file(path)
+    check_start(p, buf)
     walker = _Walker(p, buf, topics, keep_messages, chunks)
     try:
-        walker.record(OP_HEADER, memoryview(buf)[17:17 + _U64.unpack_from(buf, 9)[0]], 8)
-    except (_Bad, UnicodeDecodeError) as exc:
+        walker.record(OP_HEADER, memoryview(buf)[17:17 + U64.unpack_from(buf, 9)[0]], 8)
+    except (RecordError, UnicodeDecodeError) as exc:
         raise SudsBagError(f"{p}: malformed MCAP header record: {exc}", code=DAMAGED_BAG) from None
     data_end = walker.read_summary()
     stop = walker.walk(data_end)
-    if not walker.footer_ok and not walker.r.truncated:
+    if walker.summary is None and not walker.r.truncated:
         walker.tail(stop)
     if chunks:
         walker.unread_indexed_chunks()
