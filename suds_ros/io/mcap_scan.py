@@ -131,6 +131,8 @@ class _Walker:
         self.after_chunk: _Skip | None = None
         #: offset and (log time, offset) pairs by channel of the chunk just read
         self.last_read: tuple[int, dict[int, list[tuple[int, int]]]] | None = None
+        #: (offset, chunk offset) of message indexes that do not match the chunk before them
+        self.bad_indexes: list[tuple[int, int]] = []
         self.summary: Summary | None = None
         self.footer_ok = False
 
@@ -190,9 +192,7 @@ class _Walker:
                 listed = sorted(struct.iter_unpack("<QQ", entries)) if len(entries) % 16 == 0 \
                     else None
                 if listed != sorted(found.get(cid, [])):
-                    self.skip(pos, "message index", f"channel {cid}: does not match the chunk at "
-                              f"byte {chunk_pos} (only the index is damaged; the chunk was read)"
-                              ).counts = {}
+                    self.bad_indexes.append((pos, chunk_pos))
             return
         lost = len(entries) // 16 - skip.read.get(cid, 0)
         skip.counts = skip.counts or {}
@@ -210,9 +210,9 @@ class _Walker:
             times = indexed[:2] if indexed else (None, None)
             self.skip(pos, "chunk", f"malformed chunk header: {exc}", *times)
             return
-        if indexed:
-            start, end = indexed[0], indexed[1]
         key = (start, end, size, crc)
+        if indexed and indexed[2] == len(body) + 9:
+            start, end = indexed[0], indexed[1]  # the CRC-checked index's times, for reports
         if key in self.read_keys:
             self.skips.append(_Skip(pos, "chunk", f"duplicate of the chunk at byte "
                                     f"{self.read_keys[key]}; read once", start, end, {}))
@@ -463,6 +463,13 @@ class _Walker:
     # ------------------------------------------------------------ the result
     def finish(self) -> ScanResult:
         r = self.r
+        if self.bad_indexes:
+            where = ", ".join(str(p) for p, _ in self.bad_indexes[:5])
+            more = ", …" if len(self.bad_indexes) > 5 else ""
+            self.skip(self.bad_indexes[0][0], "message index",
+                      f"{len(self.bad_indexes)} message index record(s) (bytes {where}{more}) "
+                      "do not match the chunk before them: indexes damaged or records moved; "
+                      "the chunks themselves were read").counts = {}
         for cid in [c for c in r.counts if c not in r.channels]:
             n = r.counts.pop(cid)
             lo, hi = self.times[cid]
