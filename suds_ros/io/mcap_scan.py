@@ -358,14 +358,23 @@ class _Walker:
             plausible(op, self.view[pos + 9:pos + 9 + length])
 
     def find_record(self, pos: int, end: int) -> int | None:
-        """The first offset ≥ ``pos`` where a plausible record followed by another one starts."""
+        """The first offset ≥ ``pos`` where a plausible record followed by another one starts.
+
+        With an intact summary, the chunk index gives chunk starts and ends (the
+        end of a chunk whose own length field is damaged); the byte search never
+        stops inside an indexed chunk, whose records the index reads later.
+        """
+        spans: list[tuple[int, int]] = []
         if self.summary is not None:
-            later = sorted(o for o in self.summary.chunk_index if pos <= o < end)
-            for o in later:
+            spans = [(o, o + ln) for o, (_, _, ln) in self.summary.chunk_index.items()]
+            marks = sorted({a for a, _ in spans} | {b for _, b in spans})
+            for o in (o for o in marks if pos <= o < end):
                 if self.next_ok(o, end):
                     return o
         for m in RESYNC.finditer(self.buf, pos, end):
             q = m.start()
+            if any(a < q < b for a, b in spans):
+                continue
             if self.next_ok(q, end):
                 nxt = q + 9 + U64.unpack_from(self.buf, q + 1)[0]
                 if self.next_ok(nxt, end) or (nxt + 9 > end and not self.footer_ok):
@@ -373,6 +382,7 @@ class _Walker:
         return None
 
     def resync(self, pos: int, op: int, end: int) -> int:
+        self.after_chunk, self.last_read = None, None  # indexes after here follow no read chunk
         q = self.find_record(pos + 1, end)
         stop = end if q is None else q
         where = "the end of the data section" if q is None else f"the next record at byte {q}"
