@@ -205,6 +205,34 @@ def decompress(compression: str, data: memoryview, size: int) -> bytes | memoryv
 
 
 @dataclass
+class ScanResult:
+    """Everything :func:`scan` found in one file.
+
+    ``messages`` holds ``(channel_id, log_time_ns, publish_time_ns, data)`` tuples
+    in log-time order (stable for equal times), only for the selected topics.
+    ``damage`` lists what was skipped; ``messages_lost`` is their total (None if
+    unknown).  A file cut short is ``truncated`` (``problem`` says where).
+    """
+
+    path: Path
+    profile: str = ""
+    library: str = ""
+    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
+    channels: dict[int, ChannelInfo] = field(default_factory=dict)
+    messages: list[tuple[int, int, int, bytes]] = field(default_factory=list)
+    counts: dict[int, int] = field(default_factory=dict)
+    start_ns: int | None = None
+    end_ns: int | None = None
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    compressions: set[str] = field(default_factory=set)
+    has_summary: bool = False
+    truncated: bool = False
+    problem: str | None = None
+    damage: list[Damage] = field(default_factory=list)
+    messages_lost: int | None = 0
+
+
+@dataclass
 class Summary:
     """What the summary section tells beyond schemas and channels: chunk index and statistics."""
 

@@ -22,11 +22,9 @@ read instead of failing on it:
 * duplicated chunks are read once; records in any order are accepted
   (messages are sorted by log time at the end).
 
-Every length field is checked against the bytes present before anything is
-allocated, and decompressed sizes are bounded, so a corrupted file cannot make
-the reader allocate more than a small multiple of its own size.  Nothing here
-knows the recording contract; the writer and bag summaries are in
-:mod:`suds_ros.io.mcap`.
+Lengths are checked and sizes bounded before anything is allocated
+(:mod:`suds_ros.io.mcap_records`).  Nothing here knows the recording contract;
+the writer and bag summaries are in :mod:`suds_ros.io.mcap`.
 """
 
 from __future__ import annotations
@@ -37,69 +35,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
-from suds_ros.io.mcap_records import (
-    FOOTER,
-    FOOTER_LEN,
-    ChannelInfo,
-    Damage,
-    Summary,
-    KNOWN_OPS,
-    MAGIC,
-    MSG_HEAD,
-    OP_CHANNEL,
-    OP_CHUNK,
-    OP_DATA_END,
-    OP_FOOTER,
-    OP_HEADER,
-    OP_MESSAGE,
-    OP_MESSAGE_INDEX,
-    OP_METADATA,
-    OP_SCHEMA,
-    RESYNC,
-    SUMMARY_OPS,
-    U16,
-    U32,
-    U64,
-    RecordError,
-    check_start,
-    chunk_header,
-    decompress,
-    plausible,
-    read_bytes,
-    read_file,
-    read_int,
-    read_map,
-    read_string,
-    take,
-)
-
-
-@dataclass
-class ScanResult:
-    """Everything :func:`scan` found in one file.
-
-    ``messages`` holds ``(channel_id, log_time_ns, publish_time_ns, data)`` tuples
-    in log-time order (stable for equal times), only for the selected topics.
-    ``damage`` lists what was skipped; ``messages_lost`` is their total (None if
-    unknown).  A file cut short is ``truncated`` (``problem`` says where).
-    """
-
-    path: Path
-    profile: str = ""
-    library: str = ""
-    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
-    channels: dict[int, ChannelInfo] = field(default_factory=dict)
-    messages: list[tuple[int, int, int, bytes]] = field(default_factory=list)
-    counts: dict[int, int] = field(default_factory=dict)
-    start_ns: int | None = None
-    end_ns: int | None = None
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    compressions: set[str] = field(default_factory=set)
-    has_summary: bool = False
-    truncated: bool = False
-    problem: str | None = None
-    damage: list[Damage] = field(default_factory=list)
-    messages_lost: int | None = 0
+from suds_ros.io.mcap_records import (FOOTER, FOOTER_LEN, KNOWN_OPS, MAGIC, MSG_HEAD, OP_CHANNEL,
+                                      OP_CHUNK, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
+                                      OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA, RESYNC, SUMMARY_OPS,
+                                      U16, U32, U64, ChannelInfo, Damage, RecordError, ScanResult,
+                                      Summary, check_start, chunk_header, decompress, plausible,
+                                      read_bytes, read_file, read_int, read_map, read_string, take)
 
 
 # ---------------------------------------------------------------- the walk

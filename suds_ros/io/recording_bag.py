@@ -33,8 +33,8 @@ from suds_ros.core.errors import (
 from suds_ros.core.recording import Recording
 from suds_ros.io import cdr
 from suds_ros.io.mcap import BagWriter, decode_message
-from suds_ros.io.mcap_records import Damage
-from suds_ros.io.mcap_scan import ScanResult, scan
+from suds_ros.io.mcap_records import Damage, ScanResult
+from suds_ros.io.mcap_scan import scan
 from suds_ros.io.stamps import float_to_ns, format_ns, join_ns, ns_to_float, quaternion_yaw, yaw_quaternion
 
 # topics of a recording, as stored in bags
