@@ -105,18 +105,17 @@ def load_recording_and_model(path_text: str, args: argparse.Namespace
         (code ``bad_model_file``) for a model file that does not follow ``suds-robot/1``.
     """
     from suds_ros.core.physics.robot_model import check_recording
-    from suds_ros.io.recording_bag import read_recording
 
     model = load_model_argument(args)  # a bad model file is reported before the bag is read
     path = existing_bag(path_text)
     system = model.name if model is not None else args.system
     actuated, passive = split_names(args.actuated), split_names(args.passive)
     try:
-        rec = read_recording(path, system=system, actuated=actuated, passive=passive)
+        rec = _read(path, system=system, actuated=actuated, passive=passive)
     except SudsBagError as exc:
         if model is None or exc.code != MISSING_JOINT_ROLES:
             raise
-        rec = _with_model_roles(read_recording(path, system=system, passive=()), model, model_path(args))
+        rec = _with_model_roles(_read(path, system=system, passive=()), model, model_path(args))
     gait_hz = args.gait_hz or rec.gait_hz or (model.gait_hz if model is not None else None)
     if gait_hz != rec.gait_hz:
         rec = replace(rec, gait_hz=gait_hz)
@@ -144,6 +143,16 @@ def _with_model_roles(rec: Recording, model: ChainModel, source: str | None) -> 
 def load_recording(path_text: str, args: argparse.Namespace) -> Recording:
     """Read the recording at ``path_text`` with the overrides of :func:`add_recording_options`."""
     return load_recording_and_model(path_text, args)[0]
+
+
+def _read(path: Path, **overrides: object) -> Recording:
+    """Read a recording; damage that was skipped is reported as one ``WARNING:`` line on stderr."""
+    from suds_ros.io.recording_bag import read_recording_report
+
+    read = read_recording_report(path, **overrides)  # type: ignore[arg-type]
+    if read.warning():
+        print(f"WARNING: {read.warning()}", file=sys.stderr)
+    return read.recording
 
 
 def progress_bar(label: str) -> Callable[[int, int], None] | None:

@@ -17,7 +17,7 @@ SCORE_DESCRIPTION = (
 def add_parsers(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``info`` and ``score`` on the ``suds`` subcommand parser."""
     p = subparsers.add_parser("info", help="summarise a recording (topics, counts, time range, "
-                                           "metadata)")
+                                           "metadata, damage)")
     add_bag_argument(p)
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run_info)
@@ -33,15 +33,26 @@ def add_parsers(subparsers: argparse._SubParsersAction) -> None:  # type: ignore
 
 
 def run_info(args: argparse.Namespace) -> int:
-    """Execute ``suds info``: every field of the bag's summary, one per line (or JSON)."""
+    """Execute ``suds info``: every field of the bag's summary, one per line (or JSON).
+
+    The ``damage:`` section lists each skipped part of a damaged bag (offset, record,
+    reason, log-time range, messages lost), or says ``none``.
+    """
     from suds_ros.io.mcap import bag_info
 
-    info = bag_info(existing_bag(args.bag)).as_dict()
+    bag = bag_info(existing_bag(args.bag))
+    info = bag.as_dict()
     if args.json:
         print(json.dumps(info, indent=2, default=str))
         return 0
     for key, value in info.items():
-        if isinstance(value, dict):
+        if key == "damage":
+            print("damage: none" if not bag.damage else "damage:")
+            for d in bag.damage:
+                print(f"  {d.describe()}")
+        elif key == "messages_lost":
+            print(f"messages_lost: {'unknown' if value is None else value}")
+        elif isinstance(value, dict):
             print(f"{key}:")
             for k, v in value.items():
                 print(f"  {k}: {v}")

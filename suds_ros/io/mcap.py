@@ -1,35 +1,36 @@
-"""Generic MCAP (ROS 2 profile): a writer like rosbag2's, a truncation-tolerant reader, bag summaries.
+"""Generic MCAP (ROS 2 profile): a writer like rosbag2's, the readers, bag summaries.
 
 Writing uses the ``mcap`` writer with the ``ros2msg`` schema texts of
-``msg_defs/``.  Reading walks the records in order itself (:func:`scan`): it
-unpacks chunks (zstd, lz4 or uncompressed) and stops quietly at the first
-incomplete record, so a file cut short by a crash is read up to its last
-complete record; it never depends on the summary section, on channel or
-schema ids being stable across files, or on indexes.  Nothing here knows the
-recording contract (:mod:`suds_ros.io.recording_bag`).
+``msg_defs/``, closing a chunk (and flushing the file) every ``chunk_interval``
+s of log time so a crash loses little.  Reading goes through
+:func:`~suds_ros.io.mcap_scan.scan`, which reads every intact record of a
+truncated or damaged file and reports the rest as :class:`Damage`; it never
+depends on the summary section, on channel or schema ids being stable across
+files, or on indexes.  Nothing here knows the recording contract
+(:mod:`suds_ros.io.recording_bag`).
 """
 
 from __future__ import annotations
 
-import struct
+import os
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO, Callable
 
-from suds_ros.core.errors import DAMAGED_BAG, EXISTS, SudsBagError
+from suds_ros.core.errors import EXISTS, SudsBagError
 from suds_ros.io import msgdefs
+from suds_ros.io.mcap_records import Damage
+from suds_ros.io.mcap_scan import scan
 from suds_ros.io.stamps import ns_to_float
 
-MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 1, 2, 3, 4, 5, 6
-OP_METADATA, OP_DATA_END = 0x0C, 0x0F
-_SUMMARY_OPS = frozenset({0x03, 0x04, 0x08, 0x0A, 0x0B, 0x0D, 0x0E})
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
-_MSG_HEAD = struct.Struct("<HIQQ")
 LIBRARY = "suds_ros.io.mcap (mcap-python)"
+#: bytes of a message record besides its data (opcode, length, channel, sequence, two times)
+_MESSAGE_RECORD = 1 + 8 + 2 + 4 + 8 + 8
+#: chunk size given to the mcap writer so that it never closes a chunk on its own
+_NEVER = 1 << 62
 
 #: rosbag2 (Jazzy, metadata version 9) style QoS YAML: reliable, volatile, keep last 10.
 DEFAULT_QOS_YAML = """- history: keep_last
@@ -49,225 +50,6 @@ DEFAULT_QOS_YAML = """- history: keep_last
   avoid_ros_namespace_conventions: false"""
 
 
-@dataclass
-class ChannelInfo:
-    """One MCAP channel: topic, schema (type) name, message encoding, metadata."""
-
-    topic: str
-    schema_name: str
-    schema_data: bytes
-    message_encoding: str
-    metadata: dict[str, str]
-
-
-@dataclass
-class ScanResult:
-    """Everything :func:`scan` found in one file.
-
-    ``messages`` holds ``(channel_id, log_time_ns, publish_time_ns, data)`` tuples
-    in log-time order (stable for equal times), only for the selected topics.
-    """
-
-    path: Path
-    profile: str = ""
-    library: str = ""
-    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
-    channels: dict[int, ChannelInfo] = field(default_factory=dict)
-    messages: list[tuple[int, int, int, bytes]] = field(default_factory=list)
-    counts: dict[int, int] = field(default_factory=dict)
-    start_ns: int | None = None
-    end_ns: int | None = None
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    compressions: set[str] = field(default_factory=set)
-    has_summary: bool = False
-    truncated: bool = False
-    problem: str | None = None
-
-
-def _string(buf: memoryview, pos: int) -> tuple[str, int]:
-    (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    return bytes(buf[pos:pos + n]).decode("utf-8"), pos + n
-
-
-def _map(buf: memoryview, pos: int) -> tuple[dict[str, str], int]:
-    (n,) = _U32.unpack_from(buf, pos)
-    pos += 4
-    end = pos + n
-    out: dict[str, str] = {}
-    while pos < end:
-        key, pos = _string(buf, pos)
-        out[key], pos = _string(buf, pos)
-    return out, end
-
-
-def _decompress(compression: str, data: memoryview, size: int) -> memoryview:
-    if compression == "":
-        return data
-    if compression == "zstd":
-        import zstandard
-
-        return memoryview(zstandard.ZstdDecompressor().decompress(data, max_output_size=size))
-    if compression == "lz4":
-        import lz4.frame
-
-        return memoryview(lz4.frame.decompress(bytes(data)))
-    raise ValueError(f"unsupported chunk compression {compression!r}")
-
-
-class _Scanner:
-    def __init__(self, result: ScanResult, topics: frozenset[str] | None, keep: bool,
-                 chunks: bool) -> None:
-        self.r = result
-        self.topics = topics
-        self.keep = keep
-        self.chunks = chunks
-        self.wanted: dict[int, bool] = {}
-
-    def record(self, op: int, body: memoryview, in_summary: bool) -> None:
-        r = self.r
-        if op == OP_MESSAGE:
-            self.message(body)
-        elif op == OP_SCHEMA:
-            (sid,) = _U16.unpack_from(body, 0)
-            name, pos = _string(body, 2)
-            encoding, pos = _string(body, pos)
-            (n,) = _U32.unpack_from(body, pos)
-            r.schemas[sid] = (name, encoding, bytes(body[pos + 4:pos + 4 + n]))
-        elif op == OP_CHANNEL:
-            cid, sid = struct.unpack_from("<HH", body, 0)
-            topic, pos = _string(body, 4)
-            encoding, pos = _string(body, pos)
-            meta, _ = _map(body, pos)
-            name, _, data = r.schemas.get(sid, ("", "", b""))
-            r.channels[cid] = ChannelInfo(topic, name, data, encoding, meta)
-            self.wanted[cid] = self.topics is None or topic in self.topics
-        elif op == OP_CHUNK and not in_summary:
-            if self.chunks:
-                self.chunk(body)
-        elif op == OP_METADATA and not in_summary:
-            name, pos = _string(body, 0)
-            r.metadata[name], _ = _map(body, pos)
-        elif op == OP_HEADER:
-            r.profile, pos = _string(body, 0)
-            r.library, _ = _string(body, pos)
-
-    def message(self, body: memoryview) -> None:
-        cid, _seq, log_time, pub_time = _MSG_HEAD.unpack_from(body, 0)
-        r = self.r
-        r.counts[cid] = r.counts.get(cid, 0) + 1
-        if r.start_ns is None or log_time < r.start_ns:
-            r.start_ns = log_time
-        if r.end_ns is None or log_time > r.end_ns:
-            r.end_ns = log_time
-        if self.keep and self.wanted.get(cid, False):
-            r.messages.append((cid, log_time, pub_time, bytes(body[22:])))
-
-    def chunk(self, body: memoryview) -> None:
-        (size,) = _U64.unpack_from(body, 16)
-        compression, pos = _string(body, 28)
-        self.r.compressions.add(compression or "none")
-        (n,) = _U64.unpack_from(body, pos)
-        data = _decompress(compression, body[pos + 8:pos + 8 + n], size)
-        pos, end = 0, len(data)
-        while pos + 9 <= end:
-            op = data[pos]
-            (length,) = _U64.unpack_from(data, pos + 1)
-            start = pos + 9
-            if start + length > end:
-                raise ValueError("record overruns its chunk")
-            self.record(op, data[start:start + length], False)
-            pos = start + length
-
-
-def _read_file(path: str | Path) -> tuple[Path, bytes]:
-    """Resolve ``path`` (a file, or a rosbag2 directory with one ``.mcap``) and read it.
-
-    Raises
-    ------
-    SudsBagError
-        Missing path, unreadable file, or a directory without exactly one ``.mcap``.
-    """
-    p = Path(path)
-    if p.is_dir():
-        found = sorted(p.glob("*.mcap"))
-        if len(found) != 1:
-            msg = f"{p}: is a directory with {len(found)} .mcap files; expected exactly one"
-            raise SudsBagError(msg)
-        p = found[0]
-    try:
-        return p, p.read_bytes()
-    except FileNotFoundError:
-        raise SudsBagError(f"{p}: no such file") from None
-    except OSError as exc:
-        raise SudsBagError(f"{p}: cannot read: {exc.strerror}") from None
-
-
-def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_messages: bool = True,
-         chunks: bool = True) -> ScanResult:
-    """Read every complete record of an MCAP file.
-
-    Parameters
-    ----------
-    path : str or Path
-        MCAP file (or rosbag2 directory holding one).
-    topics : frozenset of str, optional
-        Keep only messages of these topics (all if None).
-    keep_messages : bool
-        Keep message payloads (False: only count them).
-    chunks : bool
-        Unpack chunks (False: skip them; channels and messages inside are not seen).
-
-    Raises
-    ------
-    SudsBagError
-        Not an MCAP file, empty file, truncated magic or header, corrupt chunk.
-    """
-    p, buf = _read_file(path)
-    result = ScanResult(path=p)
-    n = len(buf)
-    if n == 0:
-        raise SudsBagError(f"{p}: file is empty (0 bytes), not an MCAP recording",
-                           code=DAMAGED_BAG)
-    if buf[:8] != MAGIC:
-        if n < 8 and MAGIC.startswith(buf):
-            raise SudsBagError(f"{p}: truncated MCAP file: only {n} bytes of the 8-byte magic",
-                               code=DAMAGED_BAG)
-        raise SudsBagError(
-            f"{p}: not an MCAP file (starts with {buf[:8]!r}, expected the magic {MAGIC!r})",
-            code=DAMAGED_BAG)
-    view = memoryview(buf)
-    if n < 17 or buf[8] != OP_HEADER or 17 + _U64.unpack_from(buf, 9)[0] > n:
-        msg = f"{p}: truncated MCAP file: the header record is incomplete ({n} bytes)"
-        raise SudsBagError(msg, code=DAMAGED_BAG)
-    scanner = _Scanner(result, topics, keep_messages, chunks)
-    pos, in_summary, footer = 8, False, False
-    while pos + 9 <= n:
-        op = buf[pos]
-        (length,) = _U64.unpack_from(buf, pos + 1)
-        start = pos + 9
-        if start + length > n:
-            break
-        if in_summary and op in _SUMMARY_OPS:
-            result.has_summary = True
-        try:
-            scanner.record(op, view[start:start + length], in_summary)
-        except (ValueError, struct.error, UnicodeDecodeError, MemoryError) as exc:
-            msg = f"{p}: corrupt record (opcode 0x{op:02x}) at byte {pos}: {exc}"
-            raise SudsBagError(msg, code=DAMAGED_BAG) from None
-        pos = start + length
-        if op == OP_DATA_END:
-            in_summary = True
-        elif op == OP_FOOTER:
-            footer = True
-            break
-    if not footer or buf[pos:pos + 8] != MAGIC:
-        result.truncated = True
-        result.problem = f"file ends at byte {n} without a complete footer; read up to byte {pos}"
-    result.messages.sort(key=lambda m: m[1])
-    return result
-
-
 # ====================================================================== writing
 class BagWriter:
     """Context manager writing an MCAP bag the way rosbag2's MCAP storage does.
@@ -282,10 +64,26 @@ class BagWriter:
         Chunk compression.
     chunk_size : int
         Uncompressed chunk size (bytes) after which a chunk is written.
+    chunk_interval : float or None
+        Log time (s) after which the open chunk is written, even if smaller than
+        ``chunk_size`` (None: only the size closes chunks).
+    fsync : bool
+        ``os.fsync`` the file after each chunk, so the data are on the disk, not only
+        handed to the operating system.
+
+    Notes
+    -----
+    Messages wait in the open chunk (in memory) until it is written; every
+    written chunk is flushed to the operating system (and synced with
+    ``fsync``).  A crash of the process therefore loses at most the open chunk:
+    the last ``chunk_interval`` s of log time or ``chunk_size`` bytes, whichever
+    is less; a power loss loses the same with ``fsync``, and otherwise whatever
+    the operating system had not yet written back (see ``docs/recording_safety.md``).
     """
 
     def __init__(self, path: str | Path, *, overwrite: bool = False, compression: str = "zstd",
-                 chunk_size: int = 256 * 1024) -> None:
+                 chunk_size: int = 256 * 1024, chunk_interval: float | None = 0.5,
+                 fsync: bool = False) -> None:
         from mcap.writer import CompressionType, Writer
 
         kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
@@ -295,6 +93,10 @@ class BagWriter:
             raise SudsBagError(msg)
         if chunk_size <= 0:
             raise SudsBagError(f"chunk_size: expected a positive byte count, got {chunk_size!r}")
+        if chunk_interval is not None and not chunk_interval > 0:
+            msg = (f"chunk_interval: expected a positive number of seconds or None, got "
+                   f"{chunk_interval!r}")
+            raise SudsBagError(msg)
         self.path = Path(path)
         if self.path.exists() and not overwrite:
             msg = f"{self.path}: file exists; refusing to overwrite it (pass overwrite=True)"
@@ -305,8 +107,15 @@ class BagWriter:
             self._file: BinaryIO | None = open(self.path, "wb")  # noqa: SIM115
         except OSError as exc:
             raise SudsBagError(f"{self.path}: cannot create: {exc.strerror}") from None
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=kinds[compression])
+        # chunks are closed here (size or log-time span), never by the mcap writer itself
+        self._writer = Writer(self._file, chunk_size=_NEVER, compression=kinds[compression],
+                              enable_data_crcs=True)
         self._writer.start(profile="ros2", library=LIBRARY)
+        self._chunk_size = chunk_size
+        self._interval_ns = None if chunk_interval is None else round(chunk_interval * 1e9)
+        self._fsync = fsync
+        self._open_bytes, self._open_start = 0, 0
+        self._synced = -1
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, tuple[int, str]] = {}
         self._sequence: dict[str, int] = {}
@@ -371,10 +180,16 @@ class BagWriter:
         pub = log if publish_time_ns is None else int(publish_time_ns)
         if log < 0 or pub < 0:
             raise SudsBagError(f"topic {topic!r}: negative time (log {log}, publish {pub} ns)")
+        if self._open_bytes == 0:
+            self._open_start = log
         self._writer.add_message(channel_id=self._channels[topic][0], log_time=log,
                                  data=bytes(data), publish_time=pub,
                                  sequence=self._sequence[topic])
         self._sequence[topic] += 1
+        self._open_bytes += _MESSAGE_RECORD + len(data)
+        if self._open_bytes >= self._chunk_size or (
+                self._interval_ns is not None and log - self._open_start >= self._interval_ns):
+            self.flush()
 
     def write_metadata(self, name: str, data: dict[str, str]) -> None:
         """Write an MCAP metadata record ``name`` with string keys and values."""
@@ -383,11 +198,21 @@ class BagWriter:
         if bad:
             raise SudsBagError(f"metadata {name!r}: keys and values must be str, got {bad!r}")
         self._writer.add_metadata(name, dict(data))
+        self._sync()
 
     def flush(self) -> None:
-        """End the current chunk and push everything written so far to the file."""
+        """End the open chunk; push everything written to the file (and the disk with ``fsync``)."""
         self._check_open()
         self._writer.flush()
+        self._open_bytes = 0
+        self._sync()
+
+    def _sync(self) -> None:
+        assert self._file is not None
+        self._file.flush()
+        if self._fsync and self._file.tell() != self._synced:
+            os.fsync(self._file.fileno())
+            self._synced = self._file.tell()
 
     def close(self) -> None:
         """Write the summary (schemas, channels, statistics, indexes) and close; idempotent."""
@@ -395,6 +220,7 @@ class BagWriter:
             return
         try:
             self._writer.finish()
+            self._sync()
         finally:
             self._file.close()
             self._file = None
@@ -432,6 +258,11 @@ class BagInfo:
         Whether a summary section was found; whether the file ends without a complete footer.
     problem : str or None
         Why it counts as truncated.
+    damage : tuple of Damage
+        Every damaged part that was skipped (empty for an intact bag), each with its
+        offset, reason, log-time range and messages lost.
+    messages_lost : int or None
+        Messages lost to the damage in total (None: some loss is of unknown size).
     """
 
     path: str
@@ -446,6 +277,8 @@ class BagInfo:
     has_summary: bool
     truncated: bool
     problem: str | None
+    damage: tuple[Damage, ...] = ()
+    messages_lost: int | None = 0
 
     @property
     def duration_s(self) -> float | None:
@@ -463,11 +296,18 @@ class BagInfo:
                 "start_ns": self.start_ns, "end_ns": self.end_ns, "duration_s": self.duration_s,
                 "metadata": self.metadata, "compression": list(self.compression),
                 "has_summary": self.has_summary, "truncated": self.truncated,
-                "problem": self.problem}
+                "problem": self.problem, "damage": [d.as_dict() for d in self.damage],
+                "messages_lost": self.messages_lost}
 
 
 def bag_info(path: str | Path) -> BagInfo:
-    """Summary of the bag ``path`` (works on truncated files and without a summary section)."""
+    """Summary of the bag ``path`` (works on truncated or damaged files, without a summary section).
+
+    Raises
+    ------
+    SudsBagError
+        Missing, empty or foreign file (damage inside the file is reported in ``damage``).
+    """
     res = scan(path, keep_messages=False)
     counts: dict[str, list[Any]] = {}
     for cid, ch in res.channels.items():
@@ -478,7 +318,8 @@ def bag_info(path: str | Path) -> BagInfo:
         topics={t: TopicInfo(*e) for t, e in counts.items()},
         message_count=sum(res.counts.values()), start_ns=res.start_ns, end_ns=res.end_ns,
         metadata=res.metadata, compression=tuple(sorted(res.compressions)),
-        has_summary=res.has_summary, truncated=res.truncated, problem=res.problem)
+        has_summary=res.has_summary, truncated=res.truncated, problem=res.problem,
+        damage=tuple(res.damage), messages_lost=res.messages_lost)
 
 
 # ====================================================================== raw messages
@@ -507,8 +348,8 @@ def iter_raw_messages(path: str | Path, topics: Iterable[str] | None = None
                       ) -> Iterator[RawMessage]:
     """Messages of ``path`` in log-time order, optionally only of ``topics``.
 
-    Truncated files are read up to their last complete record; the summary is
-    not needed.
+    Truncated files are read up to their last complete record, damaged chunks
+    are skipped (see :func:`~suds_ros.io.mcap_scan.scan`); the summary is not needed.
 
     Raises
     ------

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,9 @@ from suds_ros.core.errors import (
 )
 from suds_ros.core.recording import Recording
 from suds_ros.io import cdr
-from suds_ros.io.mcap import BagWriter, ScanResult, decode_message, scan
+from suds_ros.io.mcap import BagWriter, decode_message
+from suds_ros.io.mcap_records import Damage, ScanResult
+from suds_ros.io.mcap_scan import scan
 from suds_ros.io.stamps import float_to_ns, format_ns, join_ns, ns_to_float, quaternion_yaw, yaw_quaternion
 
 # topics of a recording, as stored in bags
@@ -71,7 +74,8 @@ def _select(res: ScanResult, topic: str, type_name: str) -> list[tuple[int, byte
                            f"{', '.join(present) or 'none'}", code=MISSING_TOPIC)
     good = {cid: ch for cid, ch in chans.items() if ch.schema_name == type_name}
     if not good:
-        types = sorted({ch.schema_name for ch in chans.values()})
+        types = sorted({ch.schema_name or "unknown (its schema record is lost)"
+                        for ch in chans.values()})
         raise SudsBagError(f"{res.path}: topic {topic!r} has type {', '.join(types)}, "
                            f"expected {type_name}")
     for ch in good.values():
@@ -198,11 +202,59 @@ def _roles(path: Path, meta: dict[str, str] | None, names: tuple[str, ...],
     return tuple(actuated), tuple(passive)
 
 
+@dataclass(frozen=True)
+class RecordingRead:
+    """A recording read from a bag, with what the bag lost.
+
+    Attributes
+    ----------
+    recording : Recording
+        What was intact.
+    damage : tuple of Damage
+        Every damaged part of the bag that was skipped (empty for an intact bag).
+    truncated : bool
+        The file ends without its footer (e.g. the recorder was killed).
+    path : str
+        The file read.
+    """
+
+    recording: Recording
+    damage: tuple[Damage, ...] = ()
+    truncated: bool = False
+    path: str = ""
+
+    def warning(self) -> str | None:
+        """One line naming the loss (None if nothing was lost)."""
+        return damage_warning(self.path, self.damage)
+
+
+def damage_warning(path: str | Path, damage: Sequence[Damage]) -> str | None:
+    """One line for a person: how many parts of ``path`` were skipped and what they held."""
+    if not damage:
+        return None
+    lost = [d.messages for d in damage]
+    total = "an unknown number of" if None in lost else str(sum(x or 0 for x in lost))
+    spans = [(d.start_ns, d.end_ns) for d in damage
+             if d.start_ns is not None and d.end_ns is not None and d.messages != 0]
+    when = ""
+    if spans:
+        lo, hi = min(s for s, _ in spans), max(e for _, e in spans)
+        when = f" between log times {format_ns(lo)} and {format_ns(hi)}"
+    d = damage[0]
+    first = f"{d.record}{f' at byte {d.offset}' if d.offset >= 0 else ''}: {d.reason}"
+    more = f"; {len(damage) - 1} more (see `suds info`)" if len(damage) > 1 else ""
+    return (f"{path}: damaged bag: {total} messages lost{when}; read the intact rest "
+            f"({first}{more})")
+
+
 def read_recording(path: str | Path, *, system: str | None = None,
                    actuated: Sequence[str] | None = None, passive: Sequence[str] | None = None,
                    shape_topic: str = SHAPE_TOPIC, pose_topic: str = POSE_TOPIC
                    ) -> Recording:
     """Read a bag that follows the recording contract into a :class:`Recording`.
+
+    Damaged parts of the bag are skipped silently here; :func:`read_recording_report`
+    takes the same arguments and also returns what was lost.
 
     Parameters
     ----------
@@ -230,7 +282,36 @@ def read_recording(path: str | Path, *, system: str | None = None,
     SudsDataError
         Joint names changing mid-stream, NaN values, duplicate or unsorted stamps.
     """
+    return read_recording_report(path, system=system, actuated=actuated, passive=passive,
+                                 shape_topic=shape_topic, pose_topic=pose_topic).recording
+
+
+def read_recording_report(path: str | Path, *, system: str | None = None,
+                          actuated: Sequence[str] | None = None,
+                          passive: Sequence[str] | None = None, shape_topic: str = SHAPE_TOPIC,
+                          pose_topic: str = POSE_TOPIC) -> RecordingRead:
+    """:func:`read_recording`, returning the recording with the bag's damage report.
+
+    Raises
+    ------
+    SudsBagError, SudsDataError
+        As :func:`read_recording`; when the bag is damaged, the message says so.
+    """
     res = scan(path, frozenset({shape_topic, pose_topic}))
+    try:
+        rec = _to_recording(res, system, actuated, passive, shape_topic, pose_topic)
+    except (SudsBagError, SudsDataError) as exc:
+        if not res.damage:
+            raise
+        note = damage_warning(res.path, res.damage)
+        raise type(exc)(f"{exc} (the bag is damaged: {note})", code=exc.code) from None
+    return RecordingRead(rec, tuple(res.damage), res.truncated, str(res.path))
+
+
+def _to_recording(res: ScanResult, system: str | None, actuated: Sequence[str] | None,
+                  passive: Sequence[str] | None, shape_topic: str, pose_topic: str
+                  ) -> Recording:
+    """The body of :func:`read_recording` on a scanned file."""
     t_ns, names, r, effort = _read_shape(res, shape_topic)
     pose_ns, pose = _read_pose(res, pose_topic)
     _check_series(res.path, shape_topic, t_ns, r)

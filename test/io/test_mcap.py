@@ -36,7 +36,9 @@ def test_shared_bag_info_and_raw() -> None:
     assert info.duration_s == pytest.approx(59.99) and info.start_ns == 1_700_000_000 * 10**9
     assert list(info.as_dict()) == ["path", "profile", "library", "topics", "message_count",
                                     "start_ns", "end_ns", "duration_s", "metadata",
-                                    "compression", "has_summary", "truncated", "problem"]
+                                    "compression", "has_summary", "truncated", "problem",
+                                    "damage", "messages_lost"]
+    assert info.damage == () and info.messages_lost == 0
     assert read_metadata(path)["suds"]["system"] == "purcell3"
     msgs = list(iter_raw_messages(path, ["/suds/body_pose"]))
     assert len(msgs) == 6000 and {m.type_name for m in msgs} == {PS}
@@ -198,3 +200,60 @@ def test_cut_at_any_offset_reads_or_raises_bag_error(tmp_path: Path) -> None:
     assert counts == sorted(counts) and counts[-1] == 200 and 0 < counts[30] < 200
 
 
+
+
+def _top_records(data: bytes) -> list[tuple[int, int]]:
+    """``(offset, opcode)`` of the top-level records after the magic."""
+    pos, out = 8, []
+    while pos + 9 <= len(data):
+        out.append((pos, data[pos]))
+        pos += 9 + int.from_bytes(data[pos + 1:pos + 9], "little")
+    return out
+
+
+def test_bad_length_without_summary_resyncs_to_the_next_chunk(tmp_path: Path) -> None:
+    stamps = [STAMPS[0] + k * 10_000_000 for k in range(300)]
+    path = tmp_path / "nosummary.mcap"
+    raw_bag(path, [js(ns) for ns in stamps], stamps, summary=False, meta=META)
+    data = bytearray(path.read_bytes())
+    chunks = [pos for pos, op in _top_records(bytes(data)) if op == 0x06]
+    assert len(chunks) >= 4
+    victim = chunks[1]
+    data[victim + 1:victim + 9] = (2**40).to_bytes(8, "little")  # an impossible length
+    path.write_bytes(bytes(data))
+    info = bag_info(path)
+    [d] = info.damage
+    assert d.record == "bytes" and d.offset == victim and d.messages is None
+    assert f"skipped to the next record at byte {chunks[2]}" in d.reason
+    rec = read_recording(path)  # chunks before and after the damaged one are read
+    assert 0 < rec.n_samples < 300 and rec.t[-1] == pytest.approx(stamps[-1] * 1e-9)
+
+
+def test_cut_chunk_is_reported_and_channels_lost_with_first_chunk(tmp_path: Path) -> None:
+    path = tmp_path / "cut.mcap"
+    rec = make_rec(n=400)
+    with BagWriter(path, chunk_size=2048) as w:
+        w.add_topic("/suds/shape", JS)
+        w.write_metadata("suds", {"system": "s", "actuated": "joint_1"})
+        for k in range(rec.n_samples):
+            ns = float_to_ns(rec.t[k])
+            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k]), ns)
+    data = path.read_bytes()
+    chunks = [pos for pos, op in _top_records(data) if op == 0x06]
+    cut = tmp_path / "c.mcap"
+    cut.write_bytes(data[:chunks[3] + 100])
+    info = bag_info(cut)
+    [d] = info.damage
+    assert info.truncated and d.record == "chunk" and d.offset == chunks[3]
+    assert "file ends inside this chunk" in d.reason and d.messages is None
+    assert d.start_ns is not None and d.start_ns > info.end_ns  # the lost part comes after
+    # the first chunk holds the channel record: without it (and no summary) its messages are lost
+    broken = bytearray(data[:chunks[3]])
+    broken[chunks[0] + 60] ^= 0x01
+    cut.write_bytes(bytes(broken))
+    info = bag_info(cut)
+    assert [x.record for x in info.damage] == ["chunk", "channel"]
+    assert info.topics == {} and info.damage[0].messages > 0  # from its message index records
+    assert info.messages_lost == sum(x.messages for x in info.damage)
+    with pytest.raises(SudsBagError, match=r"not in the bag.*\(the bag is damaged: .*chunk at byte"):
+        read_recording(cut)
