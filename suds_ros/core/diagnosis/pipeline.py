@@ -173,13 +173,13 @@ def diagnose(
             coeffs = ()
     clock.mark("locate")
     if not located:
-        return _report(nom, (), (), coeffs, nom.E0, nom.replay, nom.F0, nom.rms0, clock.timings,
-                       mismatch=False, improvement=0.0, unexplained=False, notes=())
+        return _report(nom, nom.replay, clock.timings, coefficients=coeffs)
     say("ranking catalogue candidates (equation error)")
     naming = name_mismatch(data, model, config, nom.floors[0])
     clock.mark("name")
     say(f"fitting {naming.chosen.cand.label} inside the simulator")
-    return _refine_and_show(nom, naming, located, coeffs, clock)
+    fit = _refine(nom, naming, located, clock)
+    return _show(nom, naming, fit, coeffs, clock)
 
 
 def _replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
@@ -200,38 +200,54 @@ def _replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refer
     )
 
 
-def _refine_and_show(
-    nom: _Nominal, naming: Naming, located: list[Located],
-    coeffs: tuple[tuple[str, str, float, tuple[tuple[float, float], ...]], ...], clock: _Clock,
-) -> DiagnosisReport:
-    """Stages 3–4: refine the chosen effect in the simulator, re-locate with the better floor, judge."""
+@dataclass(frozen=True)
+class _Fit:
+    """Stage 4: the refined effects, the fitted replay, and the floor, F and location they revise."""
+
+    effects: list[FittedEffect]
+    replay: RecordingReplay
+    E1: FloatArray
+    floor: dict[str, float]
+    F0: dict[str, float]
+    located: list[Located]
+    conditions: dict[str, tuple[str, ...]]
+    confounded: tuple[tuple[str, ...], ...]
+    unexplained: bool  # no candidate has positive held-out evidence (nothing refined)
+
+
+def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock) -> _Fit:
+    """Stage 4: refine the chosen effect in the simulator, replay it, re-locate with the better floor."""
     data, model, config, table = nom.data, nom.model, nom.config, nom.table
     conditions = channel_conditions([l.channel for l in located], nom.E0, table, model)
-    floor, F0, confounded = nom.floor, nom.F0, naming.confounded
-    effects: list[FittedEffect] = []
-    rep1, E1 = nom.replay, nom.E0
-    unexplained = naming.chosen.score.score <= 0
-    if not unexplained:
-        cand, x, se, dropped = refine_choice(naming.chosen.cand, naming.chosen.x, model, data, config,
-                                             nom.w, nom.substeps, nom.floors)
-        if dropped:
-            confounded = ()
-        clock.mark("refine")
-        fitted_model, delay = apply_effects(model, cand.effects(x))
-        rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
-        E1 = table.residuals(rep1.rp, rep1.xi)
-        effects = fitted_effects(cand, x, se)
-        # floor with the better model (effects can leak into the fourth differences)
-        better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt))
-        floor = {c: float(min(floor[c], v)) for c, v in better.items()}
-        F0 = table.fstats(nom.E0, floor)
-        located = locate_channels(F0, nom.E0, table, nom.cycle, config)
-        new = [l.channel for l in located if l.channel not in conditions]
-        conditions.update(channel_conditions(new, nom.E0, table, model))
+    if naming.chosen.score.score <= 0:
+        return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
+    cand, x, se, dropped = refine_choice(naming.chosen.cand, naming.chosen.x, model, data, config,
+                                         nom.w, nom.substeps, nom.floors)
+    clock.mark("refine")
+    fitted_model, delay = apply_effects(model, cand.effects(x))
+    rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
+    # floor with the better model (effects can leak into the fourth differences)
+    better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt))
+    floor = {c: float(min(nom.floor[c], v)) for c, v in better.items()}
+    F0 = table.fstats(nom.E0, floor)
+    located = locate_channels(F0, nom.E0, table, nom.cycle, config)
+    new = [l.channel for l in located if l.channel not in conditions]
+    conditions.update(channel_conditions(new, nom.E0, table, model))
+    return _Fit(fitted_effects(cand, x, se), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0, located,
+                conditions, () if dropped else naming.confounded, False)
+
+
+def _show(
+    nom: _Nominal, naming: Naming, fit: _Fit,
+    coeffs: tuple[tuple[str, str, float, tuple[tuple[float, float], ...]], ...], clock: _Clock,
+) -> DiagnosisReport:
+    """Stage 5: held-out improvement, the explained/unexplained verdict, notes and the report."""
+    data, config, table = nom.data, nom.config, nom.table
+    effects, confounded, rep1, E1, floor, F0 = fit.effects, fit.confounded, fit.replay, fit.E1, fit.floor, fit.F0
     F1 = table.fstats(E1, floor)
-    affected = [l.channel for l in located]
+    affected = [l.channel for l in fit.located]
     improvement = excess_improvement(F0, F1, affected)
-    unexplained, left = _unexplained(F0, F1, affected, config, unexplained)
+    unexplained, left = _unexplained(F0, F1, affected, config, fit.unexplained)
     notes: list[str] = [data.phase_note] if data.phase_note else []
     rms1 = table.rms(E1)
     if unexplained and effects and improvement < 0.5:
@@ -258,9 +274,10 @@ def _refine_and_show(
         improvement = 0.0
     clock.mark("total")
     return _report(
-        nom, tuple(located), tuple(effects), coeffs, E1, rep1, F1, rms1, clock.timings,
-        mismatch=True, improvement=improvement, unexplained=unexplained, notes=tuple(notes),
-        floor=floor, F0=F0, naming=naming, confounded=confounded, conditions=conditions,
+        nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),
+        confounded_with=confounded, unexplained=unexplained, heldout_rms_after=rms1,
+        improvement=float(improvement), noise_floor=floor, statistics=F0, statistics_after=F1,
+        ranking=naming.ranking, conditions=fit.conditions, coefficients=coeffs, notes=tuple(notes),
     )
 
 
@@ -286,43 +303,19 @@ def _unexplained(
     return unexplained, left
 
 
-def _report(
-    nom: _Nominal, located: tuple[Located, ...], effects: tuple[FittedEffect, ...],
-    coeffs: tuple[tuple[str, str, float, tuple[tuple[float, float], ...]], ...],
-    E1: FloatArray, rep1: RecordingReplay, F1: dict[str, float], rms1: dict[str, float],
-    timings: dict[str, float], *, mismatch: bool, improvement: float, unexplained: bool,
-    notes: tuple[str, ...], floor: dict[str, float] | None = None, F0: dict[str, float] | None = None,
-    naming: Naming | None = None, confounded: tuple[tuple[str, ...], ...] = (),
-    conditions: dict[str, tuple[str, ...]] | None = None,
-) -> DiagnosisReport:
-    """Stage 5: assemble the report (held-out series for the figures included)."""
+def _report(nom: _Nominal, rep1: RecordingReplay, timings: dict[str, float], **fields: object) -> DiagnosisReport:
+    """Stage 5: the report: ``fields`` of :class:`DiagnosisReport` over the no-mismatch defaults
+    (held-out series of the nominal replay and of ``rep1`` included, for the figures)."""
     data = nom.data
-    if not mismatch:
-        rms1 = dict(nom.rms0)
-        notes = (data.phase_note,) if data.phase_note else ()
-    return DiagnosisReport(
-        mismatch=mismatch,
-        located=located,
-        effects=effects,
-        confounded_with=confounded,
-        unexplained=unexplained,
-        heldout_rms_before=nom.rms0,
-        heldout_rms_after=rms1,
-        improvement=float(improvement),
-        system=nom.model.name,
-        noise_floor=nom.floor if floor is None else floor,
-        statistics=nom.F0 if F0 is None else F0,
-        statistics_after=F1,
-        ranking=() if naming is None else naming.ranking,
-        conditions={} if conditions is None else conditions,
-        coefficients=coeffs,
-        series=_series(nom, rep1),
-        train_cycles=data.n_train // data.spc,
-        heldout_cycles=(data.n_used - data.n_train) // data.spc,
-        timings=timings,
-        phase_source=data.phase_source,
-        notes=notes,
+    base: dict[str, object] = dict(
+        mismatch=False, located=(), effects=(), confounded_with=(), unexplained=False,
+        heldout_rms_before=nom.rms0, heldout_rms_after=dict(nom.rms0), improvement=0.0,
+        system=nom.model.name, noise_floor=nom.floor, statistics=nom.F0, statistics_after=nom.F0,
+        series=_series(nom, rep1), train_cycles=data.n_train // data.spc,
+        heldout_cycles=(data.n_used - data.n_train) // data.spc, timings=timings,
+        phase_source=data.phase_source, notes=(data.phase_note,) if data.phase_note else (),
     )
+    return DiagnosisReport(**{**base, **fields})  # type: ignore[arg-type]
 
 
 def _series(nom: _Nominal, rep1: RecordingReplay) -> dict[str, Channels]:
