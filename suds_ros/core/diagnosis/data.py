@@ -50,7 +50,8 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
     if set(rec.actuated) != set(act):
         raise SudsConfigError(
             f"`rec`: actuated joints {list(rec.actuated)} differ from the actuated joints {act} of "
-            f"`model` {model.name!r}"
+            f"`model` {model.name!r}",
+            code=WRONG_JOINT_NAMES,
         )
     order = [rec.joint_names.index(nm) for nm in names]
     r = rec.r[:, order]

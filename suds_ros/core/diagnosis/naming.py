@@ -18,6 +18,8 @@ from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.recording import joint_names
 
+
+# =============================================================================== equation error
 class _EqError:
     """Equation-error residuals of the passive torque balance and the body velocity.
 
@@ -125,6 +127,7 @@ class _EqError:
         return e, ex
 
 
+# =============================================================================== candidates
 @dataclass(frozen=True)
 class Candidate:
     """One or two catalogue effects with free parameters."""
