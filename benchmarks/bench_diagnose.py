@@ -71,7 +71,7 @@ def wall_times(paths: list[str]) -> int:
     return 0
 
 
-# (label, system, effects, cycles, seed) — the same cases as test/unit/test_diagnosis.py
+# (label, system, effects, cycles, seed) — the same cases as test/unit/diagnosis/test_diagnose.py
 TABLE_CASES: list[tuple[str, str, list[dict[str, Any]], int, int]] = [
     ("null", "purcell3", [], 20, 11),
     ("null", "swimmer9", [], 20, 12),

@@ -16,6 +16,16 @@ from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
 
 
+def joint_names(n_joints: int) -> tuple[str, ...]:
+    """The package's joint names for a chain of ``n_joints`` joints: ``("joint_1", …)``, head to tail."""
+    return tuple(f"joint_{j + 1}" for j in range(n_joints))
+
+
+def samples_per_cycle(dt: float, gait_hz: float) -> int:
+    """Whole samples per gait cycle at sample interval ``dt`` (s) and gait frequency ``gait_hz`` (Hz)."""
+    return int(round(1.0 / (gait_hz * dt)))
+
+
 def _check_stamps(name: str, t: FloatArray) -> None:
     if t.ndim != 1:
         raise SudsDataError(f"{name}: expected a 1-D array of stamps, got shape {t.shape}")

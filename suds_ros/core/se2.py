@@ -1,4 +1,4 @@
-"""Planar rigid-body (SE(2)) helpers: exponential, logarithm and body velocities from poses."""
+"""Planar rigid-body (SE(2)) helpers: exponential step, logarithm and body velocities from poses."""
 
 from __future__ import annotations
 
@@ -7,13 +7,33 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 
 
-def _coeffs(w: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """sin(w)/w and (1 − cos w)/w with series near 0."""
-    small = np.abs(w) < 1e-6
+def _coeffs(w: FloatArray, series_below: float = 1e-6) -> tuple[FloatArray, FloatArray]:
+    """sin(w)/w and (1 − cos w)/w, by their series where |w| < ``series_below``."""
+    small = np.abs(w) < series_below
     ws = np.where(small, 1.0, w)
     a = np.where(small, 1.0 - w * w / 6.0, np.sin(ws) / ws)
     b = np.where(small, w / 2.0 - w**3 / 24.0, (1.0 - np.cos(ws)) / ws)
     return a, b
+
+
+def exp_step(pose: FloatArray, twist: FloatArray) -> FloatArray:
+    """g · exp(twist) for world poses (…, 3) and body twists (…, 3) (velocity already times the step).
+
+    The exact SE(2) exponential: a constant body twist carries the pose along a circular arc.
+    Every integrator of the package takes its pose steps with this function.  It switches to the
+    series at |w| < 1e-8 (the logarithm at 1e-6): the integrators' historical choice, kept so
+    simulated and replayed trajectories stay bit-identical.
+    """
+    vx, vy, w = twist[..., 0], twist[..., 1], twist[..., 2]
+    a, b = _coeffs(w, series_below=1e-8)
+    dx = a * vx - b * vy
+    dy = b * vx + a * vy
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    out = np.empty_like(pose)
+    out[..., 0] = pose[..., 0] + c * dx - s * dy
+    out[..., 1] = pose[..., 1] + s * dx + c * dy
+    out[..., 2] = pose[..., 2] + w
+    return out
 
 
 def relative(p0: FloatArray, p1: FloatArray) -> FloatArray:

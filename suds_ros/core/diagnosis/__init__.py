@@ -1,3 +1,31 @@
-"""Sim-vs-real diagnosis: locate mismatches, name the missing physics, fit it, show the gain."""
+"""Sim-vs-real diagnosis: locate mismatches, name the missing physics, fit it, show the gain.
 
-from suds_ros.core.diagnosis.pipeline import *  # noqa: F401,F403  (split into stage modules below)
+The stages live in their own modules (:mod:`.data`, :mod:`.replay`, :mod:`.floor`,
+:mod:`.locate`, :mod:`.naming`, :mod:`.refine`); :mod:`.pipeline` runs them and
+:mod:`.report` holds the configuration and the frozen report.
+"""
+
+from suds_ros.core.diagnosis.locate import excess_improvement
+from suds_ros.core.diagnosis.naming import catalogue_candidates
+from suds_ros.core.diagnosis.pipeline import diagnose, diagnose_recording
+from suds_ros.core.diagnosis.report import (
+    CandidateScore,
+    Channels,
+    DiagnoseConfig,
+    DiagnosisReport,
+    FittedEffect,
+    Located,
+)
+
+__all__ = [
+    "CandidateScore",
+    "Channels",
+    "DiagnoseConfig",
+    "DiagnosisReport",
+    "FittedEffect",
+    "Located",
+    "catalogue_candidates",
+    "diagnose",
+    "diagnose_recording",
+    "excess_improvement",
+]

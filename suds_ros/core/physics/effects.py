@@ -3,7 +3,15 @@
 Every effect is a parametric physical term of the RFT chain (:class:`~suds_ros.core.physics.rft.ChainModel`)
 or of the recording's time base (:class:`~suds_ros.core.physics.sim.SimConfig` ``pose_delay``), off by
 default.  The registry :data:`EFFECTS` maps each id to an :class:`EffectSpec` that documents its
-parameters (names, units, admissible range, the value meaning "no effect") and applies it.
+parameters (names, units, admissible range, the value meaning "no effect") and carries the
+effect's physics in both forms the package uses:
+
+* ``apply``: how it modifies the simulator's :class:`~suds_ros.core.physics.rft.ChainModel`
+  (and the pose delay), for simulation and for the diagnosis's output-error refinement;
+* ``equation``: the terms it adds to the passive torque balance and to the measured body
+  velocity (:class:`EquationTerms`), for the diagnosis's equation-error scoring.
+
+Adding an effect means adding one entry here (both parts next to each other).
 
 Combining effects (:func:`apply_effects`) applies them in order; offsets and joint terms add
 (friction bounds, damping, rest offsets, cubic coefficients, flow components, time offsets),
@@ -29,8 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.recording import joint_names
 
 
 @dataclass(frozen=True)
@@ -68,7 +78,39 @@ class ParamSpec:
         return v
 
 
+@dataclass
+class EquationTerms:
+    """Effects in equation-error form: what they add to the passive torque balance and to ξ.
+
+    The residual of passive joint j on an interval with midpoint shape r̄ and rate ṙ is
+    (D q̇)_j + d_j ṙ_j − τ_spring,j + mu_j sign(ṙ_j) with
+    τ_spring,j = −scale·kscale_j·k_j (r̄_j − rest_j − offset_j) − scale·k3_j (r̄_j − rest_j − offset_j)³,
+    D the drag metric at c⊥/c∥ = ``ratio``; the predicted body velocity gains R(−yaw)·``flow``
+    and the recorded pose is re-sampled ``delay`` later.  Arrays hold one value per passive joint
+    (in the model's passive order).  Built neutral by :meth:`neutral` and modified in place by
+    each effect's ``equation`` (see :class:`EffectSpec`).
+    """
+
+    mu: FloatArray
+    d: FloatArray
+    offset: FloatArray
+    k3: FloatArray
+    kscale: FloatArray
+    scale: float = 1.0
+    ratio: float = 2.0
+    flow: tuple[float, float] = (0.0, 0.0)
+    delay: float = 0.0
+
+    @classmethod
+    def neutral(cls, n_passive: int, ratio: float) -> "EquationTerms":
+        """No effect on ``n_passive`` passive joints, nominal drag ratio c⊥/c∥ = ``ratio``."""
+        z = np.zeros(n_passive)
+        return cls(mu=z.copy(), d=z.copy(), offset=z.copy(), k3=z.copy(), kscale=np.ones(n_passive),
+                   ratio=ratio)
+
+
 _Applier = Callable[[ChainModel, "int | None", Mapping[str, float]], tuple[ChainModel, float]]
+_Equation = Callable[[EquationTerms, "int | None", Mapping[str, float]], None]
 
 
 @dataclass(frozen=True)
@@ -87,6 +129,12 @@ class EffectSpec:
         Exact physical meaning.
     apply : callable
         ``apply(model, joint_index_or_None, params) -> (model, pose_delay_increment)``.
+    equation : callable
+        ``equation(terms, passive_position_or_None, params)``: adds the effect to the
+        :class:`EquationTerms` in place (the position is the joint's rank among the passive joints).
+    specified : bool
+        True for the effects of the specification (``shared/spec/effects.md``), False for the
+        additions; among equally good explanations the diagnosis prefers specified effects.
     """
 
     id: str
@@ -94,6 +142,8 @@ class EffectSpec:
     needs_joint: bool
     description: str
     apply: _Applier
+    equation: _Equation
+    specified: bool = True
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -111,9 +161,17 @@ def _coulomb(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[Chai
     return m.with_(coulomb=_joint_tuple(m.coulomb, j, lambda v: v + p["mu"])), 0.0  # type: ignore[arg-type]
 
 
+def _coulomb_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.mu[j] += p["mu"]
+
+
 def _damping(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
     assert j is not None
     return m.with_(damping=_joint_tuple(m.damping, j, lambda v: v + p["d"])), 0.0  # type: ignore[arg-type]
+
+
+def _damping_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.d[j] += p["d"]
 
 
 def _rest(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
@@ -121,9 +179,17 @@ def _rest(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainMo
     return m.with_(rest=_joint_tuple(m.rest, j, lambda v: v + p["offset"])), 0.0  # type: ignore[arg-type]
 
 
+def _rest_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.offset[j] += p["offset"]
+
+
 def _cubic(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
     assert j is not None
     return m.with_(k3=_joint_tuple(m.k3, j, lambda v: v + p["k3"])), 0.0  # type: ignore[arg-type]
+
+
+def _cubic_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.k3[j] += p["k3"]
 
 
 def _joint_stiffness(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
@@ -131,20 +197,40 @@ def _joint_stiffness(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tu
     return m.with_(stiffness=_joint_tuple(m.stiffness, j, lambda v: v * p["scale"])), 0.0  # type: ignore[arg-type]
 
 
+def _joint_stiffness_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.kscale[j] *= p["scale"]
+
+
 def _stiffness_scale(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
     return m.with_(stiffness_scale=m.stiffness_scale * p["scale"]), 0.0
 
 
+def _stiffness_scale_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.scale *= p["scale"]
+
+
 def _anisotropy(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
-    return m.with_(c_perp=p["ratio"] * m.c_par), 0.0
+    return m.with_drag_ratio(p["ratio"]), 0.0
+
+
+def _anisotropy_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.ratio = float(p["ratio"])
 
 
 def _flow(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
     return m.with_(flow=(m.flow[0] + p["vx"], m.flow[1] + p["vy"])), 0.0
 
 
+def _flow_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.flow = (t.flow[0] + float(p["vx"]), t.flow[1] + float(p["vy"]))
+
+
 def _time_offset(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
     return m, p["dt"]
+
+
+def _time_offset_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.delay += float(p["dt"])
 
 
 _INF = float("inf")
@@ -158,6 +244,7 @@ EFFECTS: dict[str, EffectSpec] = {
             True,
             "dry friction −mu·sign(ṙ_j) while slipping, any torque in [−mu, mu] while stuck (exact)",
             _coulomb,
+            _coulomb_eq,
         ),
         EffectSpec(
             "joint_viscous_damping",
@@ -165,6 +252,7 @@ EFFECTS: dict[str, EffectSpec] = {
             True,
             "internal damping torque −d·ṙ_j",
             _damping,
+            _damping_eq,
         ),
         EffectSpec(
             "spring_rest_offset",
@@ -172,6 +260,7 @@ EFFECTS: dict[str, EffectSpec] = {
             True,
             "spring rest angle r_rest + offset: torque −k_j (r_j − r_rest − offset)",
             _rest,
+            _rest_eq,
         ),
         EffectSpec(
             "spring_nonlinearity",
@@ -179,6 +268,7 @@ EFFECTS: dict[str, EffectSpec] = {
             True,
             "extra spring torque −k3·(r_j − r_rest)³ (effective rest angle if offset too)",
             _cubic,
+            _cubic_eq,
         ),
         EffectSpec(
             "stiffness_to_drag_error",
@@ -186,6 +276,7 @@ EFFECTS: dict[str, EffectSpec] = {
             False,
             "every passive k_j (and k3) × scale ⇔ every drag coefficient / scale",
             _stiffness_scale,
+            _stiffness_scale_eq,
         ),
         EffectSpec(
             "drag_anisotropy_error",
@@ -193,6 +284,7 @@ EFFECTS: dict[str, EffectSpec] = {
             False,
             "c⊥/c∥ = ratio with c∥ kept (nominal 2); link drag diag(L, ratio·L, ratio·L³/12)",
             _anisotropy,
+            _anisotropy_eq,
         ),
         EffectSpec(
             "background_flow",
@@ -200,6 +292,7 @@ EFFECTS: dict[str, EffectSpec] = {
             False,
             "uniform world-frame current U = (vx, vy): the chain is advected, ξ gains R(−yaw)·U",
             _flow,
+            _flow_eq,
         ),
         EffectSpec(
             "sensor_time_offset",
@@ -207,6 +300,7 @@ EFFECTS: dict[str, EffectSpec] = {
             False,
             "pose stamps late by dt: the pose stamped s is the true pose at s − dt",
             _time_offset,
+            _time_offset_eq,
         ),
         EffectSpec(
             "joint_stiffness_error",
@@ -214,6 +308,8 @@ EFFECTS: dict[str, EffectSpec] = {
             True,
             "spring constant of one passive joint × scale (addition to the spec)",
             _joint_stiffness,
+            _joint_stiffness_eq,
+            specified=False,
         ),
     )
 }
@@ -221,7 +317,7 @@ EFFECTS: dict[str, EffectSpec] = {
 
 def joint_index(model: ChainModel, joint: object, effect: str) -> int:
     """0-based index of the passive joint named ``joint`` (``"joint_k"``, 1-based, head to tail)."""
-    names = [f"joint_{j + 1}" for j in range(model.n_joints)]
+    names = list(joint_names(model.n_joints))
     if isinstance(joint, str) and joint in names:
         j = names.index(joint)
     else:

@@ -185,6 +185,17 @@ class ChainModel:
         """0-based indices of the passive joints."""
         return tuple(j for j in range(self.n_joints) if j not in self.actuated)
 
+    @property
+    def drag_ratio(self) -> float:
+        """The chain's c⊥/c∥: Σ c⊥,i L_i / Σ c∥,i L_i (the common ratio when every link has the same)."""
+        L = np.asarray(self.link_length)
+        return float(np.dot(self.c_perp, L) / np.dot(self.c_par, L))
+
+    def with_drag_ratio(self, ratio: float) -> "ChainModel":
+        """A copy whose every c⊥,i is scaled so that :attr:`drag_ratio` becomes ``ratio`` (c∥ kept)."""
+        scale = float(ratio) / self.drag_ratio
+        return self.with_(c_perp=tuple(scale * c for c in self.c_perp))  # type: ignore[union-attr]
+
     def with_(self, **changes: object) -> "ChainModel":
         """A copy with some parameters changed (validated again)."""
         return replace(self, **changes)  # type: ignore[arg-type]

@@ -1,16 +1,10 @@
-"""Time integration of a SUDS driven along a (perturbed) gait.
+"""Simulated runs of a SUDS driven along a (perturbed) gait.
 
-The actuated joints follow set-points given at the sample times and are
-linearly interpolated between them (a servo set-point stream), so ṙ_a is
-constant within each sample interval.  The passive joints are integrated with
-classical RK4 (``substeps`` steps per sample interval), and the body pose with
-the fourth-order commutator-free Lie-group method (Celledoni, Marthinsen &
-Owren 2003) built on the same RK4 stages, using exact SE(2) exponentials:
-
-    g_{n+1} = g_n · exp(h(¼ξ₁ + ⅙ξ₂ + ⅙ξ₃ − 1/12 ξ₄)) · exp(h(−1/12 ξ₁ + ⅙ξ₂ + ⅙ξ₃ + ¼ξ₄))
-
-for ġ = g ξ with ξ the body velocity.  A uniform background flow does not
-rotate the chain, so it is added exactly as U·t to the world position.
+The actuated joints follow set-points given at the sample times and are linearly interpolated
+between them (a servo set-point stream); the passive joints and the pose are integrated by
+:func:`suds_ros.core.physics.integrate.integrate_batch` (RK4 and a commutator-free Lie-group
+step).  A uniform background flow does not rotate the chain, so it is added exactly as U·t to
+the world position.
 
 The drive is r_a = r_ref(t) + η(t), η an Ornstein–Uhlenbeck process
 dη = −κη dt + σ dW discretised exactly at the sample times and started from its
@@ -26,6 +20,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.recording import Recording
 from suds_ros.core.physics.system import SudsSystem
 
@@ -135,23 +130,6 @@ def auto_substeps(system: SudsSystem, dt: float, accuracy: float = 0.2) -> int:
     return max(2, int(np.ceil(dt * passive_rate(system) / accuracy)))
 
 
-def se2_exp_step(pose: FloatArray, twist: FloatArray) -> FloatArray:
-    """Right-multiply world poses (B, 3) by exp of body twists (B, 3) (already times h)."""
-    vx, vy, w = twist[:, 0], twist[:, 1], twist[:, 2]
-    small = np.abs(w) < 1e-8
-    ws = np.where(small, 1.0, w)
-    sw = np.where(small, 1.0 - w * w / 6.0, np.sin(ws) / ws)
-    cw = np.where(small, w / 2.0 - w**3 / 24.0, (1.0 - np.cos(ws)) / ws)
-    dx = sw * vx - cw * vy
-    dy = cw * vx + sw * vy
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    out = np.empty_like(pose)
-    out[:, 0] = pose[:, 0] + c * dx - s * dy
-    out[:, 1] = pose[:, 1] + s * dx + c * dy
-    out[:, 2] = pose[:, 2] + w
-    return out
-
-
 @dataclass(frozen=True)
 class Trajectory:
     """Noise-free integration result at the sample times.
@@ -211,45 +189,17 @@ def integrate(
     n = r_a.shape[0]
     act = np.asarray(system.actuated, dtype=int)
     pas = np.asarray(system.passive, dtype=int)
-    nj = act.size + pas.size
-    rp = np.asarray(r_p0, dtype=float).reshape(1, -1).copy()
-    if rp.shape[1] != pas.size:
-        raise SudsDataError(f"`r_p0`: expected {pas.size} values, got {rp.shape[1]}")
-    pose = np.zeros((1, 3)) if pose0 is None else np.asarray(pose0, dtype=float).reshape(1, 3).copy()
-    R = np.empty((n, nj))
-    P = np.empty((n, 3))
-    R[0, act] = r_a[0]
-    R[0, pas] = rp[0]
-    P[0] = pose[0]
+    rp0 = np.asarray(r_p0, dtype=float).reshape(1, -1)
+    if rp0.shape[1] != pas.size:
+        raise SudsDataError(f"`r_p0`: expected {pas.size} values, got {rp0.shape[1]}")
+    pose = np.zeros((1, 3)) if pose0 is None else np.asarray(pose0, dtype=float).reshape(1, 3)
     if substeps is None:
         substeps = auto_substeps(system, dt)
-    h = dt / substeps
-    full = np.empty((1, nj))
-
-    def f(ra: FloatArray, rp_: FloatArray, va: FloatArray) -> tuple[FloatArray, FloatArray]:
-        full[0, act] = ra
-        full[0, pas] = rp_[0]
-        return system.velocities(full, va[None, :])
-
-    every = max(1, n // 100)
-    for k in range(n - 1):
-        if progress is not None and k % every == 0:
-            progress(k, n - 1)
-        va = (r_a[k + 1] - r_a[k]) / dt
-        for s in range(substeps):
-            ra0 = r_a[k] + va * (s * h)
-            xi1, k1 = f(ra0, rp, va)
-            xi2, k2 = f(ra0 + va * (h / 2), rp + (h / 2) * k1, va)
-            xi3, k3 = f(ra0 + va * (h / 2), rp + (h / 2) * k2, va)
-            xi4, k4 = f(ra0 + va * h, rp + h * k3, va)
-            rp = rp + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
-            pose = se2_exp_step(pose, h * (xi1 / 4 + xi2 / 6 + xi3 / 6 - xi4 / 12))
-            pose = se2_exp_step(pose, h * (-xi1 / 12 + xi2 / 6 + xi3 / 6 + xi4 / 4))
-        R[k + 1, act] = r_a[k + 1]
-        R[k + 1, pas] = rp[0]
-        P[k + 1] = pose[0]
-    if progress is not None:
-        progress(n - 1, n - 1)
+    RP, PP = integrate_batch(system.velocities, act, pas, r_a[None], rp0, pose, dt, substeps, progress)
+    R = np.empty((n, act.size + pas.size))
+    R[:, act] = r_a
+    R[:, pas] = RP[0]
+    P = PP[0]
     if flow != (0.0, 0.0):
         tt = dt * np.arange(n)
         P[:, 0] += flow[0] * tt

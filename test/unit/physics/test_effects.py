@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from suds_ros.core.physics.effects import EFFECTS, apply_effect, apply_effects, neutral_params
+from suds_ros.core.physics.effects import EFFECTS, EquationTerms, apply_effect, apply_effects, neutral_params
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
@@ -42,7 +42,7 @@ def test_joint_effects_map_onto_the_model() -> None:
 def test_global_effects_map_onto_the_model() -> None:
     m = purcell3_model()
     assert apply_effect(m, "stiffness_to_drag_error", scale=1.3).stiffness_scale == 1.3
-    assert apply_effect(m, "drag_anisotropy_error", ratio=2.6).c_perp == pytest.approx(2.6)
+    assert apply_effect(m, "drag_anisotropy_error", ratio=2.6).c_perp == pytest.approx((2.6,) * m.n_links)
     assert apply_effect(m, "background_flow", vx=0.1, vy=-0.2).flow == (0.1, -0.2)
     assert apply_effect(m, "sensor_time_offset", dt=0.03) == m
 
@@ -108,3 +108,46 @@ def test_errors_name_the_problem() -> None:
         apply_effect(m, "background_flow", joint="joint_2", vx=0.1, vy=0.0)
     with pytest.raises(SudsConfigError, match="missing `name`"):
         apply_effects(m, [{"mu": 1.0}])
+
+
+def _terms_from_model(base, model, delay: float) -> EquationTerms:  # type: ignore[no-untyped-def]
+    """Equation-error terms read off the change an effect made to the chain model."""
+    pas = list(base.passive)
+    diff = lambda new, old: np.asarray(new, dtype=float)[pas] - np.asarray(old, dtype=float)[pas]  # noqa: E731
+    return EquationTerms(
+        mu=diff(model.coulomb, base.coulomb), d=diff(model.damping, base.damping),
+        offset=diff(model.rest, base.rest), k3=diff(model.k3, base.k3),
+        kscale=np.asarray(model.stiffness, dtype=float)[pas] / np.asarray(base.stiffness, dtype=float)[pas],
+        scale=model.stiffness_scale / base.stiffness_scale, ratio=model.drag_ratio,
+        flow=(model.flow[0] - base.flow[0], model.flow[1] - base.flow[1]), delay=delay,
+    )
+
+
+def _flat(t: EquationTerms) -> np.ndarray:
+    return np.concatenate([t.mu, t.d, t.offset, t.k3, t.kscale, [t.scale, t.ratio, *t.flow, t.delay]])
+
+
+def test_every_effect_has_both_parts_and_they_agree() -> None:
+    """One registry entry carries the simulator change (``apply``) and the equation-error form
+    (``equation``); for every effect, at a non-neutral value, both describe the same physics."""
+    base = swimmer9_model()
+    joint = "joint_6"
+    k = list(base.passive).index(5)
+    for name, spec in EFFECTS.items():
+        assert callable(spec.apply) and callable(spec.equation), name
+        values = {p.name: float(np.clip(p.neutral + 1.5 * p.scale, p.lower, p.upper)) for p in spec.params}
+        model, delay = apply_effects(base, [{"name": name, "joint": joint if spec.needs_joint else None, **values}])
+        terms = EquationTerms.neutral(len(base.passive), base.drag_ratio)
+        neutral = EquationTerms.neutral(len(base.passive), base.drag_ratio)
+        spec.equation(terms, k if spec.needs_joint else None, values)
+        want = _terms_from_model(base, model, delay)
+        for field in ("mu", "d", "offset", "k3", "kscale"):
+            np.testing.assert_allclose(getattr(terms, field), getattr(want, field), atol=1e-12, err_msg=f"{name}.{field}")
+        for field in ("scale", "ratio", "delay"):
+            assert getattr(terms, field) == pytest.approx(getattr(want, field), abs=1e-12), (name, field)
+        assert terms.flow == pytest.approx(want.flow, abs=1e-12), name
+        assert np.abs(_flat(terms) - _flat(neutral)).max() > 0.01, name  # the value was not neutral
+
+
+def test_specified_effects_are_the_specification() -> None:
+    assert {n for n, s in EFFECTS.items() if s.specified} == set(SPEC)

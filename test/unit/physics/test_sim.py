@@ -5,16 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from suds_ros.core import se2
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.rft import RFTChain
-from suds_ros.core.physics.sim import SimConfig, auto_substeps, integrate, ou_path, se2_exp_step, simulate
+from suds_ros.core.physics.sim import SimConfig, auto_substeps, integrate, ou_path, simulate
 from suds_ros.core.physics.systems import make_system, purcell3_model, swimmer9_model
 
 
 def test_se2_step_is_exact_for_constant_twist() -> None:
     pose = np.array([[1.0, 2.0, 0.3]])
     v, w, T = 0.7, 1.3, 0.9
-    out = se2_exp_step(pose, np.array([[v * T, 0.0, w * T]]))
+    out = se2.exp_step(pose, np.array([[v * T, 0.0, w * T]]))
     # circle of radius v/w
     R = v / w
     th = 0.3 + w * T

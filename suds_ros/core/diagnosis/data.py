@@ -1,0 +1,112 @@
+"""A recording made ready for diagnosis: joints in model order, halves, samples per cycle, gait phase."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.phase.phaser import Phaser
+from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.recording import Recording, joint_names, samples_per_cycle
+
+
+@dataclass(frozen=True)
+class Data:
+    """A recording in the model's joint order, cut to whole gait cycles (first half trains).
+
+    Samples [0, n_train) are the training half, [n_train, n_used) the held-out half.
+    """
+
+    t: FloatArray  # (n,) stamps
+    r: FloatArray  # (n, nj) in model joint order
+    pose: FloatArray  # (n, 3) at the shape stamps
+    pose_t: FloatArray
+    pose_raw: FloatArray
+    dt: float
+    spc: int  # samples per cycle
+    n_train: int
+    n_used: int
+    phase: FloatArray  # (n,) rad, unwrapped (phaser's convention, or the clock as a fallback)
+    act: IntArray  # actuated joint columns of r
+    pas: IntArray  # passive joint columns of r
+    names: tuple[str, ...]
+    phase_source: str = "phaser"
+    phase_note: str = ""
+
+
+def prepare(rec: Recording, model: ChainModel) -> Data:
+    """Check ``rec`` against ``model`` and lay it out for diagnosis (at least 4 whole gait cycles)."""
+    names = joint_names(model.n_joints)
+    if set(rec.joint_names) != set(names):
+        raise SudsDataError(
+            f"`rec`: joints {list(rec.joint_names)} do not match the joints {list(names)} of "
+            f"`model` {model.name!r}",
+            code=WRONG_JOINT_NAMES,
+        )
+    act = [names[i] for i in model.actuated]
+    if set(rec.actuated) != set(act):
+        raise SudsConfigError(
+            f"`rec`: actuated joints {list(rec.actuated)} differ from the actuated joints {act} of "
+            f"`model` {model.name!r}",
+            code=WRONG_JOINT_NAMES,
+        )
+    order = [rec.joint_names.index(nm) for nm in names]
+    r = rec.r[:, order]
+    dt = rec.dt
+    f = rec.gait_hz or 1.0
+    spc = samples_per_cycle(dt, f)
+    n_cycles = rec.n_samples // spc
+    if n_cycles < 4:
+        raise SudsDataError(
+            f"recording has {n_cycles} whole gait cycles at {f} Hz; diagnosis needs at least 4 "
+            "(half to train, half held out)",
+            code=TOO_LITTLE_DATA,
+        )
+    n_train = (n_cycles // 2) * spc
+    n_used = n_cycles * spc
+    t = rec.t
+    pose = rec.pose_at(t)
+    phase, source, note = gait_phase(r, t, f)
+    return Data(
+        t=t,
+        r=r,
+        pose=pose,
+        pose_t=rec.pose_t,
+        pose_raw=rec.pose,
+        dt=dt,
+        spc=spc,
+        n_train=n_train,
+        n_used=n_used,
+        phase=phase,
+        act=np.asarray(model.actuated),
+        pas=np.asarray(model.passive),
+        names=names,
+        phase_source=source,
+        phase_note=note,
+    )
+
+
+def gait_phase(r: FloatArray, t: FloatArray, gait_hz: float) -> tuple[FloatArray, str, str]:
+    """Unwrapped gait phase (rad) of every sample from the recorded shape data alone.
+
+    The phaser (:class:`~suds_ros.core.phase.phaser.Phaser`) is fitted on the recording's joint angles
+    (all joints; the simulator replay shares the recorded r_a, so the same phase serves both).
+    Its zero is the upward mean crossing of the first principal component of the shape.  When the
+    phaser fails (fewer than 3 detectable cycles, degenerate data) the clock phase
+    2π·gait_hz·(t − t0) is used instead and the returned note says so.
+    """
+    try:
+        ph = np.asarray(Phaser().fit_transform(r), dtype=float)
+        if ph.shape != t.shape or not np.all(np.isfinite(ph)):
+            raise SudsPhaseError("phaser returned a non-finite phase")
+        return ph, "phaser", ""
+    except (SudsPhaseError, SudsDataError, np.linalg.LinAlgError, ValueError) as exc:
+        note = (
+            f"phaser failed ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
+            f"phase ranges use the clock phase 2π·{gait_hz:g} Hz·(t − t0) instead"
+        )
+        return 2 * np.pi * gait_hz * (t - t[0]), "clock", note
+

@@ -1,0 +1,378 @@
+"""Naming a mismatch: equation-error fits of every catalogue candidate, ranked on the held-out half."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+from suds_ros.core import se2
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.diagnosis.data import Data
+from suds_ros.core.diagnosis.replay import window_xi
+from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.effects import EFFECTS, EquationTerms
+from suds_ros.core.physics.rft import ChainModel, RFTChain
+from suds_ros.core.recording import joint_names
+
+
+# =============================================================================== equation error
+class _EqError:
+    """Equation-error residuals of the passive torque balance and the body velocity.
+
+    Interval i (sample k → k+1): midpoint shape r̄_i, ṙ_i = Δr/Δt (exact for the piecewise-linear
+    servo stream).  Torque residuals are per interval (so Coulomb's stick/slip switching is not
+    smeared); body velocities are compared over windows of w intervals (SE(2) composition).
+    """
+
+    def __init__(self, data: Data, model: ChainModel, lo: int, hi: int, w: int) -> None:
+        self.model = model
+        self.w = w
+        self.dt = data.dt
+        r = data.r[lo:hi]
+        self.rbar = 0.5 * (r[1:] + r[:-1])  # (n−1, nj)
+        self.rdot = np.diff(r, axis=0) / data.dt
+        self.pas = data.pas
+        self.act = data.act
+        self.k = np.asarray(model.stiffness)[data.pas]
+        self.rest = np.asarray(model.rest)[data.pas]
+        self.t = data.t[lo:hi]
+        self.pose_t = data.pose_t
+        self.pose_raw = data.pose_raw
+        self.yaw_mid = 0.5 * (data.pose[lo:hi - 1, 2] + data.pose[lo + 1:hi, 2])
+        self._metric_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._xi_rec_cache: dict[float, FloatArray] = {}
+        self.nint = self.rbar.shape[0]
+        self.nwin = self.nint - w + 1
+        self.rdot_p = self.rdot[:, self.pas]
+
+    def _win(self, x: FloatArray) -> FloatArray:
+        """Moving average over w intervals along axis 0."""
+        c = np.cumsum(np.concatenate([np.zeros((1,) + x.shape[1:]), x], axis=0), axis=0)
+        return (c[self.w:] - c[:-self.w]) / self.w
+
+    def drag_terms(self, ratio: float) -> tuple[FloatArray, FloatArray]:
+        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ (nwin, 3) at drag ratio c⊥/c∥."""
+        key = round(float(ratio), 12)
+        hit = self._metric_cache.get(key)
+        if hit is not None:
+            return hit
+        model = self.model.with_drag_ratio(ratio)
+        chain = RFTChain(model)
+        D = chain.drag_metric(self.rbar)  # (m, 3+nj, 3+nj)
+        rdot = self.rdot
+        rhs = -np.einsum("bij,bj->bi", D[:, :3, 3:], rdot)
+        xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
+        qdot = np.concatenate([xi, rdot], axis=1)
+        tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
+        xi_w = self._compose(xi)
+        if len(self._metric_cache) > 64:
+            self._metric_cache.clear()
+        self._metric_cache[key] = (tau, xi_w)
+        return tau, xi_w
+
+    def _compose(self, xi: FloatArray) -> FloatArray:
+        """Windowed body velocity: log of the product of the w per-interval exponentials."""
+        tw = xi * self.dt
+        n = tw.shape[0] - self.w + 1
+        P = np.zeros((n, 3))
+        for i in range(self.w):
+            P = se2.exp_step(P, tw[i:i + n])
+        return se2.log(P) / (self.w * self.dt)
+
+    def xi_recorded(self, delay: float) -> FloatArray:
+        """Windowed recorded body velocity with pose re-sampled at t + delay (undoing a stamp lag)."""
+        key = round(float(delay), 9)
+        hit = self._xi_rec_cache.get(key)
+        if hit is not None:
+            return hit
+        ts = self.t + delay
+        P = np.stack([np.interp(ts, self.pose_t, self.pose_raw[:, c]) for c in range(3)], axis=1)
+        out = window_xi(P, self.w, self.dt)
+        if len(self._xi_rec_cache) > 256:
+            self._xi_rec_cache.clear()
+        self._xi_rec_cache[key] = out
+        return out
+
+    def valid(self, delay_max: float) -> FloatArray:
+        """Windows whose re-sampled pose stays away from the ends of the span."""
+        ok = np.ones(self.nwin, dtype=bool)
+        n_edge = int(np.ceil(abs(delay_max) / self.dt)) + 1
+        ok[:n_edge] = False
+        ok[-n_edge:] = False
+        return ok
+
+    def residuals(self, p: EquationTerms, rdot_thr: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Torque residuals (nint, np) and body-velocity residuals (nwin, 3) under parameters ``p``."""
+        tau, xi_w = self.drag_terms(p.ratio)
+        e_spring = self.rbar[:, self.pas] - self.rest - p.offset
+        spring = -p.scale * p.kscale * self.k * e_spring - p.scale * p.k3 * e_spring**3
+        e = tau + p.d * self.rdot_p - spring
+        # Intervals where a joint's measured velocity is within noise of zero are left out of its
+        # torque channel for every candidate: there the joint may be stuck (any friction torque
+        # in [−mu, mu] is admissible) and sign(ṙ) is noise, so a dead zone would "explain" noise.
+        v = self.rdot_p
+        slip = np.abs(v) > rdot_thr
+        e = np.where(slip, e + p.mu * np.sign(v), 0.0)
+        xi_pred = xi_w
+        if p.flow[0] != 0.0 or p.flow[1] != 0.0:
+            c, s = np.cos(self.yaw_mid), np.sin(self.yaw_mid)
+            U = np.stack([c * p.flow[0] + s * p.flow[1], -s * p.flow[0] + c * p.flow[1]], axis=1)
+            xi_pred = xi_w.copy()
+            xi_pred[:, :2] += self._win(U)
+        ex = self.xi_recorded(p.delay) - xi_pred
+        return e, ex
+
+
+# =============================================================================== candidates
+@dataclass(frozen=True)
+class Candidate:
+    """One or two catalogue effects with free parameters."""
+
+    parts: tuple[tuple[str, str | None], ...]  # (effect id, target joint name or None)
+
+    @property
+    def label(self) -> str:
+        return " + ".join(_label(n, t) for n, t in self.parts)
+
+    def bounds(self) -> tuple[list[float], list[float]]:
+        lo, hi = [], []
+        for n, _ in self.parts:
+            for p in EFFECTS[n].params:
+                lo.append(p.lower)
+                hi.append(p.upper)
+        return lo, hi
+
+    def neutral(self) -> FloatArray:
+        return np.array([p.neutral for n, _ in self.parts for p in EFFECTS[n].params])
+
+    def scales(self) -> FloatArray:
+        return np.array([p.scale for n, _ in self.parts for p in EFFECTS[n].params])
+
+    def effects(self, x: FloatArray) -> list[dict[str, object]]:
+        out: list[dict[str, object]] = []
+        i = 0
+        for n, tgt in self.parts:
+            e: dict[str, object] = {"name": n, "joint": tgt}
+            for p in EFFECTS[n].params:
+                e[p.name] = float(x[i])
+                i += 1
+            out.append(e)
+        return out
+
+
+def _label(name: str, target: str | None) -> str:
+    return name if target is None else f"{name}:{target}"
+
+
+def equation_terms(cand: Candidate, x: FloatArray, data: Data, model: ChainModel) -> EquationTerms:
+    """The candidate's effects at parameters ``x`` in equation-error form (each effect's ``equation``)."""
+    pas = list(data.pas)
+    terms = EquationTerms.neutral(len(pas), model.drag_ratio)
+    i = 0
+    for n, tgt in cand.parts:
+        spec = EFFECTS[n]
+        j = None if tgt is None else pas.index(data.names.index(tgt))
+        spec.equation(terms, j, {p.name: x[i + k] for k, p in enumerate(spec.params)})
+        i += len(spec.params)
+    return terms
+
+
+def catalogue_candidates(model: ChainModel) -> list[Candidate]:
+    """Every single-effect candidate for a system: joint effects on each passive joint, global effects."""
+    names = joint_names(model.n_joints)
+    out: list[Candidate] = []
+    for eid, spec in EFFECTS.items():
+        if spec.needs_joint:
+            for j in model.passive:
+                out.append(Candidate(((eid, names[j]),)))
+        else:
+            out.append(Candidate(((eid, None),)))
+    return out
+
+
+class _Scorer:
+    """Fits candidates by equation error on the training half and scores them on the held-out half."""
+
+    DELAY_MAX = 0.2
+
+    def __init__(self, data: Data, model: ChainModel, w: int, sig_r: FloatArray) -> None:
+        self.data = data
+        self.model = model
+        self.train = _EqError(data, model, 0, data.n_train, w)
+        self.test = _EqError(data, model, data.n_train, data.n_used, w)
+        self.w = w
+        # threshold on |ṙ_p| below which a joint may be stuck: 3σ of the interval-velocity noise
+        # (capped at the 30 % quantile of |ṙ_p| so a poor noise estimate cannot empty a channel)
+        thr = 3.0 * np.sqrt(2.0) * np.nan_to_num(sig_r, nan=1e-3) / data.dt
+        q30 = np.quantile(np.abs(self.train.rdot_p), 0.3, axis=0)
+        self.rdot_thr = np.minimum(thr, q30)
+        self.ok_train = self.train.valid(self.DELAY_MAX)
+        self.ok_test = self.test.valid(self.DELAY_MAX)
+        npas = data.pas.size
+        self.n_eff_train = np.array([self.train.nint] * npas + [self.ok_train.sum() / w] * 3, dtype=float)
+        self.n_eff_test = np.array([self.test.nint] * npas + [self.ok_test.sum() / w] * 3, dtype=float)
+        # least-squares row weights: overlapping ξ windows count 1/w each
+        self.row_w = np.array([1.0] * npas + [1.0 / np.sqrt(w)] * 3)
+        null = Candidate(())
+        self.null = null
+        e_tr, x_tr = self._res(self.train, null, np.zeros(0))
+        e_te, x_te = self._res(self.test, null, np.zeros(0))
+        self.rss0_train = self._rss(e_tr, x_tr, self.ok_train)
+        self.rss0_test = self._rss(e_te, x_te, self.ok_test)
+
+    def _res(self, eq: _EqError, cand: Candidate, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        p = equation_terms(cand, x, self.data, self.model)
+        return eq.residuals(p, self.rdot_thr)
+
+    @staticmethod
+    def _rss(e: FloatArray, ex: FloatArray, ok: FloatArray) -> FloatArray:
+        """Mean squared residual per channel (torques, then ξ)."""
+        ex = ex[ok]
+        ex = np.where(np.isfinite(ex), ex, 0.0)
+        return np.concatenate([(e**2).mean(axis=0), (ex**2).mean(axis=0)]) + 1e-30
+
+    def gain(self, rss: FloatArray, rss0: FloatArray, n_eff: FloatArray) -> float:
+        return float(0.5 * np.sum(n_eff * np.log(rss0 / np.maximum(rss, 1e-300))))
+
+    def _stack(self, e: FloatArray, ex: FloatArray, ok: FloatArray, wts: FloatArray) -> FloatArray:
+        npas = e.shape[1]
+        ex = ex[ok]
+        ex = np.where(np.isfinite(ex), ex, 0.0)
+        a = (e * (wts[:npas] * self.row_w[:npas])).ravel()
+        b = (ex * (wts[npas:] * self.row_w[npas:])).ravel()
+        return np.concatenate([a, b])
+
+    def fit(self, cand: Candidate, x0: FloatArray | None = None) -> tuple[FloatArray, float, float]:
+        """Fit on the training half; returns (parameters, training gain, held-out gain)."""
+        lo, hi = cand.bounds()
+        scales = cand.scales()
+        starts = []
+        if x0 is not None:
+            starts.append(np.asarray(x0, dtype=float))
+        base = cand.neutral()
+        starts.append(base + 0.0)
+        # a few starts per parameter on both sides (nonconvex: Coulomb dead zone, drag ratio)
+        for k, sgn in ((1.0, 1), (1.0, -1), (3.0, 1), (3.0, -1)):
+            starts.append(base + sgn * k * scales)
+        weights = 1.0 / np.sqrt(self.rss0_train)
+        ok = self.ok_train
+
+        def fun(x: FloatArray, wts: FloatArray) -> FloatArray:
+            e, ex = self._res(self.train, cand, x)
+            return self._stack(e, ex, ok, wts)
+
+        best_x, best_c = None, np.inf
+        for s in starts:
+            s = np.clip(s, np.asarray(lo) + 1e-9, np.asarray(hi) - 1e-9)
+            try:
+                c0 = float(np.sum(fun(s, weights) ** 2))
+            except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+                continue
+            if not np.isfinite(c0):
+                continue
+            if c0 < best_c:
+                best_x, best_c = s, c0
+        if best_x is None:
+            return base, -np.inf, -np.inf
+        sols = []
+        # refine from the best two starts
+        for s in [best_x] + ([starts[0]] if x0 is not None else []):
+            s = np.clip(s, np.asarray(lo) + 1e-9, np.asarray(hi) - 1e-9)
+            wts = weights
+            x = s
+            for _ in range(2):  # re-estimate channel weights once
+                try:
+                    sol = scipy.optimize.least_squares(
+                        fun, x, args=(wts,), bounds=(lo, hi), x_scale=scales, diff_step=1e-3, max_nfev=60
+                    )
+                except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, ValueError):
+                    break
+                x = sol.x
+                e, ex = self._res(self.train, cand, x)
+                rss = self._rss(e, ex, ok)
+                wts = 1.0 / np.sqrt(np.maximum(rss, 1e-300))
+            e, ex = self._res(self.train, cand, x)
+            sols.append((self.gain(self._rss(e, ex, ok), self.rss0_train, self.n_eff_train), x))
+        g_tr, x = max(sols, key=lambda s: s[0])
+        e, ex = self._res(self.test, cand, x)
+        g_te = self.gain(self._rss(e, ex, self.ok_test), self.rss0_test, self.n_eff_test)
+        return x, g_tr, g_te
+
+
+# =============================================================================== ranking
+@dataclass(frozen=True, eq=False)
+class Ranked:
+    """A fitted candidate: its held-out evidence, the candidate and its fitted parameters."""
+
+    score: CandidateScore
+    cand: Candidate
+    x: FloatArray
+
+
+@dataclass(frozen=True)
+class Naming:
+    """Outcome of the naming stage: every candidate's evidence (best first), the chosen candidate
+    and the group of candidates confounded with it (empty when the choice is clear)."""
+
+    ranking: tuple[CandidateScore, ...]
+    chosen: Ranked
+    confounded: tuple[tuple[str, ...], ...]
+
+
+def name_mismatch(data: Data, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray) -> Naming:
+    """Fit every catalogue candidate and each pair of the leading ones by equation error; choose.
+
+    ``sig_rp`` is the noise floor of the passive angles (sets the stick threshold on |ṙ_p|).
+    """
+    scorer = _Scorer(data, model, config.eq_window, sig_rp)
+    pen_unit = 0.5 * np.log(max(float(np.median(scorer.n_eff_train)), 2.0))
+    singles: list[Ranked] = []
+    for cand in catalogue_candidates(model):
+        x, _, g_te = scorer.fit(cand)
+        singles.append(Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, pen_unit * x.size),
+                              cand, x))
+    singles.sort(key=lambda s: -s.score.score)
+    pairs: list[Ranked] = []
+    top = [s for s in singles[: config.top_pairs] if s.score.score > 0]
+    for s1, s2 in itertools.combinations(top, 2):
+        e1, e2 = s1.cand.parts[0][0], s2.cand.parts[0][0]
+        if e1 == e2 and not EFFECTS[e1].needs_joint:  # a global effect twice is one effect
+            continue
+        cand = Candidate(s1.cand.parts + s2.cand.parts)
+        x, _, g_te = scorer.fit(cand, np.concatenate([s1.x, s2.x]))
+        pairs.append(Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, pen_unit * x.size),
+                            cand, x))
+    pairs.sort(key=lambda s: -s.score.score)
+    return _choose(singles, pairs, pen_unit, config)
+
+
+def _choose(singles: list[Ranked], pairs: list[Ranked], pen_unit: float, config: DiagnoseConfig) -> Naming:
+    """The best single, or the best pair if it adds a clear gain; candidates within the margin are confounded."""
+    best = singles[0]
+    pool = singles
+    if pairs:
+        bp = pairs[0]
+        extra = bp.score.score - best.score.score
+        if extra > max(config.pair_rel * max(best.score.gain_heldout, 0.0), pen_unit):
+            best = bp
+            pool = pairs
+    ranking = tuple(s.score for s in sorted(singles + pairs, key=lambda s: -s.score.score))
+    # confounded: candidates of the same size within the margin of the winner
+    margin = max(config.confound_margin, config.confound_rel * max(best.score.gain_heldout, 0.0))
+    close = [s for s in pool if best.score.score - s.score.score <= margin and s.cand != best.cand]
+    chosen = best
+    group = [best] + close
+    if close:
+        chosen = min(group, key=_preference)
+    confounded = (tuple(s.cand.label for s in group),) if close else ()
+    return Naming(ranking, chosen, confounded)
+
+
+def _preference(s: Ranked) -> tuple[int, int]:
+    """Among equivalent explanations prefer the specification's catalogue, then fewer targets."""
+    extra_ids = sum(1 for nme, _ in s.cand.parts if not EFFECTS[nme].specified)
+    return (extra_ids, sum(1 for _, tgt in s.cand.parts if tgt is not None))

@@ -1,0 +1,167 @@
+"""Refining a named effect inside the simulator (output error) with cluster-robust standard errors."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.diagnosis.data import Data
+from suds_ros.core.diagnosis.floor import Floors
+from suds_ros.core.diagnosis.naming import Candidate
+from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
+from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.rft import ChainModel
+
+
+def refine_choice(
+    cand: Candidate, x0: FloatArray, model: ChainModel, data: Data, config: DiagnoseConfig,
+    w: int, substeps: int, floors: Floors,
+) -> tuple[Candidate, FloatArray, FloatArray, bool]:
+    """Refine the chosen candidate in the simulator; returns (candidate, x, stderr, member dropped).
+
+    After refining a pair, a member whose parameters all lie within ``config.member_z`` standard
+    errors of their neutral values is dropped and the other member is refined alone.
+    """
+    x, se = _refine(cand, x0, model, data, config, w, substeps, floors)
+    if len(cand.parts) < 2:
+        return cand, x, se, False
+    keep, i = [], 0
+    for k, (nme, _) in enumerate(cand.parts):
+        npar = len(EFFECTS[nme].params)
+        neutral = cand.neutral()[i:i + npar]
+        z = np.abs(x[i:i + npar] - neutral) / np.maximum(se[i:i + npar], 1e-300)
+        if np.nanmax(z) >= config.member_z:
+            keep.append((k, i, npar))
+        i += npar
+    if len(keep) != 1:
+        return cand, x, se, False
+    k, i, npar = keep[0]
+    cand = Candidate((cand.parts[k],))
+    x, se = _refine(cand, x[i:i + npar], model, data, config, w, substeps, floors)
+    return cand, x, se, True
+
+
+def fitted_effects(cand: Candidate, x: FloatArray, se: FloatArray) -> list[FittedEffect]:
+    """The candidate's effects with parameters ``x`` and standard errors ``se`` (canonical order)."""
+    out: list[FittedEffect] = []
+    i = 0
+    for nme, tgt in cand.parts:
+        pn = EFFECTS[nme].param_names
+        out.append(FittedEffect(
+            nme, tgt,
+            {p: float(x[i + k]) for k, p in enumerate(pn)},
+            {p: float(se[i + k]) for k, p in enumerate(pn)},
+        ))
+        i += len(pn)
+    return out
+
+
+def _segments(lo: int, hi: int, length: int) -> list[int]:
+    """Starts of consecutive whole segments of ``length`` samples in [lo, hi)."""
+    return list(range(lo, hi - length + 1, length))
+
+
+def _residual_vector(
+    data: Data, rep: Replay, starts: Sequence[int], length: int, w: int, sig_rp: FloatArray, s_xy: float, s_th: float
+) -> FloatArray:
+    """Noise-floor-weighted replay residuals, (B, k): r_p per sample, ξ on non-overlapping windows."""
+    idx = np.asarray(starts)[:, None] + np.arange(length)[None, :]
+    e_rp = (data.r[idx][:, :, data.pas] - rep.rp) / sig_rp
+    xi_rec = window_xi(data.pose[idx], w, data.dt)
+    e_xi = (xi_rec - rep.xi) / np.array([s_xy, s_xy, s_th])
+    e_xi = e_xi[:, ::w]
+    e_xi = np.where(np.isfinite(e_xi), e_xi, 0.0)
+    B = len(starts)
+    return np.concatenate([e_rp.reshape(B, -1), e_xi.reshape(B, -1)], axis=1)
+
+
+def _refine(
+    cand: Candidate,
+    x0: FloatArray,
+    base: ChainModel,
+    data: Data,
+    cfg: DiagnoseConfig,
+    w: int,
+    substeps: int,
+    floors: Floors,
+) -> tuple[FloatArray, FloatArray]:
+    """Output-error least squares of the candidate's parameters; returns (x, stderr)."""
+    length = cfg.segment_cycles * data.spc
+    starts = _segments(0, data.n_train, length)
+    if not starts:
+        starts, length = [0], data.n_train
+    max_seg = max(1, cfg.refine_cycles // cfg.segment_cycles)
+    if len(starts) > max_seg:  # spread a subset over the training half
+        pick = np.unique(np.round(np.linspace(0, len(starts) - 1, max_seg)).astype(int))
+        starts = [starts[i] for i in pick]
+    lo, hi = (np.asarray(b, dtype=float) for b in cand.bounds())
+    scales = cand.scales()
+
+    def sim(x: FloatArray) -> FloatArray:
+        model, delay = apply_effects(base, cand.effects(x))
+        rep = replay(model, delay, data, starts, length, w, substeps)
+        return _residual_vector(data, rep, starts, length, w, *floors)
+
+    def fun(x: FloatArray) -> FloatArray:
+        try:
+            return sim(x).ravel()
+        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+            return np.full(n_res, 1e6)
+
+    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    r0 = sim(x0)
+    n_res = r0.size
+    c0 = float(np.sum(r0**2))
+    step = np.maximum(1e-3 * np.abs(x0), 1e-2 * scales) / np.maximum(np.abs(x0), 1e-12)
+    sol = scipy.optimize.least_squares(
+        fun, x0, bounds=(lo, hi), x_scale=scales, diff_step=step,
+        max_nfev=cfg.refine_nfev * (x0.size + 1), method="trf",
+    )
+    if sol.cost * 2 <= c0 and sol.jac is not None and np.all(np.isfinite(sol.jac)):
+        # least_squares leaves the forward-difference Jacobian and the residuals at its solution
+        x, R, J = sol.x, np.asarray(sol.fun).reshape(r0.shape), np.asarray(sol.jac)
+    else:
+        x, R = x0, r0
+        J = np.empty((R.size, x.size))
+        for i in range(x.size):
+            h = max(1e-3 * abs(x[i]), 1e-2 * scales[i])
+            xp = x.copy()
+            xp[i] = x[i] + h if x[i] + h <= hi[i] else x[i] - h
+            J[:, i] = (fun(xp) - R.ravel()) / (xp[i] - x[i])
+    return x, _sandwich_stderr(J, R, x.size)
+
+
+def _sandwich_stderr(J: FloatArray, R: FloatArray, p: int) -> FloatArray:
+    """Standard errors of a least-squares fit with residuals clustered by segment.
+
+    J (B·k, p) Jacobian, R (B, k) residuals (B clusters = independent segments).  The
+    cluster-robust sandwich (J'J)⁻¹ (Σ_b g_b g_b') (J'J)⁻¹, g_b = J_b' R_b, is biased low with few
+    clusters; it gets the CR1 factor B/(B − p) and the ratio of the t quantile with B − p degrees of
+    freedom to the normal one (so ±2 se keeps roughly its nominal coverage with few clusters).  The
+    larger of that and the model-based error (J'J)⁻¹·s², s² the residual variance with the
+    segment-level autocorrelation taken into account through the cluster totals, is reported.
+    """
+    B = R.shape[0]
+    JtJ = J.T @ J
+    try:
+        inv = np.linalg.inv(JtJ)
+    except np.linalg.LinAlgError:
+        return np.full(p, np.nan)
+    Jb = J.reshape(B, -1, p)
+    Rb = R.reshape(B, -1)
+    G = np.einsum("bkp,bk->bp", Jb, Rb)
+    meat = G.T @ G
+    dof = max(B - p, 1)
+    cov = inv @ meat @ inv * B / dof
+    tfac = float(scipy.stats.t.ppf(0.975, dof) / scipy.stats.norm.ppf(0.975))
+    se_sand = np.sqrt(np.maximum(np.diag(cov), 0.0)) * tfac
+    s2 = float(np.sum(Rb**2)) / max(Rb.size - p, 1)
+    se_model = np.sqrt(np.maximum(np.diag(inv), 0.0) * s2)
+    return np.maximum(se_sand, se_model)
+

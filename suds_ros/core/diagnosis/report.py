@@ -1,0 +1,226 @@
+"""What a diagnosis is told and what it returns: :class:`DiagnoseConfig` and the frozen report."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import SudsConfigError
+
+BODY = ("xi_x", "xi_y", "xi_theta")
+
+
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    """Settings of :func:`diagnose`.
+
+    Parameters
+    ----------
+    window : float
+        Body-velocity estimation window, s (pose log over this span).
+    eq_window : int
+        Samples averaged per equation-error window.
+    f_threshold : float
+        A channel is located when its held-out residual power exceeds this multiple of the noise
+        floor power.
+    phase_bins : int
+        Phase bins per cycle for the phase-interval test.
+    phase_alpha : float
+        Family-wise significance of the phase-bin test (Bonferroni over bins).
+    top_pairs : int
+        Number of leading single candidates combined into pairs.
+    confound_margin : float
+        Held-out log-likelihood margin (nats) within which candidates are called confounded;
+        the margin grows as ``confound_rel`` × the winner's gain.
+    confound_rel : float
+        Relative part of the confounding margin.
+    pair_rel : float
+        A pair replaces the best single candidate only if it adds more than this fraction of the
+        single's gain (and more than the BIC penalty).
+    unexplained_fraction : float
+        Maximum fraction of the excess residual power (over the floor) that may remain after the
+        fit for the mismatch to count as explained.
+    segment_cycles : int
+        Cycles per segment in the output-error refinement.
+    refine_cycles : int
+        Training cycles (spread over the training half) used by the output-error refinement.
+    refine_nfev : int
+        Maximum simulator evaluations per refined parameter (least-squares budget).
+    member_z : float
+        After refining a pair, a member whose parameters all lie within ``member_z`` standard
+        errors of their neutral values is dropped (the pair falls back to the other member).
+    substeps : int or None
+        RK4 steps per sample interval; None picks them from the stiffest passive mode.
+    replay_chunk : float
+        The whole-recording replays run each half as independent pieces of this many cycles in
+        one batch (0: each half in one piece, sequentially — slow).
+    replay_warm : float
+        Seconds of warm-up simulated before each piece (from the recorded state) and discarded;
+        the passive joints forget their initial state well within it.
+    """
+
+    window: float = 0.1
+    eq_window: int = 5
+    f_threshold: float = 2.0
+    phase_bins: int = 20
+    phase_alpha: float = 0.01
+    top_pairs: int = 5
+    confound_margin: float = 3.0
+    confound_rel: float = 0.01
+    pair_rel: float = 0.05
+    unexplained_fraction: float = 0.25
+    segment_cycles: int = 1
+    refine_cycles: int = 30
+    refine_nfev: int = 5
+    member_z: float = 4.0
+    substeps: int | None = None
+    replay_chunk: float = 3.0
+    replay_warm: float = 3.0
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("window", self.window > 0),
+            ("eq_window", self.eq_window >= 1),
+            ("f_threshold", self.f_threshold > 1),
+            ("phase_bins", self.phase_bins >= 4),
+            ("phase_alpha", 0 < self.phase_alpha < 1),
+            ("top_pairs", self.top_pairs >= 0),
+            ("confound_margin", self.confound_margin >= 0),
+            ("confound_rel", self.confound_rel >= 0),
+            ("pair_rel", self.pair_rel >= 0),
+            ("unexplained_fraction", 0 < self.unexplained_fraction < 1),
+            ("segment_cycles", self.segment_cycles >= 1),
+            ("refine_nfev", self.refine_nfev >= 1),
+            ("refine_cycles", self.refine_cycles >= 1),
+            ("member_z", self.member_z >= 0),
+            ("substeps", self.substeps is None or self.substeps >= 1),
+            ("replay_chunk", self.replay_chunk >= 0),
+            ("replay_warm", self.replay_warm >= 0),
+        ]
+        for name, ok in checks:
+            if not ok:
+                raise SudsConfigError(f"`{name}`: value {getattr(self, name)!r} is out of range")
+
+
+@dataclass(frozen=True)
+class Located:
+    """A channel whose held-out residual exceeds the noise floor.
+
+    ``statistic`` is F = mean(residual²)/floor²; ``phase_ranges`` are [a, b] in rad (0 … 2π).
+    """
+
+    channel: str
+    phase_ranges: tuple[tuple[float, float], ...]
+    statistic: float
+
+
+@dataclass(frozen=True)
+class FittedEffect:
+    """A catalogue effect with fitted parameters and standard errors."""
+
+    name: str
+    target: str | None
+    parameters: Mapping[str, float]
+    stderr: Mapping[str, float]
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "name": self.name,
+            "target": self.target,
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "stderr": {k: float(v) for k, v in self.stderr.items()},
+        }
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """Equation-error evidence for one candidate (single effect or pair)."""
+
+    label: str
+    effects: tuple[dict[str, object], ...]
+    n_params: int
+    gain_heldout: float
+    penalty: float
+
+    @property
+    def score(self) -> float:
+        return self.gain_heldout - self.penalty
+
+
+@dataclass(frozen=True)
+class Channels:
+    """Per-channel held-out series for figures: phase (rad, wrapped), time (s), recorded,
+    predicted before and after."""
+
+    t: FloatArray
+    phase: FloatArray
+    recorded: FloatArray
+    before: FloatArray
+    after: FloatArray
+
+
+@dataclass(frozen=True)
+class DiagnosisReport:
+    """Result of :func:`diagnose`.  ``to_json()`` gives the machine-readable schema; the other
+    attributes feed the human report."""
+
+    mismatch: bool
+    located: tuple[Located, ...]
+    effects: tuple[FittedEffect, ...]
+    confounded_with: tuple[tuple[str, ...], ...]
+    unexplained: bool
+    heldout_rms_before: Mapping[str, float]
+    heldout_rms_after: Mapping[str, float]
+    improvement: float
+    system: str = ""
+    noise_floor: Mapping[str, float] = field(default_factory=dict)
+    statistics: Mapping[str, float] = field(default_factory=dict)
+    statistics_after: Mapping[str, float] = field(default_factory=dict)
+    ranking: tuple[CandidateScore, ...] = ()
+    conditions: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    coefficients: tuple[tuple[str, str, float, tuple[tuple[float, float], ...]], ...] = ()
+    series: Mapping[str, Channels] = field(default_factory=dict, repr=False)
+    train_cycles: int = 0
+    heldout_cycles: int = 0
+    timings: Mapping[str, float] = field(default_factory=dict)
+    phase_source: str = "phaser"
+    notes: tuple[str, ...] = ()
+
+    @property
+    def plain_rms_ratio(self) -> float | None:
+        """1 − Σ RMS after / Σ RMS before over the located channels (None without a located channel).
+
+        Unlike :attr:`improvement` it keeps the noise, which no model removes, in both sums.
+        """
+        before = sum(self.heldout_rms_before[l.channel] for l in self.located)
+        after = sum(self.heldout_rms_after[l.channel] for l in self.located)
+        return 1.0 - after / before if before > 0 else None
+
+    def to_dict(self) -> dict[str, object]:
+        """The JSON schema of ``suds diagnose --json`` (exactly these keys)."""
+        return {
+            "mismatch": bool(self.mismatch),
+            "located": [
+                {
+                    "channel": loc.channel,
+                    "phase_ranges": [[float(a), float(b)] for a, b in loc.phase_ranges],
+                    "statistic": float(loc.statistic),
+                }
+                for loc in self.located
+            ],
+            "effects": [e.as_dict() for e in self.effects],
+            "confounded_with": [list(g) for g in self.confounded_with],
+            "unexplained": bool(self.unexplained),
+            "fit": {
+                "heldout_rms_before": {k: float(v) for k, v in self.heldout_rms_before.items()},
+                "heldout_rms_after": {k: float(v) for k, v in self.heldout_rms_after.items()},
+                "improvement": float(self.improvement),
+            },
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """JSON text of :meth:`to_dict`."""
+        return json.dumps(self.to_dict(), indent=indent)
+

@@ -1,0 +1,48 @@
+"""Locating a mismatch (:mod:`suds_ros.core.diagnosis.locate`): F statistics, improvement, phase ranges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.diagnosis import excess_improvement
+from suds_ros.core.diagnosis.data import prepare
+from suds_ros.core.diagnosis.locate import ChannelTable, phase_ranges
+from suds_ros.core.physics.systems import purcell3_model
+
+
+def test_excess_improvement_counts_only_the_excess_over_the_floor() -> None:
+    before = {"a": 5.0, "b": 1.0}
+    assert excess_improvement(before, {"a": 1.0, "b": 1.0}, ["a", "b"]) == pytest.approx(1.0)
+    assert excess_improvement(before, {"a": 2.0, "b": 0.5}, ["a"]) == pytest.approx(0.5)
+    assert excess_improvement(before, {"a": 5.0, "b": 9.0}, ["a"]) == pytest.approx(0.0)
+    assert excess_improvement({"a": 0.9}, {"a": 3.0}, ["a"]) == 0.0  # nothing to improve
+
+
+def test_phase_ranges_find_the_affected_bins() -> None:
+    rng = np.random.default_rng(1)
+    n_cyc, spc = 12, 100
+    phase = 2 * np.pi * np.arange(n_cyc * spc) / spc
+    cycle = np.floor(phase / (2 * np.pi))
+    ph = np.mod(phase, 2 * np.pi)
+    e = 0.1 * rng.standard_normal(phase.size) + np.where((ph > np.pi / 2) & (ph < np.pi), 1.0, 0.0)
+    (rng_,) = phase_ranges(phase, e, cycle, 20, 0.01)
+    assert rng_[0] == pytest.approx(np.pi / 2, abs=2 * np.pi / 20 + 1e-9)
+    assert rng_[1] == pytest.approx(np.pi, abs=2 * np.pi / 20 + 1e-9)
+    assert phase_ranges(phase, 0.1 * rng.standard_normal(phase.size), cycle, 20, 0.01) == ()
+    # a residual spread over the whole cycle covers it
+    assert phase_ranges(phase, 1.0 + 0.01 * rng.standard_normal(phase.size), cycle, 20, 0.01) == ((0.0, 2 * np.pi),)
+
+
+def test_channel_table_statistics(purcell3_run) -> None:  # type: ignore[no-untyped-def]
+    data = prepare(purcell3_run, purcell3_model())
+    table = ChannelTable.of(data, 10)
+    assert table.channels == ("joint_2", "xi_x", "xi_y", "xi_theta")
+    n = data.n_used
+    E = table.residuals(data.r[:n][:, data.pas], table.xi_rec)
+    assert np.nanmax(np.abs(E)) == 0.0  # the recording against itself
+    floor = table.floor((np.array([0.5]), 0.25, 2.0))
+    assert floor == {"joint_2": 0.5, "xi_x": 0.25, "xi_y": 0.25, "xi_theta": 2.0}
+    E = np.ones((n, 4))
+    assert table.rms(E) == {c: 1.0 for c in table.channels}
+    assert table.fstats(E, floor)["joint_2"] == pytest.approx(4.0)

@@ -1,0 +1,52 @@
+"""Naming a mismatch by equation error (:mod:`suds_ros.core.diagnosis.naming`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.diagnosis import DiagnoseConfig, catalogue_candidates
+from suds_ros.core.diagnosis.data import prepare
+from suds_ros.core.diagnosis.naming import Candidate, equation_terms, name_mismatch
+from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
+
+
+def test_catalogue_covers_every_effect_on_every_passive_joint() -> None:
+    model = swimmer9_model()
+    labels = [c.label for c in catalogue_candidates(model)]
+    passive = [f"joint_{j + 1}" for j in model.passive]
+    for eid, spec in EFFECTS.items():
+        if spec.needs_joint:
+            assert [lab for lab in labels if lab.startswith(eid + ":")] == [f"{eid}:{j}" for j in passive]
+        else:
+            assert labels.count(eid) == 1
+    assert len(labels) == len(set(labels))
+
+
+def test_equation_terms_come_from_the_registry(swimmer9_run) -> None:  # type: ignore[no-untyped-def]
+    model = swimmer9_model()
+    data = prepare(swimmer9_run, model)
+    null = equation_terms(Candidate(()), np.zeros(0), data, model)
+    assert null.ratio == pytest.approx(model.drag_ratio) and null.scale == 1.0
+    assert not null.mu.any() and (null.kscale == 1.0).all() and null.flow == (0.0, 0.0)
+    cand = Candidate((("joint_coulomb_friction", "joint_7"), ("background_flow", None),
+                      ("joint_stiffness_error", "joint_7"), ("stiffness_to_drag_error", None)))
+    t = equation_terms(cand, np.array([0.5, 0.1, -0.2, 0.7, 1.3]), data, model)
+    k = list(data.pas).index(6)  # joint_7 among the passive joints
+    assert t.mu[k] == 0.5 and t.mu.sum() == 0.5
+    assert t.flow == (0.1, -0.2)
+    assert t.kscale[k] == pytest.approx(0.7) and t.scale == pytest.approx(1.3)
+
+
+def test_naming_finds_an_injected_offset() -> None:
+    base = purcell3_model()
+    model, _ = apply_effects(base, [dict(name="spring_rest_offset", joint="joint_2", offset=-0.2)])
+    rec = simulate(RFTChain(model), SimConfig(cycles=12, seed=5))
+    data = prepare(rec, base)
+    naming = name_mismatch(data, base, DiagnoseConfig(), np.array([1e-3]))
+    assert naming.chosen.cand.label == "spring_rest_offset:joint_2"
+    assert naming.chosen.x[0] == pytest.approx(-0.2, abs=0.02)
+    assert naming.ranking[0].score >= naming.ranking[-1].score
