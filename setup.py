@@ -105,7 +105,7 @@ setup(
     version="0.1.0",
     packages=find_packages(include=[PACKAGE, PACKAGE + ".*"]),
     data_files=data_files,
-    install_requires=["setuptools", "numpy", "scipy", "mcap", "mcap-ros2-support"],
+    install_requires=["setuptools", "numpy", "scipy", "mcap", "mcap-ros2-support", "PyYAML"],
     extras_require={"plot": ["matplotlib"], "test": ["pytest", "rosbags"]},
     python_requires=">=3.10",
     zip_safe=False,
