@@ -59,8 +59,8 @@ def overriding_options() -> QoSOverridingOptions:
 
 
 def replay_qos(topic: str) -> QoSProfile:
-    """Publisher QoS for replaying ``topic``: the model keeps transient-local durability."""
-    if topic == MODEL_TOPIC:
+    """Publisher QoS for replaying ``topic``: the model (``/suds/model`` in any namespace) stays latched."""
+    if topic == MODEL_TOPIC or topic.endswith(MODEL_TOPIC):
         return MODEL_QOS
     return REPLAY_QOS
 

@@ -20,7 +20,7 @@ def run_node(
     *,
     name: str,
     doc: str,
-    config_cls: type,
+    config_cls: type | tuple[type, ...],
     make: Callable[[], N],
     run: Callable[[N], Any] = rclpy.spin,
     close: Callable[[N], None] | None = None,
