@@ -52,7 +52,7 @@ from suds_ros.ros.conversions import (
     twist_to_msg,
 )
 from suds_ros.ros.params import add_validator, config_from_parameters
-from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS, STATUS_QOS, overriding_options, subscription_qos_for
+from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, burst_qos, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SHAPE, STATUS, SYSTEM
 
@@ -94,8 +94,9 @@ class EstimatorNode(Node):
 
         self._model_pub = self.create_publisher(String, MODEL, MODEL_QOS)
         self._status_pub = self.create_publisher(DiagnosticArray, STATUS, STATUS_QOS)
-        self._measured_body_pub = self.create_publisher(TwistStamped, MEASURED_BODY, ESTIMATE_QOS)
-        self._measured_passive_pub = self.create_publisher(JointState, MEASURED_PASSIVE, ESTIMATE_QOS)
+        burst = burst_qos(self.config.history_depth)  # the initial cycles come out at once
+        self._measured_body_pub = self.create_publisher(TwistStamped, MEASURED_BODY, burst)
+        self._measured_passive_pub = self.create_publisher(JointState, MEASURED_PASSIVE, burst)
         self._subs: dict[str, Any] = {}
         if self.session.needs_system:
             self._subs[SYSTEM] = self.create_subscription(String, SYSTEM, self._on_system, MODEL_QOS)
