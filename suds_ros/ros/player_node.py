@@ -98,6 +98,9 @@ class PlayerNode(Node):
                 replay_qos(topic))
             for topic in sorted(wanted)
         }
+        self.get_logger().info(
+            f"playing {self.config.bag} at rate {self.config.rate:g}: "
+            + ", ".join(f"{t} -> {p.topic_name}" for t, p in self._pubs.items()))
         self._clock_cls = message_class("rosgraph_msgs/msg/Clock")
         self._clock = self.create_publisher(self._clock_cls, CLOCK, 10) if self.config.clock else None
 

@@ -87,6 +87,9 @@ class PredictorNode(Node):
         self.skipped: Counter[str] = Counter()
         self._last: Any = None
         self._discovery = self.create_timer(0.1, self._discover)
+        cfg = self.config
+        self.get_logger().info(f"ready: frame_id {cfg.frame_id}, depth {cfg.depth}, executor {cfg.executor}; "
+                               f"waiting for publishers of {self.resolve_topic_name(SHAPE)}")
         self._discover()
 
     def _discover(self) -> None:

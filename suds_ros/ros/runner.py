@@ -51,5 +51,8 @@ def run_node(
             if close is not None:
                 close(node)
             node.destroy_node()  # type: ignore[attr-defined]
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 - rclpy's SIGINT handler may shut the context down meanwhile
+            pass
     return 0
