@@ -7,12 +7,13 @@ stream keeps its rate whatever the timer resolution).
 
 Topics
 ------
-``/suds/shape`` (sensor_msgs/JointState: names, positions) and
-``/suds/body_pose`` (geometry_msgs/PoseStamped, frame ``world``, yaw-only
+Relative names (:mod:`suds_ros.ros.topics`; ``/suds/...`` in the root namespace):
+``suds/shape`` (sensor_msgs/JointState: names, positions) and
+``suds/body_pose`` (geometry_msgs/PoseStamped, frame ``world``, yaw-only
 quaternion), both stamped with the simulated sample time and published
 RELIABLE + TRANSIENT_LOCAL + KEEP_LAST(``history_depth``), so an estimator that
 restarts gets back the samples it missed (up to ``history_depth`` of them).
-``/suds/system`` (std_msgs/String, latched): JSON ``{"system", "joint_names",
+``suds/system`` (std_msgs/String, latched): JSON ``{"system", "joint_names",
 "actuated", "passive", "gait_hz", "rate"}`` for downstream nodes.
 ``/clock`` (rosgraph_msgs/Clock): the simulated time, only when
 ``real_time_factor`` != 1.
