@@ -187,8 +187,12 @@ class EstimatorNode(Node):
         est = self.est
         if est is None:
             return
+        rows = est.pop_measured()
+        if not (self._measured_body_pub.get_subscription_count()
+                or self._measured_passive_pub.get_subscription_count()):
+            return  # nobody listens: spare the conversions (the stream keeps its rate)
         frame = self.node_config.frame_id
-        for t, y in est.pop_measured():
+        for t, y in rows:
             self._measured_body_pub.publish(twist_to_msg(t, y[0], y[1], y[2], frame_id=frame))
             self._measured_passive_pub.publish(joint_velocity_to_msg(t, est.passive, y[3:]))
 

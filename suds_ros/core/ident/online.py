@@ -365,7 +365,9 @@ class OnlineSudsEstimator:
     MEASURED_KEPT = 10_000
 
     def _note_measured(self, t: float, y: FloatArray) -> None:
-        rows = self.__dict__.setdefault("_measured", deque(maxlen=self.MEASURED_KEPT))
+        rows = self.__dict__.get("_measured")
+        if rows is None:  # also for an estimator loaded from an older checkpoint
+            rows = self.__dict__["_measured"] = deque(maxlen=self.MEASURED_KEPT)
         rows.append((t, y))
 
     def pop_measured(self) -> list[tuple[float, FloatArray]]:
