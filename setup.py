@@ -95,6 +95,7 @@ data_files = [
     ("share/" + PACKAGE, ["package.xml"]),
     ("share/" + PACKAGE + "/launch", _files("launch/*.launch.py")),
     ("share/" + PACKAGE + "/config", _files("config/*.yaml")),
+    ("share/" + PACKAGE + "/foxglove", _files("foxglove/*.json")),
     ("share/" + PACKAGE + "/msg_defs", _files("msg_defs/*.msg") + _files("msg_defs/*.txt")),
 ]
 if not _direct_install():

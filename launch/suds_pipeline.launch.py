@@ -1,16 +1,20 @@
 """Launch the suds pipeline in a ROS 2 install: simulator, estimator, predictor, recorder.
 
     ros2 launch suds_ros suds_pipeline.launch.py system:=swimmer9 output:=/tmp/run.mcap
-    ros2 launch suds_ros suds_pipeline.launch.py model_file:=/abs/snake5.yaml system:=snake5 \
-        output:=/tmp/run.mcap actuated:=joint_1,joint_2 passive:=joint_3,joint_4
+    ros2 launch suds_ros suds_pipeline.launch.py namespace:=/robot1 model:=/abs/snake5.yaml \
+        rate:=50.0 output:=/tmp/run.mcap actuated:=joint_1,joint_2 passive:=joint_3,joint_4
 
+The arguments are the ``pipeline`` supervisor's options (``suds_ros/ros/pipeline.py``;
+test/ros/test_launch_file.py keeps the two in step): ``namespace``, ``system`` or
+``model`` (a robot model file), ``cycles``, ``rate``, ``seed``, ``realtime_factor``,
+``output``, ``overwrite``; plus ``actuated`` and ``passive``, the joint roles the
+recorder writes into the bag's metadata (the supervisor reads them from the system).
 Each node loads ``share/suds_ros/config/<node>.yaml`` first, then the launch
-arguments.  The recorder starts only when ``output`` is given.  With ``model_file``
-(a robot model file) the simulator simulates that file, the estimator takes the joint
-roles from the simulator's ``/suds/system``; ``system`` is then only the id the
-recorder writes (the file's ``name``): give it with the recorder's ``actuated`` and
-``passive``, and a ``rate`` that is a whole number of samples per gait cycle.  Without the
-``launch`` package (e.g. a pip venv) use the ``pipeline`` executable instead.
+arguments, and runs in ``namespace`` (its topics are ``<namespace>/suds/...``).  The
+recorder starts only when ``output`` is given.  With ``model`` the simulator simulates
+that file and the estimator takes the joint roles from the simulator's ``suds/system``;
+``system`` is then only the id the recorder writes.  Without the ``launch`` package
+(e.g. a pip venv) use the ``pipeline`` executable instead.
 """
 
 import os
@@ -23,49 +27,49 @@ from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
+#: name -> (default, description); the names are the pipeline supervisor's option names
+ARGUMENTS = {
+    "namespace": ("", "ROS namespace of every node, e.g. /robot1"),
+    "system": ("purcell3", "system id"),
+    "model": ("", "robot model file (suds-robot/1) to simulate instead of `system`"),
+    "cycles": ("0", "gait cycles the simulator runs (0: forever)"),
+    "rate": ("100.0", "simulator sample rate, Hz"),
+    "seed": ("0", "simulator seed"),
+    "realtime_factor": ("1.0", "simulated seconds per wall-clock second"),
+    "output": ("", "bag to record (.mcap); empty: no recorder"),
+    "overwrite": ("false", "let the recorder replace `output`"),
+    "actuated": ("joint_1", "recorder metadata: actuated joints"),
+    "passive": ("joint_2", "recorder metadata: passive joints"),
+}
+
 
 def generate_launch_description() -> LaunchDescription:
     config = os.path.join(get_package_share_directory("suds_ros"), "config")
-    system = LaunchConfiguration("system")
-    output = LaunchConfiguration("output")
-    model_file = LaunchConfiguration("model_file")
-    # with a model file the estimator takes the roles from /suds/system (its `system` left empty)
-    estimator_system = PythonExpression(["'' if '", model_file, "' else '", system, "'"])
-    args = [
-        DeclareLaunchArgument("system", default_value="purcell3", description="system id"),
-        DeclareLaunchArgument("model_file", default_value="",
-                              description="robot model file (suds-robot/1) to simulate instead of `system`"),
-        DeclareLaunchArgument("rate", default_value="100.0", description="simulator sample rate, Hz"),
-        DeclareLaunchArgument("output", default_value="", description="bag to record (.mcap)"),
-        DeclareLaunchArgument("seed", default_value="0", description="simulator seed"),
-        DeclareLaunchArgument("realtime_factor", default_value="1.0",
-                              description="simulated seconds per wall-clock second"),
-        DeclareLaunchArgument("actuated", default_value="joint_1",
-                              description="recorder metadata: actuated joints"),
-        DeclareLaunchArgument("passive", default_value="joint_2",
-                              description="recorder metadata: passive joints"),
-    ]
+    arg = {name: LaunchConfiguration(name) for name in ARGUMENTS}
+    # with a model file the estimator takes the roles from suds/system (its `system` left empty)
+    estimator_system = PythonExpression(["'' if '", arg["model"], "' else '", arg["system"], "'"])
 
-    def node(name: str, params: dict) -> Node:
+    def node(name: str, params: dict, **kwargs) -> Node:
         return Node(package="suds_ros", executable=name, name=name, output="screen",
-                    parameters=[os.path.join(config, f"{name}.yaml"), params])
+                    namespace=arg["namespace"],
+                    parameters=[os.path.join(config, f"{name}.yaml"), params], **kwargs)
 
     return LaunchDescription([
-        *args,
+        *(DeclareLaunchArgument(name, default_value=default, description=text)
+          for name, (default, text) in ARGUMENTS.items()),
         node("simulator", {
-            "system": system,
-            "model_file": ParameterValue(model_file, value_type=str),
-            "rate": ParameterValue(LaunchConfiguration("rate"), value_type=float),
-            "seed": ParameterValue(LaunchConfiguration("seed"), value_type=int),
-            "real_time_factor": ParameterValue(LaunchConfiguration("realtime_factor"),
-                                              value_type=float),
+            "system": arg["system"],
+            "model_file": ParameterValue(arg["model"], value_type=str),
+            "cycles": ParameterValue(arg["cycles"], value_type=int),
+            "rate": ParameterValue(arg["rate"], value_type=float),
+            "seed": ParameterValue(arg["seed"], value_type=int),
+            "real_time_factor": ParameterValue(arg["realtime_factor"], value_type=float),
         }),
         node("estimator", {"system": ParameterValue(estimator_system, value_type=str)}),
-        node("predictor", {"system": system}),
-        Node(package="suds_ros", executable="recorder", name="recorder", output="screen",
-             condition=IfCondition(PythonExpression(["'", output, "' != ''"])),
-             parameters=[os.path.join(config, "recorder.yaml"), {
-                 "output": output, "system": system,
-                 "actuated": LaunchConfiguration("actuated"),
-                 "passive": LaunchConfiguration("passive")}]),
+        node("predictor", {"system": arg["system"]}),
+        node("recorder", {
+            "output": arg["output"], "system": arg["system"],
+            "overwrite": ParameterValue(arg["overwrite"], value_type=bool),
+            "actuated": arg["actuated"], "passive": arg["passive"]},
+            condition=IfCondition(PythonExpression(["'", arg["output"], "' != ''"]))),
     ])

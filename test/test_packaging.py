@@ -79,6 +79,7 @@ def test_shared_files_and_msg_defs_package_data(venv_prefix):
     share = venv_prefix / "share/suds_ros"
     assert (share / "launch/suds_pipeline.launch.py").is_file()
     assert sorted(p.name for p in (share / "config").glob("*.yaml"))
+    assert (share / "foxglove/suds_layout.json").is_file()
     msgs = sorted(p.name for p in (share / "msg_defs").glob("*.msg"))
     assert "sensor_msgs__msg__JointState.msg" in msgs
     assert (share / "msg_defs/type_hashes.txt").is_file()

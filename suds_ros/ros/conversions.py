@@ -238,6 +238,36 @@ def joint_state_from_msg(msg: Any, *, require_position: bool = True) -> JointSam
     )
 
 
+def select_joints(sample: JointSample, names: Sequence[str]) -> JointSample:
+    """The joints ``names`` of ``sample``, in that order; other joints of the message are ignored.
+
+    A robot's ``/joint_states`` (ros2_control's joint_state_broadcaster) lists every joint,
+    in its own order, possibly with joints the model does not know (a gripper, a camera
+    mount): this keeps the model's joints, ordered as the model lists them.  A sample that
+    already has exactly ``names`` is returned unchanged.
+
+    Raises
+    ------
+    SudsDataError
+        ``WRONG_JOINT_NAMES`` when a joint of ``names`` is not in the message.
+    """
+    want = tuple(names)
+    if sample.names == want:
+        return sample
+    index = {n: i for i, n in enumerate(sample.names)}
+    missing = [n for n in want if n not in index]
+    if missing:
+        raise SudsDataError(f"`name`: joints {missing} are missing; the message has {list(sample.names)}",
+                            code=WRONG_JOINT_NAMES)
+    order = np.array([index[n] for n in want], dtype=int)
+
+    def pick(a: FloatArray | None) -> FloatArray | None:
+        return None if a is None or a.size == 0 else a[order]
+
+    position = sample.position[order] if sample.position.size else sample.position
+    return JointSample(sample.stamp, want, position, pick(sample.velocity), pick(sample.effort))
+
+
 def joint_velocity_to_msg(
     stamp: float, names: Sequence[str], velocity: FloatArray, *, typestore: Any = None
 ) -> Any:

@@ -1,4 +1,4 @@
-"""``suds_estimator``: identify the SUDS model live from /suds/shape and /suds/body_pose.
+"""``suds_estimator``: identify the SUDS model live from suds/shape and suds/body_pose.
 
 A thin adapter around :class:`~suds_ros.core.ident.session.EstimatorSession`,
 which holds the logic (joint roles, pairing of shape and pose by stamps,
@@ -11,57 +11,100 @@ it returns:
   transient local when they all are, depth ``history_depth``), so a restarted
   estimator receives the simulator's history on both streams at once.
 * Without ``actuated`` or ``system`` the joint roles come from the latched
-  ``/suds/system`` topic of the simulator.
-* ``/suds/model`` (std_msgs/String, the SudsModel JSON, latched) and
-  ``/suds/status`` (diagnostic_msgs/DiagnosticArray) as the session decides;
+  ``suds/system`` topic of the simulator.
+* Joints are selected by name (:func:`~suds_ros.ros.conversions.select_joints`):
+  the ``joints`` parameter, else the joints of ``system``/``suds/system``, in
+  that order; other joints of the message are ignored, so a robot's
+  ``/joint_states`` can be remapped in (``-r suds/shape:=/joint_states``).
+* ``suds/model`` (std_msgs/String, the SudsModel JSON, latched) and
+  ``suds/status`` (diagnostic_msgs/DiagnosticArray) as the session decides;
   the checkpoint is saved by the session and once more at shutdown.
+* ``suds/measured/body_velocity`` (TwistStamped, frame ``frame_id``) and
+  ``suds/measured/passive_velocity`` (velocity-only JointState): the velocities of
+  every interval the model is fitted on, stamped with the interval's end sample as
+  the predictor stamps its prediction of the same interval.
+
+Topic names are relative (:mod:`suds_ros.ros.topics`): ``__ns`` and remapping apply.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.node import Node
 
-from suds_ros.core.errors import SudsError
+from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.ident.online import OnlineSudsEstimator
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig, Status
-from suds_ros.io.recording_bag import MODEL_TOPIC, POSE_TOPIC, SHAPE_TOPIC, STATUS_TOPIC, SYSTEM_TOPIC
 from suds_ros.io.stamps import ns_to_float
 from suds_ros.ros.conversions import (
     diagnostics_to_msg,
     joint_state_from_msg,
+    joint_velocity_to_msg,
     model_to_msg,
     pose_from_msg,
+    select_joints,
     system_info_from_msg,
+    twist_to_msg,
 )
 from suds_ros.ros.params import add_validator, config_from_parameters
-from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, overriding_options, subscription_qos_for
+from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, burst_qos, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
+from suds_ros.ros.topics import MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SHAPE, STATUS, SYSTEM
+
+
+@dataclass(frozen=True)
+class EstimatorNodeConfig:
+    """Parameters of the estimator node beyond the session's (read-only)."""
+
+    joints: tuple[str, ...] = field(default=(), metadata={
+        "description": "the robot's joints in model order; other joints of a shape message are "
+                       "ignored (empty: the joints of `system` or suds/system, else the message's)"})
+    frame_id: str = field(default="body", metadata={
+        "description": "frame_id of the measured body twist"})
+
+    def __post_init__(self) -> None:
+        if len(set(self.joints)) != len(self.joints) or not all(self.joints):
+            raise SudsConfigError(f"`joints`: expected distinct joint names, got {list(self.joints)}")
+        if not self.frame_id:
+            raise SudsConfigError("`frame_id`: expected a frame name, got ''")
 
 
 class EstimatorNode(Node):
-    """Feed an :class:`EstimatorSession`; publish /suds/model and /suds/status."""
+    """Feed an :class:`EstimatorSession`; publish suds/model, suds/status and the measured velocities."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("suds_estimator", **kwargs)
         self.config = config_from_parameters(self, SessionConfig)
+        self.node_config = config_from_parameters(self, EstimatorNodeConfig)
+        if self.node_config.joints and self.config.actuated and not set(self.config.actuated) <= set(
+                self.node_config.joints):
+            raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} not all among `joints` "
+                                  f"{list(self.node_config.joints)}")
         add_validator(self, lambda: self.config, on_valid=self._set_config)
         self.session = EstimatorSession(self.config, log=self._log, now=time.monotonic())
         from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import TwistStamped
+        from sensor_msgs.msg import JointState
         from std_msgs.msg import String
 
-        self._model_pub = self.create_publisher(String, MODEL_TOPIC, MODEL_QOS)
-        self._status_pub = self.create_publisher(DiagnosticArray, STATUS_TOPIC, STATUS_QOS)
+        self._model_pub = self.create_publisher(String, MODEL, MODEL_QOS)
+        self._status_pub = self.create_publisher(DiagnosticArray, STATUS, STATUS_QOS)
+        burst = burst_qos(self.config.history_depth)  # the initial cycles come out at once
+        self._measured_body_pub = self.create_publisher(TwistStamped, MEASURED_BODY, burst)
+        self._measured_passive_pub = self.create_publisher(JointState, MEASURED_PASSIVE, burst)
         self._subs: dict[str, Any] = {}
         if self.session.needs_system:
-            self._subs[SYSTEM_TOPIC] = self.create_subscription(String, SYSTEM_TOPIC, self._on_system, MODEL_QOS)
+            self._subs[SYSTEM] = self.create_subscription(String, SYSTEM, self._on_system, MODEL_QOS)
         self.create_timer(0.1, self._housekeeping)
         self._discovery = self.create_timer(0.2, self._discover)
-        self.get_logger().info(f"ready: waiting for publishers of {SHAPE_TOPIC} and {POSE_TOPIC}")
+        self.get_logger().info(f"ready: waiting for publishers of {self.resolve_topic_name(SHAPE)} and "
+                               f"{self.resolve_topic_name(POSE)}"
+                               + (f"; joints {list(self.node_config.joints)}" if self.node_config.joints else ""))
         self._discover()
 
     @property
@@ -87,16 +130,16 @@ class EstimatorNode(Node):
         from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import JointState
 
-        if SHAPE_TOPIC in self._subs:
+        if SHAPE in self._subs:
             return
-        offered = {t: [i.qos_profile for i in self.get_publishers_info_by_topic(t)] for t in (SHAPE_TOPIC, POSE_TOPIC)}
+        offered = {t: [i.qos_profile for i in self.get_publishers_info_by_topic(t)] for t in (SHAPE, POSE)}
         if not all(offered.values()):
             return
-        for topic, cls, cb in ((SHAPE_TOPIC, JointState, self._on_shape), (POSE_TOPIC, PoseStamped, self._on_pose)):
+        for topic, cls, cb in ((SHAPE, JointState, self._on_shape), (POSE, PoseStamped, self._on_pose)):
             qos = subscription_qos_for(offered[topic], depth=self.config.history_depth)
             self._subs[topic] = self.create_subscription(cls, topic, cb, qos,
                                                          qos_overriding_options=overriding_options())
-            self.get_logger().info(f"subscribed to {topic} ({qos.reliability.name.lower()}, "
+            self.get_logger().info(f"subscribed to {self.resolve_topic_name(topic)} ({qos.reliability.name.lower()}, "
                                    f"{qos.durability.name.lower()}, depth {qos.depth})")
         self._discovery.cancel()
 
@@ -109,9 +152,18 @@ class EstimatorNode(Node):
             return
         self.session.on_system(info)
 
+    def joints(self) -> tuple[str, ...] | None:
+        """The joints taken from a shape message, in order (None: all of the message, as they are)."""
+        if self.node_config.joints:
+            return self.node_config.joints
+        return self.est.joint_names if self.est is not None else None
+
     def _on_shape(self, msg: Any) -> None:
         try:
             sample = joint_state_from_msg(msg)
+            joints = self.joints()
+            if joints is not None:
+                sample = select_joints(sample, joints)
         except SudsError as exc:
             self.session.skip("shape", exc)
             return
@@ -128,6 +180,21 @@ class EstimatorNode(Node):
     def _publish_model(self, model: SudsModel | None) -> None:
         if model is not None:
             self._model_pub.publish(model_to_msg(model))
+        self._publish_measured()
+
+    def _publish_measured(self) -> None:
+        """Publish the measured velocities of the intervals the estimator added since the last call."""
+        est = self.est
+        if est is None:
+            return
+        rows = est.pop_measured()
+        if not (self._measured_body_pub.get_subscription_count()
+                or self._measured_passive_pub.get_subscription_count()):
+            return  # nobody listens: spare the conversions (the stream keeps its rate)
+        frame = self.node_config.frame_id
+        for t, y in rows:
+            self._measured_body_pub.publish(twist_to_msg(t, y[0], y[1], y[2], frame_id=frame))
+            self._measured_passive_pub.publish(joint_velocity_to_msg(t, est.passive, y[3:]))
 
     # ------------------------------------------------------------ periodic
     def _housekeeping(self) -> None:
@@ -137,7 +204,7 @@ class EstimatorNode(Node):
             self._status_pub.publish(self.status_msg(status))
 
     def status_values(self) -> dict[str, str]:
-        """The key/values of /suds/status."""
+        """The key/values of suds/status."""
         return self.session.status_values()
 
     def status_msg(self, status: Status) -> Any:
@@ -157,7 +224,7 @@ class EstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the estimator until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
-    return run_node(args, name="estimator", doc=__doc__, config_cls=SessionConfig,
+    return run_node(args, name="estimator", doc=__doc__, config_cls=(SessionConfig, EstimatorNodeConfig),
                     make=EstimatorNode, close=EstimatorNode.close)
 
 

@@ -233,10 +233,15 @@ def add_validator(
     return callback
 
 
-def parameters_help(prog: str, summary: str, cls: type, namespace: str = "") -> str:
-    """Usage text of a node: ``summary`` and one line per parameter (type, default, description)."""
-    lines = [f"usage: {prog} [--ros-args -p NAME:=VALUE ...]", "", summary, "", "parameters:"]
-    for name, default, d in descriptors(cls, namespace):
+def parameters_help(prog: str, summary: str, cls: type | tuple[type, ...], namespace: str = "") -> str:
+    """Usage text of a node: ``summary`` and one line per parameter (type, default, description).
+
+    ``cls`` is the node's config dataclass, or a tuple of them when it declares several.
+    """
+    lines = [f"usage: {prog} [--ros-args -p NAME:=VALUE ... | --params-file FILE]", "", summary, "",
+             "parameters:"]
+    classes = cls if isinstance(cls, tuple) else (cls,)
+    for name, default, d in (row for c in classes for row in descriptors(c, namespace)):
         kind = Parameter.Type(d.type).name.lower()
         ro = ", read-only" if d.read_only else ""
         lines.append(f"  {_param_name(namespace, name)} ({kind}{ro}, default {default!r}): "

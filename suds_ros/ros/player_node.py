@@ -5,6 +5,13 @@ Parameters: ``bag``, ``rate`` (> 0, playback speed factor), ``loop``,
 (publish ``/clock`` with the bag log time before each message) and ``delay``
 (s to wait after creating the publishers, so subscribers can match).
 Exits when the bag is done unless ``loop`` is set.
+
+Topics are published under their recorded (absolute) names; remapping applies
+(``-r /suds/shape:=/robot2/suds/shape``).  With ``strip_prefix`` (e.g. ``/robot1``,
+or ``/`` for every topic) a recorded name starting with it is published without
+it as a relative name, resolved in the player's namespace: a bag of
+``/robot1/suds/*`` replays into ``/robot2/suds/*`` with ``strip_prefix:=/robot1``
+and ``-r __ns:=/robot2``.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from suds_ros.ros.conversions import message_class, ns_to_time
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import replay_qos
 from suds_ros.ros.runner import run_node
+from suds_ros.ros.topics import CLOCK
 
 
 @dataclass(frozen=True)
@@ -45,6 +53,9 @@ class PlayerConfig:
     delay: float = field(default=0.0, metadata={
         "description": "s to wait before the first message, for subscribers to match",
         "range": (0.0, 3600.0)})
+    strip_prefix: str = field(default="", metadata={
+        "description": "recorded names starting with this prefix are published without it, as "
+                       "relative names in the player's namespace ('/': all; empty: as recorded)"})
     wait_subscribers: int = field(default=0, metadata={
         "description": "before playing, wait (up to 60 s) until every played topic has this many "
                        "matched subscribers", "range": (0, 1000)})
@@ -54,6 +65,16 @@ class PlayerConfig:
             raise SudsConfigError("`bag`: expected the path of an .mcap bag, got ''")
         if not self.rate > 0:
             raise SudsConfigError(f"`rate`: expected a factor > 0, got {self.rate!r}")
+        if self.strip_prefix and not self.strip_prefix.startswith("/"):
+            raise SudsConfigError(f"`strip_prefix`: expected an absolute prefix such as '/robot1', "
+                                  f"got {self.strip_prefix!r}")
+
+    def published_name(self, topic: str) -> str:
+        """The name ``topic`` (as recorded) is published under (see the module doc)."""
+        prefix = self.strip_prefix.rstrip("/")
+        if self.strip_prefix and (topic.startswith(prefix + "/")):
+            return topic[len(prefix):].lstrip("/")
+        return topic
 
 
 class PlayerNode(Node):
@@ -73,11 +94,15 @@ class PlayerNode(Node):
         self._start_ns = info.start_ns + float_to_ns(self.config.start_offset)
         self._pubs = {
             topic: self.create_publisher(
-                message_class(info.topics[topic].type_name), topic, replay_qos(topic))
+                message_class(info.topics[topic].type_name), self.config.published_name(topic),
+                replay_qos(topic))
             for topic in sorted(wanted)
         }
+        self.get_logger().info(
+            f"playing {self.config.bag} at rate {self.config.rate:g}: "
+            + ", ".join(f"{t} -> {p.topic_name}" for t, p in self._pubs.items()))
         self._clock_cls = message_class("rosgraph_msgs/msg/Clock")
-        self._clock = self.create_publisher(self._clock_cls, "/clock", 10) if self.config.clock else None
+        self._clock = self.create_publisher(self._clock_cls, CLOCK, 10) if self.config.clock else None
 
     def _sleep_until(self, deadline: float) -> bool:
         while rclpy.ok(context=self.context):

@@ -1,12 +1,15 @@
 """``suds_predictor``: live body and passive-joint velocity predictions from the identified model.
 
-For every ``/suds/shape`` sample it publishes the prediction for the interval
-ending at that sample: ``/suds/predicted/body_velocity``
+For every ``suds/shape`` sample it publishes the prediction for the interval
+ending at that sample: ``suds/predicted/body_velocity``
 (geometry_msgs/TwistStamped, body frame ``frame_id``) and
-``/suds/predicted/passive_velocity`` (sensor_msgs/JointState, passive joint
-names and ``velocity``), both stamped with the shape sample's stamp.
+``suds/predicted/passive_velocity`` (sensor_msgs/JointState, passive joint
+names and ``velocity``), both stamped with the shape sample's stamp.  The
+model's joints are taken from each shape message by name, in the model's order
+(other joints, e.g. of a robot's ``/joint_states``, are ignored).  Topic names are
+relative (:mod:`suds_ros.ros.topics`): ``__ns`` and remapping apply.
 
-The model comes from the latched ``/suds/model`` (std_msgs/String JSON).  A new
+The model comes from the latched ``suds/model`` (std_msgs/String JSON).  A new
 model replaces the old one without a gap: when its gait template and phase rate
 are the old ones (always the case for one estimator run) the phase tracker and
 the previous sample carry over; otherwise the new predictor is primed with the
@@ -30,16 +33,17 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from suds_ros.core.errors import SudsConfigError, SudsError, error_code
 from suds_ros.core.ident.predictor import StreamingPredictor, carry_over
-from suds_ros.io.recording_bag import MODEL_TOPIC, PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, SHAPE_TOPIC
 from suds_ros.ros.conversions import (
     joint_state_from_msg,
     joint_velocity_to_msg,
     model_from_msg,
+    select_joints,
     twist_to_msg,
 )
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
+from suds_ros.ros.topics import MODEL, PREDICTED_BODY, PREDICTED_PASSIVE, SHAPE
 
 @dataclass(frozen=True)
 class PredictorConfig:
@@ -69,11 +73,11 @@ class PredictorNode(Node):
         from sensor_msgs.msg import JointState
         from std_msgs.msg import String
 
-        self._body_pub = self.create_publisher(TwistStamped, PREDICTED_BODY_TOPIC, ESTIMATE_QOS,
+        self._body_pub = self.create_publisher(TwistStamped, PREDICTED_BODY, ESTIMATE_QOS,
                                                qos_overriding_options=overriding_options())
-        self._passive_pub = self.create_publisher(JointState, PREDICTED_PASSIVE_TOPIC, ESTIMATE_QOS,
+        self._passive_pub = self.create_publisher(JointState, PREDICTED_PASSIVE, ESTIMATE_QOS,
                                                   qos_overriding_options=overriding_options())
-        self.create_subscription(String, MODEL_TOPIC, self._on_model, MODEL_QOS)
+        self.create_subscription(String, MODEL, self._on_model, MODEL_QOS)
         self._shape_cls = JointState
         self._shape_sub: Any = None
         self.predictor: StreamingPredictor | None = None
@@ -83,21 +87,24 @@ class PredictorNode(Node):
         self.skipped: Counter[str] = Counter()
         self._last: Any = None
         self._discovery = self.create_timer(0.1, self._discover)
+        cfg = self.config
+        self.get_logger().info(f"ready: frame_id {cfg.frame_id}, depth {cfg.depth}, executor {cfg.executor}; "
+                               f"waiting for publishers of {self.resolve_topic_name(SHAPE)}")
         self._discover()
 
     def _discover(self) -> None:
         if self._shape_sub is not None:
             return
-        offered = [i.qos_profile for i in self.get_publishers_info_by_topic(SHAPE_TOPIC)]
+        offered = [i.qos_profile for i in self.get_publishers_info_by_topic(SHAPE)]
         if not offered:
             return
         q = subscription_qos_for(offered, depth=self.config.depth)
         qos = QoSProfile(depth=self.config.depth, reliability=q.reliability,
                          durability=DurabilityPolicy.VOLATILE)  # live predictions: no history
-        self._shape_sub = self.create_subscription(self._shape_cls, SHAPE_TOPIC, self._on_shape, qos,
+        self._shape_sub = self.create_subscription(self._shape_cls, SHAPE, self._on_shape, qos,
                                                    qos_overriding_options=overriding_options())
         self._discovery.cancel()
-        self.get_logger().info(f"subscribed to {SHAPE_TOPIC} ({qos.reliability.name.lower()})")
+        self.get_logger().info(f"subscribed to {self.resolve_topic_name(SHAPE)} ({qos.reliability.name.lower()})")
 
     def _skip(self, stream: str, exc: Exception) -> None:
         key = f"{stream}.{error_code(exc)}"
@@ -108,7 +115,10 @@ class PredictorNode(Node):
     def _on_model(self, msg: Any) -> None:
         try:
             model = model_from_msg(msg)
-            new, how = carry_over(self.predictor, model, self._last)
+            last = self._last
+            if last is not None and set(model.joint_names) <= set(last.names):
+                last = select_joints(last, model.joint_names)
+            new, how = carry_over(self.predictor, model, last)
         except Exception as exc:  # noqa: BLE001 - never die on a bad model message
             self._skip("model", exc)
             return
@@ -130,6 +140,7 @@ class PredictorNode(Node):
             self._last = s
             return
         try:
+            s = select_joints(s, self.predictor.model.joint_names)
             out = self.predictor.update(s.stamp, s.names, s.position)
         except Exception as exc:  # noqa: BLE001 - the node never dies on traffic
             self._skip("shape", exc)

@@ -43,6 +43,12 @@ STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
+def burst_qos(depth: int) -> QoSProfile:
+    """:data:`ESTIMATE_QOS` with depth ``depth``: for a publisher that may send many messages at once
+    (the estimator's measured velocities of its initial cycles), so reliable subscribers get them all."""
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+
+
 def latched_state_qos(depth: int) -> QoSProfile:
     """Shape/pose publisher QoS of the simulator: reliable, transient local, keep last ``depth``."""
     return QoSProfile(
@@ -59,8 +65,8 @@ def overriding_options() -> QoSOverridingOptions:
 
 
 def replay_qos(topic: str) -> QoSProfile:
-    """Publisher QoS for replaying ``topic``: the model keeps transient-local durability."""
-    if topic == MODEL_TOPIC:
+    """Publisher QoS for replaying ``topic``: the model (``/suds/model`` in any namespace) stays latched."""
+    if topic == MODEL_TOPIC or topic.endswith(MODEL_TOPIC):
         return MODEL_QOS
     return REPLAY_QOS
 

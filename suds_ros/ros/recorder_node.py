@@ -1,7 +1,14 @@
 """``recorder``: record suds topics, serialized as received, into an MCAP bag like rosbag2.
 
 Topics (parameter ``topics``, shell-style patterns) are discovered from the
-graph as their publishers appear; each is subscribed with ``raw=True`` and a
+graph as their publishers appear.  A relative pattern (the default ones,
+``suds/shape``, ``suds/predicted/*``, …: :data:`suds_ros.ros.topics.RECORDED`)
+is resolved in the recorder's namespace (``suds/*`` of a recorder started with
+``-r __ns:=/robot1`` records ``/robot1/suds/*``); an absolute one is taken as is
+(``/robot*/suds/*`` records several robots into one bag).  Every topic is
+recorded under its resolved name, so a bag of a namespaced robot holds
+``/robot1/suds/shape``; the player's ``strip_prefix`` replays it elsewhere.
+Each topic is each is subscribed with ``raw=True`` and a
 QoS matching its publishers, and its CDR bytes are written unchanged
 (log time = receive time on the node clock, channel metadata
 ``offered_qos_profiles`` from the publishers).  The open chunk is written
@@ -30,21 +37,14 @@ from suds_ros.io.recording_bag import (
     META_PASSIVE,
     META_SYSTEM,
     METADATA_NAME,
-    MODEL_TOPIC,
-    POSE_TOPIC,
-    PREDICTED_PATTERN,
-    SHAPE_TOPIC,
-    STATUS_TOPIC,
-    SYSTEM_TOPIC,
 )
 from suds_ros.ros.conversions import message_class
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import qos_to_yaml, subscription_qos_for
 from suds_ros.ros.runner import run_node
+from suds_ros.ros.topics import RECORDED, resolve
 
-DEFAULT_TOPICS = (
-    SHAPE_TOPIC, POSE_TOPIC, SYSTEM_TOPIC, PREDICTED_PATTERN, MODEL_TOPIC, STATUS_TOPIC,
-)
+DEFAULT_TOPICS = RECORDED
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,8 @@ class RecorderConfig:
 
     output: str = field(default="", metadata={"description": "output .mcap file (required)"})
     topics: tuple[str, ...] = field(default=DEFAULT_TOPICS, metadata={
-        "description": "topics to record; shell-style patterns such as /suds/predicted/*"})
+        "description": "topics to record; shell-style patterns such as suds/predicted/* "
+                       "(relative: in the recorder's namespace) or /robot*/suds/*"})
     overwrite: bool = field(default=False, metadata={
         "description": "replace an existing output file"})
     compression: str = field(default="zstd", metadata={
@@ -86,6 +87,9 @@ class RecorderConfig:
             raise SudsConfigError("`output`: expected the path of the .mcap file to write, got ''")
         if not self.topics:
             raise SudsConfigError("`topics`: expected at least one topic or pattern, got []")
+        private = [t for t in self.topics if not t or t.startswith("~")]
+        if private:
+            raise SudsConfigError(f"`topics`: expected absolute or relative patterns, got {private}")
 
     def suds_metadata(self) -> dict[str, str]:
         """The ``suds`` metadata record (empty when no system/joint roles are given)."""
@@ -104,6 +108,7 @@ class RecorderNode(Node):
         super().__init__("recorder", **kwargs)
         self.config = config_from_parameters(self, RecorderConfig)
         cfg = self.config
+        self.patterns = tuple(resolve(t, self.get_namespace()) for t in cfg.topics)
         self._writer = BagWriter(cfg.output, overwrite=cfg.overwrite, compression=cfg.compression,
                                  chunk_interval=cfg.flush_period, fsync=cfg.fsync)
         if cfg.suds_metadata():
@@ -112,14 +117,14 @@ class RecorderNode(Node):
         self._skipped: set[str] = set()
         self.create_timer(cfg.discovery_period, self._discover)
         self.create_timer(cfg.flush_period, self._writer.flush)
-        self.get_logger().info(f"recording {list(cfg.topics)} to {cfg.output}")
+        self.get_logger().info(f"recording {list(self.patterns)} to {cfg.output}")
         self._discover()
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self._subs or topic in self._skipped:
                 continue
-            if not any(fnmatchcase(topic, p) for p in self.config.topics):
+            if not any(fnmatchcase(topic, p) for p in self.patterns):
                 continue
             infos = self.get_publishers_info_by_topic(topic)
             if not infos:

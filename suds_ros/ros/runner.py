@@ -20,7 +20,7 @@ def run_node(
     *,
     name: str,
     doc: str,
-    config_cls: type,
+    config_cls: type | tuple[type, ...],
     make: Callable[[], N],
     run: Callable[[N], Any] = rclpy.spin,
     close: Callable[[N], None] | None = None,
@@ -51,5 +51,8 @@ def run_node(
             if close is not None:
                 close(node)
             node.destroy_node()  # type: ignore[attr-defined]
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 - rclpy's SIGINT handler may shut the context down meanwhile
+            pass
     return 0

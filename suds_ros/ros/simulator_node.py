@@ -7,12 +7,13 @@ stream keeps its rate whatever the timer resolution).
 
 Topics
 ------
-``/suds/shape`` (sensor_msgs/JointState: names, positions) and
-``/suds/body_pose`` (geometry_msgs/PoseStamped, frame ``world``, yaw-only
+Relative names (:mod:`suds_ros.ros.topics`; ``/suds/...`` in the root namespace):
+``suds/shape`` (sensor_msgs/JointState: names, positions) and
+``suds/body_pose`` (geometry_msgs/PoseStamped, frame ``world``, yaw-only
 quaternion), both stamped with the simulated sample time and published
 RELIABLE + TRANSIENT_LOCAL + KEEP_LAST(``history_depth``), so an estimator that
 restarts gets back the samples it missed (up to ``history_depth`` of them).
-``/suds/system`` (std_msgs/String, latched): JSON ``{"system", "joint_names",
+``suds/system`` (std_msgs/String, latched): JSON ``{"system", "joint_names",
 "actuated", "passive", "gait_hz", "rate"}`` for downstream nodes.
 ``/clock`` (rosgraph_msgs/Clock): the simulated time, only when
 ``real_time_factor`` != 1.
@@ -53,11 +54,11 @@ from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
-from suds_ros.io.recording_bag import POSE_TOPIC, SHAPE_TOPIC, SYSTEM_TOPIC
 from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
 from suds_ros.ros.params import add_validator, config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options
 from suds_ros.ros.runner import run_node
+from suds_ros.ros.topics import CLOCK, POSE, SHAPE, SYSTEM
 
 #: Stamp of the first sample when not running in real time (and ``t0`` is not set).
 DEFAULT_T0 = 1.7e9
@@ -167,13 +168,13 @@ class SimulatorNode(Node):
         from std_msgs.msg import String
 
         qos = latched_state_qos(cfg.history_depth)
-        self._shape_pub = self.create_publisher(JointState, SHAPE_TOPIC, qos,
+        self._shape_pub = self.create_publisher(JointState, SHAPE, qos,
                                                 qos_overriding_options=overriding_options())
-        self._pose_pub = self.create_publisher(PoseStamped, POSE_TOPIC, qos,
+        self._pose_pub = self.create_publisher(PoseStamped, POSE, qos,
                                                qos_overriding_options=overriding_options())
-        self._system_pub = self.create_publisher(String, SYSTEM_TOPIC, MODEL_QOS)
+        self._system_pub = self.create_publisher(String, SYSTEM, MODEL_QOS)
         self._clock_cls = Clock
-        self._clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self._clock_pub = self.create_publisher(Clock, CLOCK, 10)
         self._system_pub.publish(system_info_to_msg({
             "system": self.system.name, "joint_names": list(self.names),
             "actuated": [names[i] for i in self.system.actuated],

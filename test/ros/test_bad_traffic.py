@@ -76,7 +76,8 @@ def publish() -> int:
             shape.publish(joint_state_to_msg(t - 0.05, names, r))  # out of order
             pose.publish(pose_to_msg(t, *p))  # duplicate
             pose.publish(pose_to_msg(t - 0.05, *p))  # out of order
-            shape.publish(joint_state_to_msg(t + 2e-3, ("joint_1", "joint_2", "joint_3"), [*r, 0.0]))
+            # a joint of the model missing (extra joints would be ignored: see test_real_robot.py)
+            shape.publish(joint_state_to_msg(t + 2e-3, ("joint_1", "joint_3"), r))
             wrong = JointState(name=list(names), position=[*r, 0.0])  # 2 names, 3 positions
             wrong.header.stamp = float_to_time(t + 3e-3)
             shape.publish(wrong)

@@ -171,3 +171,22 @@ def test_bad_quaternion_stamp_and_level_raise():
         cv.diagnostics_to_msg(0.0, "x", {}, level=7)
     with pytest.raises(SudsDataError, match="str keys and values"):
         cv.diagnostics_to_msg(0.0, "x", {"a": 1})  # type: ignore[dict-item]
+
+
+def test_select_joints_by_name_ignores_extra_joints_and_order():
+    import numpy as np
+    import pytest as _pytest
+
+    from suds_ros.core.errors import WRONG_JOINT_NAMES, SudsDataError
+    from suds_ros.ros.conversions import JointSample, select_joints
+
+    s = JointSample(1.0, ("gripper", "joint_2", "joint_1"), np.array([9.0, 2.0, 1.0]),
+                    np.array([0.9, 0.2, 0.1]), None)
+    got = select_joints(s, ("joint_1", "joint_2"))
+    assert got.names == ("joint_1", "joint_2")
+    assert got.position.tolist() == [1.0, 2.0] and got.velocity.tolist() == [0.1, 0.2]
+    assert got.effort is None and got.stamp == 1.0
+    assert select_joints(got, ("joint_1", "joint_2")) is got
+    with _pytest.raises(SudsDataError, match=r"joint_3") as err:
+        select_joints(s, ("joint_1", "joint_3"))
+    assert err.value.code == WRONG_JOINT_NAMES

@@ -34,7 +34,7 @@ def published_samples(cycles: int, seed: int):
     from suds_ros.io.stamps import float_to_ns, ns_to_float
     from suds_ros.ros.simulator_node import SimulatorConfig
 
-    cfg = SimulatorConfig(seed=seed, real_time_factor=4.0, cycles=cycles)
+    cfg = SimulatorConfig(seed=seed, real_time_factor=4.0, cycles=cycles).resolved(1.0)  # purcell3: 1 Hz
     system = make_system(cfg.system)
     sim = StreamingSimulator(system, cfg.sim_config(cfg.first_stamp()))
     chunks = [sim.step(cfg.samples_per_cycle) for _ in range(cycles)]  # one cycle per chunk, as the node

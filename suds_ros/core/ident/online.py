@@ -293,6 +293,7 @@ class OnlineSudsEstimator:
         if prev is None:
             return
         X, Y = interval_row(self.template_, self.omega_, self._act, self._pas, prev, (t, r, pose, phase))
+        self._note_measured(t, Y)
         self._rows_X.append(X)
         self._rows_Y.append(Y)
         if len(self._rows_X) >= self.config.chunk:
@@ -358,6 +359,30 @@ class OnlineSudsEstimator:
             channels=self.channels,
             n_samples=self.regressor.n_samples_seen_,
         )
+
+    # ------------------------------------------------------------ measured outputs (for publishing)
+    #: most measured rows kept for :meth:`pop_measured` (older ones are dropped when nobody takes them)
+    MEASURED_KEPT = 10_000
+
+    def _note_measured(self, t: float, y: FloatArray) -> None:
+        rows = self.__dict__.get("_measured")
+        if rows is None:  # also for an estimator loaded from an older checkpoint
+            rows = self.__dict__["_measured"] = deque(maxlen=self.MEASURED_KEPT)
+        rows.append((t, y))
+
+    def pop_measured(self) -> list[tuple[float, FloatArray]]:
+        """The measured outputs of the intervals added since the last call, oldest first.
+
+        Each is ``(t, y)``: ``t`` the stamp of the interval's end sample (s, the stamp the
+        predictor gives its prediction of the same interval) and ``y`` = [ξ (vx, vy m/s,
+        wz rad/s), ṙ_p (rad/s, in ``passive`` order)], the row the regression fits on.
+        """
+        rows = self.__dict__.get("_measured")
+        if not rows:
+            return []
+        out = list(rows)
+        rows.clear()
+        return out
 
     # ------------------------------------------------------------ checkpoints
     def state_bytes(self) -> bytes:
