@@ -28,6 +28,23 @@ def gamma(pred: FloatArray, template: FloatArray, truth: FloatArray) -> float:
 
 
 @dataclass(frozen=True)
+class PoseIntervalPrediction:
+    """Body velocity as measured over pose intervals, and the predictions averaged over them.
+
+    Attributes
+    ----------
+    t : (q,) pose-interval midpoint stamps, s.
+    truth : (q, 3) measured body velocity (pose displacement over the interval / its duration).
+    model, template : (q, 3) the shape-interval predictions averaged over each pose interval.
+    """
+
+    t: FloatArray
+    truth: FloatArray
+    model: FloatArray
+    template: FloatArray
+
+
+@dataclass(frozen=True)
 class Prediction:
     """Predictions on the intervals of one recording.
 
@@ -39,6 +56,10 @@ class Prediction:
     truth : (m, c) measured outputs.
     model : (m, c) SUDS model predictions.
     template : (m, c) phase-only template predictions.
+    body : PoseIntervalPrediction or None
+        When the pose stream has its own stamps: the body channels as measured over the pose
+        intervals, which score the body velocity (the shape-interval ``truth`` of the body
+        channels then comes from interpolated poses and is only indicative).
     """
 
     t: FloatArray
@@ -47,6 +68,7 @@ class Prediction:
     truth: FloatArray
     model: FloatArray
     template: FloatArray
+    body: PoseIntervalPrediction | None = None
 
     def columns(self, prefix: str) -> list[int]:
         """Indices of the channels whose name starts with ``prefix``."""
@@ -80,25 +102,45 @@ class Scores:
         }
 
 
+def _moving(truth: FloatArray, template: FloatArray, cols: list[int]) -> list[int]:
+    """The columns that carry motion (1-D swimmers' ξy, ξθ never move and carry no information)."""
+    return [i for i in cols if np.abs(template[:, i]).max() > 1e-9 or np.abs(truth[:, i]).max() > 1e-9]
+
+
+def _rms(a: FloatArray, truth: FloatArray, i: int) -> float:
+    return float(np.sqrt(np.mean((a[:, i] - truth[:, i]) ** 2)))
+
+
 def score_prediction(p: Prediction) -> Scores:
-    """Γ per channel group and per-channel RMS of a :class:`Prediction`."""
-    body = p.columns("xi_")
-    # channels with no motion at all (1-D swimmers' ξy, ξθ) carry no information
-    body = [i for i in body if np.abs(p.template[:, i]).max() > 1e-9 or np.abs(p.truth[:, i]).max() > 1e-9]
+    """Γ per channel group and per-channel RMS of a :class:`Prediction`.
+
+    The body channels are scored over the pose intervals when ``p.body`` is given.
+    """
     pas = p.columns("rdot_")
     tor = p.columns("tau_")
 
-    def g(cols: list[int]) -> float:
+    def g(cols: list[int], model: FloatArray, template: FloatArray, truth: FloatArray) -> float:
         if not cols:
             return float("nan")
-        return gamma(p.model[:, cols], p.template[:, cols], p.truth[:, cols])
+        return gamma(model[:, cols], template[:, cols], truth[:, cols])
 
-    rms_m = {c: float(np.sqrt(np.mean((p.model[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
-    rms_t = {c: float(np.sqrt(np.mean((p.template[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
+    rms_m = {c: _rms(p.model, p.truth, i) for i, c in enumerate(p.channels)}
+    rms_t = {c: _rms(p.template, p.truth, i) for i, c in enumerate(p.channels)}
+    if p.body is None:
+        body = _moving(p.truth, p.template, p.columns("xi_"))
+        gamma_body = g(body, p.model, p.template, p.truth)
+    else:
+        b = p.body
+        body = _moving(b.truth, b.template, [BODY_CHANNELS.index(p.channels[i]) for i in p.columns("xi_")])
+        gamma_body = g(body, b.model, b.template, b.truth)
+        for i in p.columns("xi_"):
+            j = BODY_CHANNELS.index(p.channels[i])
+            rms_m[p.channels[i]] = _rms(b.model, b.truth, j)
+            rms_t[p.channels[i]] = _rms(b.template, b.truth, j)
     return Scores(
-        gamma_body=g(body),
-        gamma_passive=g(pas),
-        gamma_torque=g(tor) if tor else None,
+        gamma_body=gamma_body,
+        gamma_passive=g(pas, p.model, p.template, p.truth),
+        gamma_torque=g(tor, p.model, p.template, p.truth) if tor else None,
         rms_model=rms_m,
         rms_template=rms_t,
         n_samples=int(p.t.size),
