@@ -9,11 +9,15 @@ better than the template.  Output channels are named ``xi_*`` (body velocity),
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsDataError
+
+if TYPE_CHECKING:
+    from suds_ros.core.recording import Recording
 
 BODY_CHANNELS = ("xi_x", "xi_y", "xi_theta")
 
@@ -42,6 +46,27 @@ class PoseIntervalPrediction:
     truth: FloatArray
     model: FloatArray
     template: FloatArray
+
+
+def average_over_pose_intervals(rec: "Recording", model: FloatArray, template: FloatArray, window: int = 1
+                                ) -> PoseIntervalPrediction | None:
+    """Body-channel predictions on the shape intervals of ``rec`` (rows k → k + ``window``,
+    columns ``BODY_CHANNELS`` first) averaged over its pose intervals, beside the measured body
+    velocity there; None when both streams share their stamps (nothing to average).
+
+    The predictions are taken as constant on each shape interval, so the average is the
+    overlap-weighted mean (what a live predictor publishing one value per interval claims).
+    """
+    from suds_ros.core.ident.intervals import pose_intervals
+
+    pv = pose_intervals(rec, rec.t[:-window], rec.t[window:], window)
+    mid = 0.5 * (rec.t[:-window] + rec.t[window:])
+    if pv.is_identity(mid):
+        return None
+    W = pv.over_shape(mid.size)
+    nb = len(BODY_CHANNELS)
+    return PoseIntervalPrediction(t=0.5 * (pv.t0 + pv.t1), truth=pv.xi,
+                                  model=np.asarray(W @ model[:, :nb]), template=np.asarray(W @ template[:, :nb]))
 
 
 @dataclass(frozen=True)
