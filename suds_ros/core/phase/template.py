@@ -167,7 +167,7 @@ class FourierTemplate:
         rows = basis.shape[0]
         if Y.shape[0] != rows:
             raise SudsDataError(
-                f"`Y`: expected {rows} rows to match `phase` (or `mix`), got shape {Y.shape}"
+                f"`Y`: expected {rows} rows to match `{'mix' if mix is not None else 'phase'}`, got shape {Y.shape}"
             )
         if not np.all(np.isfinite(Y)):
             raise SudsDataError(f"`Y`: expected finite values, got {int((~np.isfinite(Y)).sum())} NaN/inf entries")
