@@ -316,13 +316,13 @@ def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tup
 
     Cycles are counted in time from the first shape stamp, at ``rec.gait_hz`` (default 1 Hz):
     cycle c covers [t_0 + c/f, t_0 + (c + 1)/f), and the recording holds as many whole cycles as
-    its span plus one sampling period (the last sample's own period) covers, so dropped samples
-    and jittered stamps do not change the count.  Half a median sampling period of tolerance
-    keeps stamps that sit on a cycle boundary up to round-off on the later side.
+    its span plus one sampling period (the last sample's own period) covers, within half a
+    median period, so dropped samples and jittered stamps do not change the count.  Stamps within
+    half a period before a cycle boundary count as the later cycle (jitter, round-off).
     """
     hz = rec.gait_hz or 1.0
     dt = rec.dt
-    n_cycles = int(np.floor((rec.t[-1] - rec.t[0] + dt) * hz + 1e-6))
+    n_cycles = int(np.floor((rec.t[-1] - rec.t[0] + 1.5 * dt) * hz))
     if n_train < 1 or n_train >= n_cycles:
         raise SudsDataError(
             f"cannot train on {n_train} cycles: the recording holds {n_cycles} cycles of "
@@ -330,4 +330,6 @@ def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tup
         )
     stop = n_cycles if n_test is None else min(n_cycles, n_train + n_test)
     k_train, k_stop = np.searchsorted(rec.t, rec.t[0] + np.array([n_train, stop]) / hz - 0.5 * dt)
+    if stop == n_cycles:
+        k_stop = rec.n_samples
     return rec.slice(0, int(k_train)), rec.slice(int(k_train), int(k_stop))
