@@ -135,6 +135,11 @@ class NormalEquations:
         self.n += int(X.shape[0])
         return self
 
+    def decay(self, factor: float) -> "NormalEquations":
+        """Scale the accumulated statistics by ``factor`` (forgetting without new rows)."""
+        self.xtx, self.xty, self.yty, self.sw = factor * self.xtx, factor * self.xty, factor * self.yty, factor * self.sw
+        return self
+
     def merge(self, other: "NormalEquations") -> "NormalEquations":
         """Add the statistics of ``other`` (same shapes) to these."""
         if other.xty.shape != self.xty.shape:

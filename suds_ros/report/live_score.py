@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.errors import MISSING_TOPIC, WRONG_JOINT_NAMES, SudsDataError
-from suds_ros.core.ident.intervals import make_intervals
+from suds_ros.core.ident.intervals import make_intervals, pose_intervals
 from suds_ros.core.ident.scoring import gamma
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
@@ -136,6 +136,26 @@ def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> n
     return out
 
 
+def _body_over_pose_intervals(rec: Recording, mid: np.ndarray, pred: np.ndarray, template_order: int,
+                              cut: float) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """With a pose stream of its own stamps: the live body predictions (one per shape interval,
+    midpoint phases ``mid``) averaged over each pose interval after ``cut``, the measured body
+    velocity there, and the phase-only template fitted before ``cut`` and averaged the same way;
+    (None, None, None) when the streams share their stamps."""
+    pv = pose_intervals(rec, rec.t[:-1], rec.t[1:])
+    if pv.is_identity(0.5 * (rec.t[:-1] + rec.t[1:])):
+        return None, None, None
+    W = pv.over_shape(mid.size)
+    train, test = pv.t1 <= cut, pv.t0 >= cut
+    tmpl = FourierTemplate(FourierTemplateConfig(order=template_order)).fit(mid, pv.xi[train], mix=W[train])
+    P = np.asarray(W @ pred[:, :3])  # a missing prediction leaves its pose intervals NaN
+    T = np.asarray(W @ tmpl.predict(mid))
+    ok = test & np.all(np.isfinite(P), axis=1)
+    if not ok.any():
+        return None, None, None
+    return P[ok], pv.xi[ok], T[ok]
+
+
 def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
                            template_order: int = 8, *, recording: Recording | None = None
                            ) -> LiveScore:
@@ -183,11 +203,14 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
         raise SudsDataError(f"{bag}: no live prediction after cycle {train_cycles:g}")
     b, p = slice(0, 3), slice(3, None)
     P, M, T = pred[scored], meas[scored], tmpl[scored]
+    Pb, Mb, Tb = _body_over_pose_intervals(rec, mid, pred, template_order, cut)
+    if Pb is None:
+        Pb, Mb, Tb = P[:, b], M[:, b], T[:, b]
     first = ns_to_float(min(int(body_ns.min()), int(pas_ns.min()))) - rec.t[0]
     return LiveScore(
-        gamma_body=gamma(P[:, b], T[:, b], M[:, b]),
+        gamma_body=gamma(Pb, Tb, Mb),
         gamma_passive=gamma(P[:, p], T[:, p], M[:, p]),
-        rms_body=float(np.sqrt(np.mean((P[:, b] - M[:, b]) ** 2))),
+        rms_body=float(np.sqrt(np.mean((Pb - Mb) ** 2))),
         rms_passive=float(np.sqrt(np.mean((P[:, p] - M[:, p]) ** 2))),
         n_scored=int(scored.sum()),
         n_intervals=int(test.sum()),

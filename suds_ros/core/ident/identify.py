@@ -14,10 +14,43 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
-from suds_ros.core.ident.intervals import Intervals, make_intervals
+from suds_ros.core.fourier import fourier_basis
+from suds_ros.core.ident.intervals import Intervals, PoseIntervals, make_intervals, pose_intervals, segment_states
 from suds_ros.core.recording import Recording
-from suds_ros.core.ident.scoring import BODY_CHANNELS, Prediction, Scores, score_prediction
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
+from suds_ros.core.ident.scoring import (
+    BODY_CHANNELS,
+    PoseIntervalPrediction,
+    Prediction,
+    Scores,
+    score_prediction,
+)
+from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
+
+_BODY = list(range(len(BODY_CHANNELS)))  # the body channels lead every output vector
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """Regression data of one recording.
+
+    ``Y`` (m, c) holds every channel on the shape intervals (the body channels from the pose
+    interpolated at the shape stamps); ``pose`` the body velocity as measured over the pose
+    intervals, or None when the streams share their stamps (then the two are the same);
+    ``seg_ph``, ``seg_r``, ``seg_rdot`` the state on the pose intervals' segments.
+    """
+
+    iv: Intervals
+    ph: FloatArray
+    Y: FloatArray
+    pose: PoseIntervals | None
+    seg_ph: FloatArray | None = None
+    seg_r: FloatArray | None = None
+    seg_rdot: FloatArray | None = None
+
+    @property
+    def direct(self) -> FloatArray:
+        """The outputs fitted on the shape intervals themselves."""
+        return self.Y if self.pose is None else self.Y[:, len(_BODY):]
 
 @dataclass(frozen=True)
 class IdentifyConfig:
@@ -95,7 +128,7 @@ class SudsIdentifier:
             names += [f"tau_{j}" for j in rec.actuated]
         return tuple(names)
 
-    def _samples(self, rec: Recording, phase: FloatArray) -> tuple[Intervals, FloatArray, FloatArray]:
+    def _samples(self, rec: Recording, phase: FloatArray) -> _Samples:
         w = self.config.window
         iv = make_intervals(rec, w)
         ph = 0.5 * (phase[:-w] + phase[w:])
@@ -104,14 +137,45 @@ class SudsIdentifier:
             if iv.effort is None:
                 raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
             Y = np.concatenate([Y, iv.effort], axis=1)
-        return iv, ph, Y
+        pv = pose_intervals(rec, rec.t[:-w], rec.t[w:], w)
+        if pv.is_identity(iv.t):
+            return _Samples(iv, ph, Y, None)
+        return _Samples(iv, ph, Y, pv, *segment_states(rec, pv, phase, w))
+
+    def _targets(self, rec: Recording, X: FloatArray, s: _Samples) -> tuple[FloatArray, AveragedTargets | None]:
+        """Row targets and averaged (pose-interval) targets of the regression."""
+        if s.pose is None:
+            return s.Y, None
+        return s.direct, AveragedTargets(X=self._segment_features(rec, s), weights=s.pose.weights,
+                                         y=s.pose.xi, columns=tuple(_BODY))
+
+    def _segment_features(self, rec: Recording, s: _Samples) -> FloatArray:
+        return self._features(rec, s.seg_r, s.seg_rdot, s.seg_ph)  # type: ignore[arg-type]
+
+    def _fit_output_template(self, s: _Samples) -> FloatArray:
+        """Coefficients (2·To + 1, c) of the phase-only template of every output channel."""
+        from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+
+        tcfg = FourierTemplateConfig(order=self.config.template_order)
+        if s.pose is None:
+            return FourierTemplate(tcfg).fit(s.ph, s.Y).coef_
+        body = FourierTemplate(tcfg).fit(s.seg_ph, s.pose.xi, mix=s.pose.weights).coef_
+        rest = FourierTemplate(tcfg).fit(s.ph, s.direct).coef_
+        return np.concatenate([body, rest], axis=1)
+
+    def output_template(self, phase: FloatArray) -> FloatArray:
+        """Phase-only template predictions (n, c) of every output channel."""
+        return fourier_basis(phase, self.config.template_order) @ self.output_template_coef_
 
     def features(self, rec: Recording, iv: Intervals, phase_mid: FloatArray) -> FloatArray:
         """Regressor input X = [φ, δ, δ̇_a] (m, 1 + nj + na) from interval data."""
+        return self._features(rec, iv.r, iv.rdot, phase_mid)
+
+    def _features(self, rec: Recording, r: FloatArray, rdot: FloatArray, phase_mid: FloatArray) -> FloatArray:
         theta = self.template_.predict(phase_mid)
         dtheta = self.template_.derivative(phase_mid)
-        delta = iv.r - theta
-        ddelta = iv.rdot - dtheta * self.omega_
+        delta = r - theta
+        ddelta = rdot - dtheta * self.omega_
         return np.concatenate(
             [phase_mid[:, None], delta, ddelta[:, rec.actuated_index]], axis=1
         )
@@ -128,23 +192,25 @@ class SudsIdentifier:
             raise SudsDataError(f"estimated phase does not advance (rate {self.omega_:.3g} rad/s)")
         tcfg = FourierTemplateConfig(order=self.config.template_order)
         self.template_ = FourierTemplate(tcfg).fit(phase, rec.r)
-        iv, ph, Y = self._samples(rec, phase)
-        X = self.features(rec, iv, ph)
-        self.output_template_ = FourierTemplate(tcfg).fit(ph, Y)
-        suds = self._select_orders(rec, X, Y, self.output_template_.predict(ph))
+        s = self._samples(rec, phase)
+        X = self.features(rec, s.iv, s.ph)
+        self.output_template_coef_ = self._fit_output_template(s)
+        suds = self._select_orders(rec, X, s, self.output_template(s.ph))
         self.regressor_ = SudsRegressor(len(rec.joint_names), len(rec.actuated), suds)
-        self.regressor_.fit(X, Y)
+        self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
         self.actuated_ = rec.actuated
         self.passive_ = rec.passive
         self.channels_ = self.channels(rec)
         return self
 
-    def _select_orders(self, rec: Recording, X: FloatArray, Y: FloatArray, Yt: FloatArray) -> SudsConfig:
+    def _select_orders(self, rec: Recording, X: FloatArray, s: _Samples, Yt: FloatArray) -> SudsConfig:
         """Pick the gains' Fourier orders by blocked cross-validation on the training data.
 
         Score: mean over output groups (body, passive, torque) of Σ|error| / Σ|template error|
-        on the held-out fold; the candidate with the lowest mean over folds wins.
+        on the held-out fold; the candidate with the lowest mean over folds wins.  With a
+        separate pose stream the body group is scored over the pose intervals lying wholly in
+        the fold (those straddling a fold boundary are left out of both sides).
         Stores the table in ``cv_scores_``.
         """
         base = self.config.suds
@@ -166,15 +232,44 @@ class SudsIdentifier:
             for f in range(k):
                 test = np.zeros(X.shape[0], dtype=bool)
                 test[edges[f] : edges[f + 1]] = True
-                reg = SudsRegressor(len(rec.joint_names), len(rec.actuated), cfg).fit(X[~test], Y[~test])
-                err = np.abs(reg.predict(X[test]) - Y[test])
-                ref = np.abs(Yt[test] - Y[test])
-                total += float(np.mean([err[:, g].sum() / max(ref[:, g].sum(), 1e-300) for g in groups]))
+                total += self._fold_score(rec, cfg, X, s, Yt, test, groups)
             score = total / k
             self.cv_scores_[(lin, bil)] = score
             if score < best_score:
                 best, best_score = cfg, score
         return best
+
+    def _fold_score(self, rec: Recording, cfg: SudsConfig, X: FloatArray, s: _Samples, Yt: FloatArray,
+                    test: FloatArray, groups: list[list[int]]) -> float:
+        """Mean over output groups of Σ|model error| / Σ|template error| on one held-out fold."""
+        nj, na = len(rec.joint_names), len(rec.actuated)
+        if s.pose is None:
+            reg = SudsRegressor(nj, na, cfg).fit(X[~test], s.Y[~test])
+            err = np.abs(reg.predict(X[test]) - s.Y[test])
+            ref = np.abs(Yt[test] - s.Y[test])
+            return float(np.mean([err[:, g].sum() / max(ref[:, g].sum(), 1e-300) for g in groups]))
+        W = s.pose.weights
+        Xs = self._segment_features(rec, s)
+        seg_test = test[s.pose.seg_k]
+        in_test = np.asarray(W @ seg_test.astype(float)).ravel()
+        rows_tr, rows_te = in_test == 0.0, in_test >= 1.0 - 1e-12
+        avg = AveragedTargets(X=Xs[~seg_test], weights=W[rows_tr][:, ~seg_test], y=s.pose.xi[rows_tr],
+                              columns=tuple(_BODY))
+        reg = SudsRegressor(nj, na, cfg).fit(X[~test], s.direct[~test], avg)
+        pred = reg.predict(X)
+        nb = len(_BODY)
+        out = []
+        for g in groups:
+            if g[0] == 0:  # the body channels, measured over pose intervals
+                Wt = W[rows_te]
+                truth = s.pose.xi[rows_te]
+                e = np.abs(Wt @ reg.predict(Xs)[:, :nb] - truth).sum()
+                r = np.abs(Wt @ self.output_template(s.seg_ph)[:, :nb] - truth).sum()
+            else:
+                e = np.abs(pred[test][:, g] - s.Y[test][:, g]).sum()
+                r = np.abs(Yt[test][:, g] - s.Y[test][:, g]).sum()
+            out.append(e / max(r, 1e-300))
+        return float(np.mean(out))
 
     def _check(self, rec: Recording) -> None:
         if not hasattr(self, "regressor_"):
@@ -189,16 +284,20 @@ class SudsIdentifier:
         """Model and template predictions with the measured outputs of ``rec``."""
         self._check(rec)
         phase = self._phase(rec, fit=False)
-        iv, ph, Y = self._samples(rec, phase)
-        X = self.features(rec, iv, ph)
-        return Prediction(
-            t=iv.t,
-            phase=ph,
-            channels=self.channels_,
-            truth=Y,
-            model=self.regressor_.predict(X),
-            template=self.output_template_.predict(ph),
-        )
+        s = self._samples(rec, phase)
+        X = self.features(rec, s.iv, s.ph)
+        model = self.regressor_.predict(X)
+        template = self.output_template(s.ph)
+        body = None
+        if s.pose is not None:
+            W = s.pose.weights
+            body = PoseIntervalPrediction(
+                t=0.5 * (s.pose.t0 + s.pose.t1), truth=s.pose.xi,
+                model=np.asarray(W @ self.regressor_.predict(self._segment_features(rec, s))[:, _BODY]),
+                template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]),
+            )
+        return Prediction(t=s.iv.t, phase=s.ph, channels=self.channels_, truth=s.Y, model=model,
+                          template=template, body=body)
 
     def score(self, rec: Recording) -> Scores:
         """Γ and RMS errors of the model and the template on ``rec`` (held-out data)."""
@@ -215,14 +314,22 @@ class SudsIdentifier:
 def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tuple[Recording, Recording]:
     """Split a recording into the first ``n_train`` gait cycles and the next ``n_test`` (default: the rest).
 
-    Cycle length comes from ``rec.gait_hz`` (default 1 Hz).
+    Cycles are counted in time from the first shape stamp, at ``rec.gait_hz`` (default 1 Hz):
+    cycle c covers [t_0 + c/f, t_0 + (c + 1)/f), and the recording holds as many whole cycles as
+    its span plus one sampling period (the last sample's own period) covers, within half a
+    median period, so dropped samples and jittered stamps do not change the count.  Stamps within
+    half a period before a cycle boundary count as the later cycle (jitter, round-off).
     """
     hz = rec.gait_hz or 1.0
-    per = int(round(1.0 / (hz * rec.dt)))
-    n_cycles = rec.n_samples // per
+    dt = rec.dt
+    n_cycles = int(np.floor((rec.t[-1] - rec.t[0] + 1.5 * dt) * hz))
     if n_train < 1 or n_train >= n_cycles:
         raise SudsDataError(
-            f"cannot train on {n_train} cycles: the recording holds {n_cycles} cycles of {per} samples"
+            f"cannot train on {n_train} cycles: the recording holds {n_cycles} cycles of "
+            f"{1.0 / hz:g} s ({rec.t[-1] - rec.t[0] + dt:.3f} s of shape stamps)"
         )
     stop = n_cycles if n_test is None else min(n_cycles, n_train + n_test)
-    return rec.slice(0, n_train * per), rec.slice(n_train * per, stop * per)
+    k_train, k_stop = np.searchsorted(rec.t, rec.t[0] + np.array([n_train, stop]) / hz - 0.5 * dt)
+    if stop == n_cycles:
+        k_stop = rec.n_samples
+    return rec.slice(0, int(k_train)), rec.slice(int(k_train), int(k_stop))

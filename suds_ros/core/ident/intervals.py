@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.recording import Recording
 
@@ -84,3 +84,131 @@ def make_intervals(rec: Recording, window: int = 1, pose: FloatArray | None = No
         effort=effort,
         dt=dt,
     )
+
+
+@dataclass(frozen=True)
+class PoseIntervals:
+    """Body velocity as measured: the pose displacement over each pose interval.
+
+    The pose stream has its own stamps τ; over the pose interval [τ_i, τ_{i+w}] the measured
+    body velocity is the constant twist log(g_i⁻¹ g_{i+w}) / (τ_{i+w} − τ_i).  The shape
+    intervals cut each pose interval into *segments* (its overlaps with the shape intervals,
+    1–3 at comparable rates).  Within a shape interval the joints move on a straight line
+    (ṙ constant), so the model's velocity on a segment is its prediction at the segment's
+    midpoint state, and its prediction for the pose interval is the duration-weighted mean
+    over the segments: ``weights @ segment_predictions``.  Only pose intervals lying wholly
+    inside the shape intervals are kept.
+
+    Attributes
+    ----------
+    t0, t1 : (q,) start and end stamps of the pose intervals, s.
+    xi : (q, 3) measured body velocity over each (body frame: m/s, m/s, rad/s).
+    seg_k : (s,) int, the shape interval each segment lies in.
+    seg_t : (s,) midpoint stamp of each segment, s.
+    weights : scipy.sparse.csr_matrix (q, s)
+        Segment durations over the pose interval's duration; each row sums to 1.
+    """
+
+    t0: FloatArray
+    t1: FloatArray
+    xi: FloatArray
+    seg_k: IntArray
+    seg_t: FloatArray
+    weights: object
+
+    def is_identity(self, shape_t: FloatArray) -> bool:
+        """True when every pose interval is exactly one shape interval, in order (aligned streams),
+        ``shape_t`` being the shape intervals' midpoints."""
+        W = self.weights
+        q, m = W.shape  # type: ignore[attr-defined]
+        return bool(q == m == shape_t.size and W.nnz == m  # type: ignore[attr-defined]
+                    and np.array_equal(self.seg_k, np.arange(m)) and np.all(W.data == 1.0)  # type: ignore[attr-defined]
+                    and np.array_equal(self.seg_t, shape_t))
+
+    def over_shape(self, n_shape: int) -> object:
+        """Weights (q, n_shape) onto the shape intervals: the time average over each pose interval
+        of a signal constant on each shape interval."""
+        import scipy.sparse
+
+        S = scipy.sparse.csr_matrix((np.ones(self.seg_k.size), (np.arange(self.seg_k.size), self.seg_k)),
+                                    shape=(self.seg_k.size, n_shape))
+        return (self.weights @ S).tocsr()  # type: ignore[operator]
+
+
+def overlap_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray
+                     ) -> tuple[IntArray, IntArray, FloatArray, FloatArray]:
+    """The overlaps of intervals [b0_i, b1_i] with sorted intervals [a0_k, a1_k].
+
+    Returns
+    -------
+    rows, cols : (s,) int
+        The b-interval i and a-interval k of each overlap segment, sorted by i then k.
+    s0, s1 : (s,) float
+        Start and end of each segment (s1 > s0: intervals touching in a point do not overlap).
+    """
+    a0, a1, b0, b1 = (np.asarray(v, dtype=float) for v in (a0, a1, b0, b1))
+    lo = np.searchsorted(a1, b0, side="right")  # first a-interval ending after b0
+    hi = np.searchsorted(a0, b1, side="left")  # one past the last a-interval starting before b1
+    counts = np.maximum(hi - lo, 0)
+    rows = np.repeat(np.arange(b0.size), counts)
+    starts = np.repeat(lo - np.cumsum(counts) + counts, counts)
+    cols = starts + np.arange(rows.size)
+    s0 = np.maximum(a0[cols], b0[rows])
+    s1 = np.minimum(a1[cols], b1[rows])
+    keep = s1 > s0
+    return rows[keep], cols[keep], s0[keep], s1[keep]
+
+
+def overlap_weights(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray) -> object:
+    """Time-overlap averaging weights (q, m) of intervals [b0_i, b1_i] onto intervals [a0_k, a1_k].
+
+    Row i holds |[a0_k, a1_k] ∩ [b0_i, b1_i]| for every k, divided by the row's sum, so a
+    piecewise-constant signal taking value v_k on interval k has time average ``W @ v`` over
+    interval i (exactly, when the a-intervals tile time).  Rows with no overlap are empty.
+    """
+    import scipy.sparse
+
+    rows, cols, s0, s1 = overlap_segments(a0, a1, b0, b1)
+    ov = s1 - s0
+    total = np.bincount(rows, weights=ov, minlength=np.size(b0))
+    return scipy.sparse.csr_matrix((ov / total[rows], (rows, cols)), shape=(np.size(b0), np.size(a0)))
+
+
+def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, window: int = 1) -> PoseIntervals:
+    """The pose intervals of ``rec`` lying inside the shape intervals [shape_t0_k, shape_t1_k].
+
+    Parameters
+    ----------
+    rec : Recording
+        Its pose stream, differenced over ``window`` pose samples.
+    shape_t0, shape_t1 : (m,) float
+        Start and end stamps of the shape intervals (sorted).
+    """
+    import scipy.sparse
+
+    if rec.pose_t.size <= window:
+        raise SudsDataError(f"recording has {rec.pose_t.size} pose samples; need more than {window}")
+    tau = rec.pose_t
+    b0, b1 = tau[:-window], tau[window:]
+    xi = se2.body_velocity(rec.pose, b1 - b0, stride=window)
+    inside = (b0 >= shape_t0[0]) & (b1 <= shape_t1[-1])
+    b0, b1, xi = b0[inside], b1[inside], xi[inside]
+    rows, cols, s0, s1 = overlap_segments(shape_t0, shape_t1, b0, b1)
+    ov = s1 - s0
+    total = np.bincount(rows, weights=ov, minlength=b0.size)
+    W = scipy.sparse.csr_matrix((ov / total[rows], (rows, np.arange(rows.size))), shape=(b0.size, rows.size))
+    return PoseIntervals(t0=b0, t1=b1, xi=xi, seg_k=cols, seg_t=0.5 * (s0 + s1), weights=W)
+
+
+def segment_states(rec: Recording, pv: PoseIntervals, phase: FloatArray, window: int = 1
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Phase (s,), joint values (s, nj) at the segments' midpoints — on the straight line of their
+    shape interval — and the joint velocities (s, nj) of their shape intervals.
+
+    ``phase`` (n,) is the phase at the shape stamps."""
+    k = pv.seg_k
+    t0, t1 = rec.t[k], rec.t[k + window]
+    frac = (pv.seg_t - t0) / (t1 - t0)
+    r0, r1 = rec.r[k], rec.r[k + window]
+    ph = phase[k] + (phase[k + window] - phase[k]) * frac
+    return ph, r0 + (r1 - r0) * frac[:, None], (r1 - r0) / (t1 - t0)[:, None]

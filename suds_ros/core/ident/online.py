@@ -3,16 +3,19 @@
 Samples arrive one at a time on two streams (shape and body pose).  The
 estimator
 
-1. pairs each shape sample with the pose interpolated at its stamp (a shape
-   sample waits until a pose at or after its stamp has arrived);
+1. releases each shape sample once a pose at or after its stamp has arrived
+   (pairing by stamps only);
 2. buffers the first ``init_cycles`` gait cycles, then runs the batch phaser
    on them to obtain the phase, the nominal gait θ(φ) and the mean phase rate
    ω̄ — all three are frozen from then on, so every later regressor row is
    final when computed;
 3. tracks the phase of each new sample with :class:`PhaseTracker`;
-4. turns consecutive samples into interval rows (forward differences,
-   midpoint states) and adds them to the SUDS regression with ``partial_fit``
-   in chunks;
+4. turns consecutive shape samples into interval rows (forward differences,
+   midpoint states) for the passive velocities, and each pose interval — once
+   the shape intervals it overlaps have been featurised — into one averaged row
+   for the body velocity (its pose displacement against the duration-weighted
+   mean of the model over its segments, as in the batch identifier), and adds
+   both to the SUDS regression with ``partial_fit`` in chunks;
 5. scores each chunk *before* learning from it (prequential evaluation), giving
    a running Γ on data the model has not seen.
 
@@ -39,14 +42,15 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError, SudsPhaseError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
+from suds_ros.core.ident.intervals import overlap_segments
 from suds_ros.core.ident.scoring import BODY_CHANNELS
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
+from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.core.recording import Recording
 
-CHECKPOINT_VERSION = 2
+CHECKPOINT_VERSION = 3
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
 
@@ -91,6 +95,11 @@ class OnlineConfig:
             raise SudsConfigError(f"`chunk`: expected ≥ 1, got {self.chunk!r}")
         if not self.max_pose_wait > 0:
             raise SudsConfigError(f"`max_pose_wait`: expected > 0, got {self.max_pose_wait!r}")
+
+
+def _mean_sq(e: FloatArray) -> FloatArray:
+    """Mean square of each column (NaN for no rows)."""
+    return (e**2).sum(axis=0) / e.shape[0] if e.shape[0] else np.full(e.shape[1], np.nan)
 
 
 def _unwrap_next(prev: float, yaw: float) -> float:
@@ -154,8 +163,15 @@ class OnlineSudsEstimator:
         self._prev: tuple[float, FloatArray, FloatArray, float] | None = None  # t, r, pose, phase
         self._rows_X: list[FloatArray] = []
         self._rows_Y: list[FloatArray] = []
+        # pose intervals: poses not yet used as an interval start, featurised shape samples
+        self._pose_q: deque[tuple[float, FloatArray]] = deque()
+        self._shape_hist: deque[tuple[float, FloatArray, float]] = deque()  # t, r, phase
+        self._first_shape = float("nan")
+        self._rows_avg: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # segment X, weights, ξ
         self.regressor = SudsRegressor(len(self.joint_names), len(self.actuated), config.suds)
-        self._out_normal = NormalEquations(2 * config.template_order + 1, len(self.channels))
+        nb = len(BODY_CHANNELS)
+        self._out_normal = NormalEquations(2 * config.template_order + 1, len(self.channels) - nb)
+        self._out_normal_body = NormalEquations(2 * config.template_order + 1, nb)
         # bookkeeping
         self.phase = float("nan")
         self.n_shape = 0
@@ -183,6 +199,7 @@ class OnlineSudsEstimator:
         self.last_pose_stamp = t
         self._pose_t.append(t)
         self._pose.append(np.array([x, y, yaw_u]))
+        self._pose_q.append((t, self._pose[-1]))
         self.n_pose += 1
         return self._release()
 
@@ -290,35 +307,83 @@ class OnlineSudsEstimator:
         self.phase = phase
         prev = self._prev
         self._prev = (t, r, pose, phase)
+        self._shape_hist.append((t, r, phase))
         if prev is None:
+            self._first_shape = t
             return
         X, Y = interval_row(self.template_, self.omega_, self._act, self._pas, prev, (t, r, pose, phase))
         self._note_measured(t, Y)
         self._rows_X.append(X)
-        self._rows_Y.append(Y)
+        self._rows_Y.append(Y[len(BODY_CHANNELS):])
+        self._pose_rows(t)
         if len(self._rows_X) >= self.config.chunk:
             self.flush()
 
+    def _pose_rows(self, t_now: float) -> None:
+        """Turn every pose interval ending by ``t_now`` (the last featurised shape stamp) into an
+        averaged row; forget what no later pose interval can need."""
+        q, hist = self._pose_q, self._shape_hist
+        while len(q) >= 2 and q[1][0] <= t_now:
+            (t0, g0), (t1, g1) = q[0], q[1]
+            if t0 >= self._first_shape:
+                while len(hist) > 2 and hist[1][0] <= t0:
+                    hist.popleft()
+                T = np.fromiter((h[0] for h in hist), dtype=float)
+                _, k, s0, s1 = overlap_segments(T[:-1], T[1:], np.array([t0]), np.array([t1]))
+                frac = (0.5 * (s0 + s1) - T[k]) / (T[k + 1] - T[k])
+                R = np.array([h[1] for h in hist])
+                P = np.fromiter((h[2] for h in hist), dtype=float)
+                rdot = (R[k + 1] - R[k]) / (T[k + 1] - T[k])[:, None]
+                Xs = interval_features(self.template_, self.omega_, self._act, P[k] + (P[k + 1] - P[k]) * frac,
+                                       R[k] + (R[k + 1] - R[k]) * frac[:, None], rdot)
+                xi = se2.log(se2.relative(g0, g1)) / (t1 - t0)
+                self._rows_avg.append((Xs, (s1 - s0) / (s1 - s0).sum(), xi))
+            q.popleft()
+
     def flush(self) -> None:
         """Fit the rows waiting in the current chunk (the node calls this before publishing)."""
-        if not self._rows_X:
+        if not self._rows_X and not self._rows_avg:
             return
-        X = np.asarray(self._rows_X)
-        Y = np.asarray(self._rows_Y)
-        self._rows_X, self._rows_Y = [], []
-        Bt = fourier_basis(X[:, 0], self.config.template_order)
+        d = 1 + len(self.joint_names) + len(self.actuated)
+        X = np.asarray(self._rows_X).reshape(-1, d)
+        Y = np.asarray(self._rows_Y).reshape(X.shape[0], len(self.passive))
+        avg = self._averaged()
+        self._rows_X, self._rows_Y, self._rows_avg = [], [], []
+        order = self.config.template_order
+        Bt = fourier_basis(X[:, 0], order)
+        Bb = np.asarray(avg.weights @ fourier_basis(avg.X[:, 0], order))  # type: ignore[operator]
         if hasattr(self.regressor, "coef_"):
-            err_m = np.abs(self.regressor.predict(X) - Y)
-            err_t = np.abs(Bt @ self._output_template_coef() - Y)
-            self.sum_err_model += err_m.sum(axis=0)
-            self.sum_err_template += err_t.sum(axis=0)
-            self.last_residual = np.sqrt((err_m**2).mean(axis=0))
-        self.regressor.partial_fit(X, Y)
+            tc = self._output_template_coef()
+            nb = len(BODY_CHANNELS)
+            err_m = np.abs(np.asarray(avg.weights @ self.regressor.predict(avg.X)[:, :nb]) - avg.y)  # type: ignore[operator]
+            err_t = np.abs(Bb @ tc[:, :nb] - avg.y)
+            err_mp = np.abs(self.regressor.predict(X)[:, nb:] - Y)
+            err_tp = np.abs(Bt @ tc[:, nb:] - Y)
+            self.sum_err_model += np.concatenate([err_m.sum(axis=0), err_mp.sum(axis=0)])
+            self.sum_err_template += np.concatenate([err_t.sum(axis=0), err_tp.sum(axis=0)])
+            self.last_residual = np.sqrt(np.concatenate([_mean_sq(err_m), _mean_sq(err_mp)]))
+        self.regressor.partial_fit(X, Y, avg)
         self._out_normal.add(Bt, Y)
+        self._out_normal_body.add(Bb, avg.y)
         self.n_rows += X.shape[0]
 
+    def _averaged(self) -> AveragedTargets:
+        """The pending pose-interval rows: segment features, block weights, measured ξ."""
+        import scipy.sparse
+
+        d = 1 + len(self.joint_names) + len(self.actuated)
+        rows = self._rows_avg
+        n = [len(w) for _, w, _ in rows]
+        Xs = np.concatenate([x for x, _, _ in rows]) if rows else np.zeros((0, d))
+        W = scipy.sparse.csr_matrix(
+            (np.concatenate([w for _, w, _ in rows]) if rows else np.zeros(0),
+             (np.repeat(np.arange(len(rows)), n), np.arange(sum(n)))), shape=(len(rows), sum(n)))
+        ya = np.array([xi for _, _, xi in rows]).reshape(len(rows), len(BODY_CHANNELS))
+        return AveragedTargets(X=Xs, weights=W, y=ya, columns=tuple(range(len(BODY_CHANNELS))))
+
     def _output_template_coef(self) -> FloatArray:
-        return self._out_normal.solve(_OUTPUT_TEMPLATE_RIDGE)
+        return np.concatenate([self._out_normal_body.solve(_OUTPUT_TEMPLATE_RIDGE),
+                               self._out_normal.solve(_OUTPUT_TEMPLATE_RIDGE)], axis=1)
 
     # ---------------------------------------------------------------- results
     @property
@@ -437,13 +502,17 @@ def interval_row(
     rm = 0.5 * (ra + rb)
     rdot = (rb - ra) / dt
     xi = se2.log(se2.relative(pa, pb)) / dt
-    theta = template.predict(ph)[0]  # type: ignore[attr-defined]
-    dtheta = template.derivative(ph)[0]  # type: ignore[attr-defined]
-    delta = rm - theta
-    ddelta = rdot - dtheta * omega
-    X = np.concatenate([ph, delta, ddelta[act]])
+    X = interval_features(template, omega, act, ph, rm[None, :], rdot[None, :])[0]
     Y = np.concatenate([xi, rdot[pas]])
     return X, Y
+
+
+def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,
+                      rdot: FloatArray) -> FloatArray:
+    """Regressor rows X = [φ, δ, δ̇_a] (k, 1 + nj + na) for phases (k,), joint values and rates (k, nj)."""
+    theta = template.predict(phase)  # type: ignore[attr-defined]
+    dtheta = template.derivative(phase)  # type: ignore[attr-defined]
+    return np.concatenate([phase[:, None], r - theta, (rdot - dtheta * omega)[:, act]], axis=1)
 
 
 def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> OnlineSudsEstimator:

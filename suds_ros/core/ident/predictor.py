@@ -16,7 +16,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsDataError, SudsError
 from suds_ros.core.ident.intervals import make_intervals
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, model_template
-from suds_ros.core.ident.scoring import Prediction
+from suds_ros.core.ident.scoring import Prediction, average_over_pose_intervals
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.recording import Recording
 
@@ -149,7 +149,8 @@ def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:
     iv = make_intervals(rec)
     ph = np.asarray(phases)
     truth = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
+    pred_rows, template = np.asarray(out), model.template(ph)
     return Prediction(
-        t=iv.t, phase=ph, channels=model.channels, truth=truth,
-        model=np.asarray(out), template=model.template(ph),
+        t=iv.t, phase=ph, channels=model.channels, truth=truth, model=pred_rows, template=template,
+        body=average_over_pose_intervals(rec, pred_rows, template),
     )

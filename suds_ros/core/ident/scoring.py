@@ -9,11 +9,15 @@ better than the template.  Output channels are named ``xi_*`` (body velocity),
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsDataError
+
+if TYPE_CHECKING:
+    from suds_ros.core.recording import Recording
 
 BODY_CHANNELS = ("xi_x", "xi_y", "xi_theta")
 
@@ -28,6 +32,44 @@ def gamma(pred: FloatArray, template: FloatArray, truth: FloatArray) -> float:
 
 
 @dataclass(frozen=True)
+class PoseIntervalPrediction:
+    """Body velocity as measured over pose intervals, and the predictions averaged over them.
+
+    Attributes
+    ----------
+    t : (q,) pose-interval midpoint stamps, s.
+    truth : (q, 3) measured body velocity (pose displacement over the interval / its duration).
+    model, template : (q, 3) the shape-interval predictions averaged over each pose interval.
+    """
+
+    t: FloatArray
+    truth: FloatArray
+    model: FloatArray
+    template: FloatArray
+
+
+def average_over_pose_intervals(rec: "Recording", model: FloatArray, template: FloatArray, window: int = 1
+                                ) -> PoseIntervalPrediction | None:
+    """Body-channel predictions on the shape intervals of ``rec`` (rows k → k + ``window``,
+    columns ``BODY_CHANNELS`` first) averaged over its pose intervals, beside the measured body
+    velocity there; None when both streams share their stamps (nothing to average).
+
+    The predictions are taken as constant on each shape interval, so the average is the
+    overlap-weighted mean (what a live predictor publishing one value per interval claims).
+    """
+    from suds_ros.core.ident.intervals import pose_intervals
+
+    pv = pose_intervals(rec, rec.t[:-window], rec.t[window:], window)
+    mid = 0.5 * (rec.t[:-window] + rec.t[window:])
+    if pv.is_identity(mid):
+        return None
+    W = pv.over_shape(mid.size)
+    nb = len(BODY_CHANNELS)
+    return PoseIntervalPrediction(t=0.5 * (pv.t0 + pv.t1), truth=pv.xi,
+                                  model=np.asarray(W @ model[:, :nb]), template=np.asarray(W @ template[:, :nb]))
+
+
+@dataclass(frozen=True)
 class Prediction:
     """Predictions on the intervals of one recording.
 
@@ -39,6 +81,10 @@ class Prediction:
     truth : (m, c) measured outputs.
     model : (m, c) SUDS model predictions.
     template : (m, c) phase-only template predictions.
+    body : PoseIntervalPrediction or None
+        When the pose stream has its own stamps: the body channels as measured over the pose
+        intervals, which score the body velocity (the shape-interval ``truth`` of the body
+        channels then comes from interpolated poses and is only indicative).
     """
 
     t: FloatArray
@@ -47,6 +93,7 @@ class Prediction:
     truth: FloatArray
     model: FloatArray
     template: FloatArray
+    body: PoseIntervalPrediction | None = None
 
     def columns(self, prefix: str) -> list[int]:
         """Indices of the channels whose name starts with ``prefix``."""
@@ -80,25 +127,45 @@ class Scores:
         }
 
 
+def _moving(truth: FloatArray, template: FloatArray, cols: list[int]) -> list[int]:
+    """The columns that carry motion (1-D swimmers' ξy, ξθ never move and carry no information)."""
+    return [i for i in cols if np.abs(template[:, i]).max() > 1e-9 or np.abs(truth[:, i]).max() > 1e-9]
+
+
+def _rms(a: FloatArray, truth: FloatArray, i: int) -> float:
+    return float(np.sqrt(np.mean((a[:, i] - truth[:, i]) ** 2)))
+
+
 def score_prediction(p: Prediction) -> Scores:
-    """Γ per channel group and per-channel RMS of a :class:`Prediction`."""
-    body = p.columns("xi_")
-    # channels with no motion at all (1-D swimmers' ξy, ξθ) carry no information
-    body = [i for i in body if np.abs(p.template[:, i]).max() > 1e-9 or np.abs(p.truth[:, i]).max() > 1e-9]
+    """Γ per channel group and per-channel RMS of a :class:`Prediction`.
+
+    The body channels are scored over the pose intervals when ``p.body`` is given.
+    """
     pas = p.columns("rdot_")
     tor = p.columns("tau_")
 
-    def g(cols: list[int]) -> float:
+    def g(cols: list[int], model: FloatArray, template: FloatArray, truth: FloatArray) -> float:
         if not cols:
             return float("nan")
-        return gamma(p.model[:, cols], p.template[:, cols], p.truth[:, cols])
+        return gamma(model[:, cols], template[:, cols], truth[:, cols])
 
-    rms_m = {c: float(np.sqrt(np.mean((p.model[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
-    rms_t = {c: float(np.sqrt(np.mean((p.template[:, i] - p.truth[:, i]) ** 2))) for i, c in enumerate(p.channels)}
+    rms_m = {c: _rms(p.model, p.truth, i) for i, c in enumerate(p.channels)}
+    rms_t = {c: _rms(p.template, p.truth, i) for i, c in enumerate(p.channels)}
+    if p.body is None:
+        body = _moving(p.truth, p.template, p.columns("xi_"))
+        gamma_body = g(body, p.model, p.template, p.truth)
+    else:
+        b = p.body
+        body = _moving(b.truth, b.template, [BODY_CHANNELS.index(p.channels[i]) for i in p.columns("xi_")])
+        gamma_body = g(body, b.model, b.template, b.truth)
+        for i in p.columns("xi_"):
+            j = BODY_CHANNELS.index(p.channels[i])
+            rms_m[p.channels[i]] = _rms(b.model, b.truth, j)
+            rms_t[p.channels[i]] = _rms(b.template, b.truth, j)
     return Scores(
-        gamma_body=g(body),
-        gamma_passive=g(pas),
-        gamma_torque=g(tor) if tor else None,
+        gamma_body=gamma_body,
+        gamma_passive=g(pas, p.model, p.template, p.truth),
+        gamma_torque=g(tor, p.model, p.template, p.truth) if tor else None,
         rms_model=rms_m,
         rms_template=rms_t,
         n_samples=int(p.t.size),

@@ -150,6 +150,26 @@ def design_matrix(
     return np.concatenate(cols, axis=1)
 
 
+@dataclass(frozen=True)
+class AveragedTargets:
+    """Outputs measured as time averages of the model's row predictions (e.g. the body velocity
+    measured over pose intervals that straddle several shape intervals).
+
+    Attributes
+    ----------
+    X : (m', 1 + nj + na) regressor rows whose predictions are averaged.
+    weights : (q, m') dense or scipy.sparse averaging weights (rows sum to 1).
+    y : (q, k) the measured averages.
+    columns : the k model outputs these targets measure (indices into the full output vector;
+        the remaining outputs, in order, are the columns of the ``y`` given beside).
+    """
+
+    X: FloatArray
+    weights: object
+    y: FloatArray
+    columns: tuple[int, ...]
+
+
 class SudsRegressor:
     """Phase-varying SUDS regression fitted from accumulated normal equations.
 
@@ -168,8 +188,17 @@ class SudsRegressor:
     ----------
     coef_ : (p, n_out) fitted coefficients.
     n_samples_seen_ : int
-    normal_ : NormalEquations, the accumulated (forgetting-weighted) XᵀX (p, p) and XᵀY (p, n_out).
+    normal_ : NormalEquations, the accumulated (forgetting-weighted) XᵀX (p, p) and XᵀY of the
+        outputs fitted row by row (all outputs unless averaged targets were given).
+    normal_avg_ : NormalEquations or None, the same for the averaged outputs (design W·A).
+    avg_columns_ : tuple of int, the outputs fitted on averaged targets (empty: none).
     layout_ : FeatureLayout
+
+    With :class:`AveragedTargets` the averaged outputs are fitted on the averaged design rows
+    W·A (the model is linear in its coefficients, so the average of the predictions is the
+    prediction of the averaged row) and the other outputs on A; the two least-squares problems
+    share nothing but the coefficient layout, so each keeps its own normal equations (and its
+    own relative ridge).  Without averaged targets the fit is the plain one on A.
     """
 
     def __init__(self, n_joints: int, n_actuated: int, config: SudsConfig = SudsConfig()) -> None:
@@ -207,39 +236,75 @@ class SudsRegressor:
             )
 
     # ----------------------------------------------------------------- API
-    def fit(self, X: FloatArray, y: FloatArray) -> "SudsRegressor":
-        """Fit from scratch on (X, y) (resets any accumulated statistics)."""
-        for attr in ("coef_", "normal_", "n_samples_seen_", "layout_", "n_outputs_"):
+    def fit(self, X: FloatArray, y: FloatArray, averaged: AveragedTargets | None = None) -> "SudsRegressor":
+        """Fit from scratch on (X, y) and optional averaged targets (resets accumulated statistics)."""
+        for attr in ("coef_", "normal_", "normal_avg_", "avg_columns_", "n_samples_seen_", "layout_", "n_outputs_"):
             if hasattr(self, attr):
                 delattr(self, attr)
-        return self.partial_fit(X, y)
+        return self.partial_fit(X, y, averaged)
 
-    def partial_fit(self, X: FloatArray, y: FloatArray) -> "SudsRegressor":
-        """Add a chunk of samples to the sufficient statistics and re-solve."""
+    def partial_fit(self, X: FloatArray, y: FloatArray, averaged: AveragedTargets | None = None) -> "SudsRegressor":
+        """Add a chunk of samples to the sufficient statistics and re-solve.
+
+        ``averaged`` (see :class:`AveragedTargets`) must be given on the first call for the
+        outputs it names to be fitted on averages; later calls may omit it (no averaged rows in
+        that chunk).  With forgetting, the chunk's averaged rows are weighted as if spread
+        evenly over its rows.
+        """
         A = self._design(X)
-        y = np.asarray(y, dtype=float)
-        if y.ndim == 1:
-            y = y[:, None]
-        if y.shape[0] != A.shape[0]:
-            raise SudsDataError(f"y: expected {A.shape[0]} rows like X, got {y.shape[0]}")
-        if not np.all(np.isfinite(y)):
-            raise SudsDataError("y contains NaN or Inf")
+        y = self._targets(y, A.shape[0], "y")
         first = not hasattr(self, "normal_")
-        if not first and y.shape[1] != self.n_outputs_:
-            raise SudsDataError(f"y: expected {self.n_outputs_} outputs as before, got {y.shape[1]}")
-        lam = self.config.forgetting
-        m = A.shape[0]
         if first:
             self.layout_ = feature_layout(self.config, self.n_joints, self.n_actuated)
-            self.n_outputs_ = y.shape[1]
+            self.avg_columns_ = () if averaged is None else tuple(int(c) for c in averaged.columns)
+            self.n_outputs_ = y.shape[1] + len(self.avg_columns_)
             self.normal_ = NormalEquations(A.shape[1], y.shape[1])
+            self.normal_avg_ = NormalEquations(A.shape[1], len(self.avg_columns_)) if self.avg_columns_ else None
+        if y.shape[1] != self.n_outputs_ - len(self.avg_columns_):
+            raise SudsDataError(
+                f"y: expected {self.n_outputs_ - len(self.avg_columns_)} outputs as before, got {y.shape[1]}")
+        lam = self.config.forgetting
+        m = A.shape[0]
+        if averaged is not None:
+            if tuple(averaged.columns) != self.avg_columns_:
+                raise SudsDataError(f"averaged.columns: expected {self.avg_columns_} as on the first call, "
+                                    f"got {tuple(averaged.columns)}")
+            Aa = np.asarray(averaged.weights @ self._design(averaged.X))
+            ya = self._targets(averaged.y, Aa.shape[0], "averaged.y")
+            q = Aa.shape[0]
+            wa = lam ** ((q - 1 - np.arange(q)) * (m / max(q, 1))) if lam < 1.0 else None
+            self.normal_avg_.add(Aa, ya, wa, decay=lam**m)  # type: ignore[union-attr]
+        elif self.normal_avg_ is not None and lam < 1.0 and m:
+            self.normal_avg_.decay(lam**m)
         if lam < 1.0:
             self.normal_.add(A, y, lam ** np.arange(m - 1, -1, -1, dtype=float), decay=lam**m)
         else:
             self.normal_.add(A, y)
         self.n_samples_seen_ = self.normal_.n
-        self.coef_ = self.normal_.solve(self.config.ridge)
+        self._solve()
         return self
+
+    @staticmethod
+    def _targets(y: FloatArray, rows: int, name: str) -> FloatArray:
+        y = np.asarray(y, dtype=float)
+        if y.ndim == 1:
+            y = y[:, None]
+        if y.shape[0] != rows:
+            raise SudsDataError(f"{name}: expected {rows} rows like its design, got {y.shape[0]}")
+        if not np.all(np.isfinite(y)):
+            raise SudsDataError(f"{name} contains NaN or Inf")
+        return y
+
+    def _solve(self) -> None:
+        direct = self.normal_.solve(self.config.ridge)
+        if self.normal_avg_ is None:
+            self.coef_ = direct
+            return
+        coef = np.zeros((direct.shape[0], self.n_outputs_))
+        rest = [c for c in range(self.n_outputs_) if c not in self.avg_columns_]
+        coef[:, rest] = direct
+        coef[:, list(self.avg_columns_)] = self.normal_avg_.solve(self.config.ridge)
+        self.coef_ = coef
 
     def predict(self, X: FloatArray) -> FloatArray:
         """Predicted outputs (n, n_out)."""

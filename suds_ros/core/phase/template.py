@@ -97,7 +97,8 @@ class FourierTemplate:
             self.__dict__.pop(name, None)
 
     def fit(
-        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None
+        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None,
+        mix: object | None = None,
     ) -> "FourierTemplate":
         """Fit the template from scratch.
 
@@ -109,6 +110,10 @@ class FourierTemplate:
             Samples; a 1-D ``Y`` is treated as one channel (d = 1).
         sample_weight : ndarray, shape (n,), optional
             Non-negative weights of the squared residuals.
+        mix : (n, m) dense or scipy.sparse weights, optional
+            The samples are averages: row i of ``Y`` is Σ_k mix[i, k]·θ(φ_k) over the m
+            phases given in ``phase`` (e.g. a velocity measured over an interval that spans
+            several intervals of the phase's stream).
 
         Returns
         -------
@@ -121,7 +126,7 @@ class FourierTemplate:
             Malformed input, or too few samples / too narrow a spread of phases for the order.
         """
         self._reset()
-        self.partial_fit(phase, Y, sample_weight)
+        self.partial_fit(phase, Y, sample_weight, mix)
         if not hasattr(self, "coef_"):
             p = self.n_coefficients
             raise SudsDataError(
@@ -132,7 +137,8 @@ class FourierTemplate:
         return self
 
     def partial_fit(
-        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None
+        self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None,
+        mix: object | None = None,
     ) -> "FourierTemplate":
         """Accumulate a chunk into the normal equations and re-solve.
 
@@ -152,18 +158,25 @@ class FourierTemplate:
             Y = Y[:, None]
         if Y.ndim != 2:
             raise SudsDataError(f"`Y`: expected shape (n, d) or (n,), got shape {Y.shape}")
-        if Y.shape[0] != phase.size:
+        basis = fourier_basis(phase, self.config.order)
+        if mix is not None:
+            if mix.shape[1] != phase.size:  # type: ignore[attr-defined]
+                raise SudsDataError(f"`mix`: expected {phase.size} columns to match `phase`, "
+                                    f"got shape {mix.shape}")  # type: ignore[attr-defined]
+            basis = np.asarray(mix @ basis)  # type: ignore[operator]
+        rows = basis.shape[0]
+        if Y.shape[0] != rows:
             raise SudsDataError(
-                f"`Y`: expected {phase.size} rows to match `phase`, got shape {Y.shape}"
+                f"`Y`: expected {rows} rows to match `{'mix' if mix is not None else 'phase'}`, got shape {Y.shape}"
             )
         if not np.all(np.isfinite(Y)):
             raise SudsDataError(f"`Y`: expected finite values, got {int((~np.isfinite(Y)).sum())} NaN/inf entries")
         if sample_weight is None:
-            w = np.ones(phase.size)
+            w = np.ones(rows)
         else:
             w = np.asarray(sample_weight, dtype=float)
-            if w.shape != phase.shape:
-                raise SudsDataError(f"`sample_weight`: expected shape {phase.shape}, got shape {w.shape}")
+            if w.shape != (rows,):
+                raise SudsDataError(f"`sample_weight`: expected shape {(rows,)}, got shape {w.shape}")
             if not np.all(np.isfinite(w)) or np.any(w < 0):
                 raise SudsDataError("`sample_weight`: expected finite values ≥ 0, got negative or non-finite entries")
 
@@ -176,8 +189,8 @@ class FourierTemplate:
                 f"`Y`: expected {self.n_features_in_} channels as in earlier calls, got {Y.shape[1]}"
             )
 
-        self.normal_.add(fourier_basis(phase, self.config.order), Y, w)
-        self.n_samples_seen_ += phase.size
+        self.normal_.add(basis, Y, w)
+        self.n_samples_seen_ += rows
         self._solve()
         return self
 
