@@ -68,7 +68,7 @@ class _EqError:
         xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
         qdot = np.concatenate([xi, rdot], axis=1)
         tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
-        xi_w = self._compose(xi)
+        xi_w = self._compose(chain.to_pose_frame(xi))  # the recorded ξ is the pose frame's
         if len(self._metric_cache) > 64:
             self._metric_cache.clear()
         self._metric_cache[key] = (tau, xi_w)

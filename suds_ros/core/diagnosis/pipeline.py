@@ -345,15 +345,24 @@ def diagnose_recording(
     config: DiagnoseConfig = DiagnoseConfig(),
     reference: Recording | None = None,
     progress: Callable[[str], None] | None = None,
+    model: ChainModel | None = None,
 ) -> DiagnosisReport:
-    """:func:`diagnose` with the nominal model of a named system (default ``rec.system``)."""
-    from suds_ros.core.physics.systems import make_system
+    """:func:`diagnose` with ``model`` (e.g. a robot model file's), else the nominal model of ``system``.
 
+    ``system`` is a built-in chain id or the path of a robot model file; default ``rec.system``.
+    """
+    from suds_ros.core.physics.systems import load_system
+
+    if model is not None:
+        if system is not None and system != model.name:
+            raise SudsConfigError(f"`system` {system!r} and `model` {model.name!r}: give one of them")
+        return diagnose(rec, model, config, reference=reference, progress=progress)
     name = system or rec.system
-    sysobj = make_system(name)
-    model = getattr(sysobj, "model", None)
-    if not isinstance(model, ChainModel):
+    sysobj = load_system(name)
+    chain = getattr(sysobj, "model", None)
+    if not isinstance(chain, ChainModel):
         raise SudsConfigError(
-            f"`system` {name!r}: diagnosis needs an RFT chain (purcell3, swimmer9, nlinkN); got {type(sysobj).__name__}"
+            f"`system` {name!r}: diagnosis needs an RFT chain (purcell3, swimmer9, nlinkN or a robot "
+            f"model file); got {type(sysobj).__name__}"
         )
-    return diagnose(rec, model, config, reference=reference, progress=progress)
+    return diagnose(rec, chain, config, reference=reference, progress=progress)
