@@ -62,7 +62,10 @@ class Grid:
         k = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(rel) / dt), 1.0))])
         A = np.column_stack([np.ones_like(k), k])
         (a, b), *_ = np.linalg.lstsq(A, rel, rcond=None)
-        lo, hi = max(t[0], pt[0]), min(t[-1], pt[-1])
+        # grid points less than a step outside either stream's span (a pose stream starting a few
+        # ms after the shape stream does not cost the first grid point: its first sample, within
+        # the knot's support, still pins it; such an end point is marked unreliable)
+        lo, hi = max(t[0], pt[0]) - 0.999 * dt, min(t[-1], pt[-1]) + 0.999 * dt
         k0 = int(np.ceil((lo - t[0] - a) / b - 1e-9))
         k1 = int(np.floor((hi - t[0] - a) / b + 1e-9))
         if k1 - k0 < 2:
@@ -71,7 +74,7 @@ class Grid:
                 f"{pt[-1]:.6f}] s overlap on fewer than 3 grid points",
                 code=TOO_LITTLE_DATA,
             )
-        grid = np.clip(t[0] + a + b * np.arange(k0, k1 + 1), lo, hi)
+        grid = t[0] + a + b * np.arange(k0, k1 + 1)
         return cls(grid, float(b), True)
 
     def shape(self, rec: Recording) -> FloatArray:
@@ -79,13 +82,14 @@ class Grid:
         return rec.r if not self.resampled else knot_fit(rec.t, rec.r, self.t)
 
     def unreliable(self, ts: FloatArray) -> BoolArray:
-        """:func:`gaps` of the stream ``ts`` and their neighbours (none when not resampled).
+        """:func:`gaps` of the stream ``ts``, the two ends, and their neighbours (none when not resampled).
 
         A knot next to a gap spans it, so the kink lost in the gap also bends its value.
         """
         if not self.resampled:
             return np.zeros(self.t.size, dtype=bool)
         g = gaps(ts, self.t)
+        g[[0, -1]] = True  # the end knots are pinned from one side only
         out = g.copy()
         out[1:] |= g[:-1]
         out[:-1] |= g[1:]
