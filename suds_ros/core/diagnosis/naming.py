@@ -16,7 +16,6 @@ from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
-from suds_ros.core.recording import joint_names
 
 
 # =============================================================================== equation error
@@ -183,7 +182,7 @@ def equation_terms(cand: Candidate, x: FloatArray, data: Data, model: ChainModel
 
 def catalogue_candidates(model: ChainModel) -> list[Candidate]:
     """Every single-effect candidate for a system: joint effects on each passive joint, global effects."""
-    names = joint_names(model.n_joints)
+    names = model.joint_names
     out: list[Candidate] = []
     for eid, spec in EFFECTS.items():
         if spec.needs_joint:
