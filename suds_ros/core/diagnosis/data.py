@@ -135,4 +135,3 @@ def gait_phase(r: FloatArray, t: FloatArray, gait_hz: float) -> tuple[FloatArray
             f"phase ranges use the clock phase 2π·{gait_hz:g} Hz·(t − t0) instead"
         )
         return 2 * np.pi * gait_hz * (t - t[0]), "clock", note
-
