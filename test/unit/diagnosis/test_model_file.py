@@ -87,7 +87,7 @@ def test_cli_diagnoses_the_public_snake5_lab_bag(capsys: pytest.CaptureFixture[s
         pytest.skip("public snake5 files not present")
     assert main(["diagnose", "--model", str(robot), "--json", str(bag)]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["system"] == "snake5" and d["unexplained"] is False
+    assert d["mismatch"] is True and d["unexplained"] is False
     [eff] = d["effects"]
     assert (eff["name"], eff["target"]) == ("joint_viscous_damping", "joint_4")
     assert eff["parameters"]["d"] == pytest.approx(0.6, rel=0.25)
