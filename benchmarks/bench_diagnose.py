@@ -9,6 +9,8 @@ Usage:
   PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py --table [--out docs/results/diagnose.md]
       the results table: both public bags, null purcell3 and swimmer9, and every catalogue effect
       (injected value, recovered ± stderr, held-out improvement, wall time), written as Markdown.
+  PYTHONPATH=. .venv/bin/python benchmarks/bench_diagnose.py --table --only-lab
+      only the rows of the lab-condition bags and the model-file robot (``--model`` cases).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "bags"
+ROBOTS = SHARED.parent / "robots"
 
 
 def _sim(system: str, effects: list[dict[str, Any]], cycles: int, seed: int):  # type: ignore[no-untyped-def]
@@ -34,11 +37,31 @@ def _sim(system: str, effects: list[dict[str, Any]], cycles: int, seed: int):  #
     return simulate(RFTChain(model), SimConfig(cycles=cycles, seed=seed, pose_delay=delay))
 
 
+def _base(system: str):  # type: ignore[no-untyped-def]
+    """A built-in chain id or a robot model file → its ChainModel."""
+    from suds_ros.core.physics.systems import builtin_model, is_model_file
+
+    if is_model_file(system):
+        from suds_ros.core.physics.robot_model import load_model
+
+        return load_model(system)
+    return builtin_model(system)
+
+
+def _sim_model(path: str, effects: list[dict[str, Any]], cycles: int, seed: int):  # type: ignore[no-untyped-def]
+    from suds_ros.core.physics.effects import apply_effects
+    from suds_ros.core.physics.rft import RFTChain
+    from suds_ros.core.physics.sim import SimConfig, simulate
+
+    base = _base(path)
+    model, delay = apply_effects(base, effects)
+    return simulate(RFTChain(model), SimConfig(cycles=cycles, seed=seed, pose_delay=delay, gait_hz=base.gait_hz))
+
+
 def _timed(rec, system: str):  # type: ignore[no-untyped-def]
     from suds_ros.core.diagnosis import diagnose
-    from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
 
-    base = {"purcell3": purcell3_model, "swimmer9": swimmer9_model}[system]()
+    base = _base(system)
     t0 = time.perf_counter()
     c0 = time.process_time()
     rep = diagnose(rec, base)
@@ -115,7 +138,44 @@ def _fmt_report(rep) -> str:  # type: ignore[no-untyped-def]
     return s
 
 
-def table(out: Path) -> int:
+# lab-condition bags (separate 100 Hz shape / 120 Hz pose streams, jitter, drops) with their
+# nominal system (a built-in id or a model file), and model-file robots with an injected effect
+LAB_BAGS: list[tuple[str, str, list[dict[str, Any]]]] = [
+    ("purcell3_lab_nominal.mcap", "purcell3", []),
+    ("snake5_lab_damping.mcap", str(ROBOTS / "snake5.yaml"),
+     [dict(name="joint_viscous_damping", joint="joint_4", d=0.6)]),
+]
+MODEL_CASES: list[tuple[str, list[dict[str, Any]], int, int]] = [
+    (str(ROBOTS / "snake5.yaml"), [dict(name="joint_viscous_damping", joint="joint_3", d=0.4)], 20, 13),
+]
+
+
+def _lab_rows() -> list[tuple[str, str, int, str, Any, float, float]]:
+    """Rows of :data:`LAB_BAGS` and :data:`MODEL_CASES` (skipping files that are absent)."""
+    from suds_ros.io.recording_bag import read_recording
+
+    rows = []
+    for name, system, truth in LAB_BAGS:
+        p = SHARED / name
+        if not p.exists() or not Path(system if system.endswith(".yaml") else ".").exists():
+            continue
+        rec = read_recording(p)
+        rep, wall, cpu = _timed(rec, system)
+        cyc = rep.train_cycles + rep.heldout_cycles
+        rows.append((f"lab bag `{name}`", rec.system, cyc, _fmt_effects(truth), rep, wall, cpu))
+        print(rows[-1][0], f"{wall:.1f}s", _fmt_report(rep), flush=True)
+    for path, effects, cycles, seed in MODEL_CASES:
+        if not Path(path).exists():
+            continue
+        rec = _sim_model(path, effects, cycles, seed)
+        rep, wall, cpu = _timed(rec, path)
+        rows.append((f"model file `{Path(path).name}` (seed {seed})", rec.system, cycles, _fmt_effects(effects),
+                     rep, wall, cpu))
+        print(rows[-1][0], f"{wall:.1f}s", _fmt_report(rep), flush=True)
+    return rows
+
+
+def table(out: Path, only_lab: bool = False) -> int:
     from suds_ros.io.recording_bag import read_recording
 
     rows = []
@@ -123,7 +183,7 @@ def table(out: Path) -> int:
         ("purcell3_real_friction.mcap", [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.7)]),
         ("swimmer9_real_rest_offset.mcap", [dict(name="spring_rest_offset", joint="joint_6", offset=0.25)]),
     ]
-    for name, truth in bags:
+    for name, truth in ([] if only_lab else bags):
         p = SHARED / name
         if not p.exists():
             continue
@@ -131,7 +191,8 @@ def table(out: Path) -> int:
         rep, wall, cpu = _timed(rec, rec.system)
         rows.append((f"bag `{name}`", rec.system, rec.n_samples // 100, _fmt_effects(truth), rep, wall, cpu))
         print(rows[-1][0], f"{wall:.1f}s", _fmt_report(rep), flush=True)
-    for label, system, effects, cycles, seed in TABLE_CASES:
+    rows.extend(_lab_rows())
+    for label, system, effects, cycles, seed in ([] if only_lab else TABLE_CASES):
         rec = _sim(system, effects, cycles, seed)
         rep, wall, cpu = _timed(rec, system)
         lab = label or effects[0]["name"]
@@ -168,12 +229,14 @@ def table(out: Path) -> int:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     ap.add_argument("bags", nargs="*")
     ap.add_argument("--table", action="store_true", help="run every case and write the Markdown table")
     ap.add_argument("--out", default="docs/results/diagnose.md", help="Markdown file; the table replaces the block between the table markers")
+    ap.add_argument("--only-lab", action="store_true",
+                    help="with --table: only the lab-condition bags and the model-file robot rows")
     a = ap.parse_args()
-    return table(Path(a.out)) if a.table else wall_times(a.bags)
+    return table(Path(a.out), a.only_lab) if a.table else wall_times(a.bags)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording
+from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording, load_recording_and_model
 from suds_ros.core.errors import SudsConfigError
 
 EPILOG = """\
@@ -29,6 +29,10 @@ examples:
   suds diagnose --system purcell3 real.mcap
   suds diagnose --system swimmer9 real.mcap --json -o report/
   suds diagnose --system swimmer9 real.mcap --sim replayed_sim.mcap
+  suds diagnose --model robot.yaml real.mcap        (a robot model file, suds-robot/1)
+
+Shape and pose may be separate streams (own rates, start times, jitter, dropped messages):
+both are brought onto one grid at the nominal shape rate before the stages run.
 """
 
 
@@ -59,11 +63,12 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.output)
         if out.exists() and not out.is_dir():
             raise SudsConfigError(f"-o {str(out)!r}: exists and is not a directory")
-    rec = load_recording(args.bag, args)
+    rec, model = load_recording_and_model(args.bag, args)
     ref = load_recording(args.sim, args) if args.sim else None
     quiet = args.json or not sys.stderr.isatty()
     progress = None if quiet else (lambda s: print(f"  … {s}", file=sys.stderr, flush=True))
-    rep = diagnose_recording(rec, system=args.system, reference=ref, progress=progress)
+    system = None if model is not None else args.system
+    rep = diagnose_recording(rec, system=system, reference=ref, progress=progress, model=model)
     paths = write_figures(rep, args.output) if args.output else []
     if args.json:
         print(rep.to_json())

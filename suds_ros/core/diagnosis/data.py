@@ -1,4 +1,8 @@
-"""A recording made ready for diagnosis: joints in model order, halves, samples per cycle, gait phase."""
+"""A recording made ready for diagnosis: joints in model order, one uniform grid, halves, gait phase.
+
+Shape and pose may come as separate streams with their own stamps (:mod:`.grid` brings them
+onto one uniform grid at the nominal shape rate; aligned uniform recordings are used as they are).
+"""
 
 from __future__ import annotations
 
@@ -6,18 +10,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.diagnosis.grid import Grid
+from suds_ros.core.diagnosis.grid import xi_noise_gain as grid_xi_noise_gain
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.rft import ChainModel
-from suds_ros.core.recording import Recording, joint_names, samples_per_cycle
+from suds_ros.core.recording import Recording, samples_per_cycle
 
 
 @dataclass(frozen=True)
 class Data:
     """A recording in the model's joint order, cut to whole gait cycles (first half trains).
 
-    Samples [0, n_train) are the training half, [n_train, n_used) the held-out half.
+    Samples [0, n_train) are the training half, [n_train, n_used) the held-out half.  ``t`` is a
+    uniform grid (spacing ``dt``); ``pose_t``/``pose_raw`` are the recorded pose stream as received.
+    ``resampled``: the streams were brought onto the grid (:mod:`.grid`).
     """
 
     t: FloatArray  # (n,) stamps
@@ -35,11 +43,14 @@ class Data:
     names: tuple[str, ...]
     phase_source: str = "phaser"
     phase_note: str = ""
+    shape_gap: BoolArray | None = None  # (n,) shape unreliable: no sample within half a step (or next to such a point)
+    pose_gap: BoolArray | None = None  # (n,) the same for the pose stream
+    resampled: bool = False  # the streams were brought onto a grid (not aligned and uniform)
 
 
 def prepare(rec: Recording, model: ChainModel) -> Data:
     """Check ``rec`` against ``model`` and lay it out for diagnosis (at least 4 whole gait cycles)."""
-    names = joint_names(model.n_joints)
+    names = model.joint_names
     if set(rec.joint_names) != set(names):
         raise SudsDataError(
             f"`rec`: joints {list(rec.joint_names)} do not match the joints {list(names)} of "
@@ -54,11 +65,10 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
             code=WRONG_JOINT_NAMES,
         )
     order = [rec.joint_names.index(nm) for nm in names]
-    r = rec.r[:, order]
-    dt = rec.dt
-    f = rec.gait_hz or 1.0
-    spc = samples_per_cycle(dt, f)
-    n_cycles = rec.n_samples // spc
+    f = rec.gait_hz or model.gait_hz or 1.0
+    grid = Grid.of(rec)
+    spc = samples_per_cycle(grid.dt, f)
+    n_cycles = grid.t.size // spc  # whole cycles of the time the (uniform) grid spans
     if n_cycles < 4:
         raise SudsDataError(
             f"recording has {n_cycles} whole gait cycles at {f} Hz; diagnosis needs at least 4 "
@@ -67,8 +77,9 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         )
     n_train = (n_cycles // 2) * spc
     n_used = n_cycles * spc
-    t = rec.t
-    pose = rec.pose_at(t)
+    t, dt = grid.t, grid.dt
+    r = grid.shape(rec)[:, order]
+    pose = grid.pose(rec)
     phase, source, note = gait_phase(r, t, f)
     return Data(
         t=t,
@@ -86,7 +97,22 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         names=names,
         phase_source=source,
         phase_note=note,
+        shape_gap=grid.unreliable(rec.t),
+        pose_gap=grid.unreliable(rec.pose_t),
+        resampled=grid.resampled,
     )
+
+
+def xi_noise_gain(data: Data, w: int) -> float:
+    """Gain of the windowed body velocity's noise floor over ``w`` samples (√2 on aligned streams).
+
+    See :func:`~suds_ros.core.diagnosis.grid.xi_noise_gain`.
+    """
+    if not data.resampled:
+        return float(np.sqrt(2.0))
+    lo, hi = data.t[0], data.t[data.n_used - 1]
+    sel = (data.pose_t >= lo - data.dt) & (data.pose_t <= hi + data.dt)
+    return grid_xi_noise_gain(data.pose_t[sel], data.t[: data.n_used], w)
 
 
 def gait_phase(r: FloatArray, t: FloatArray, gait_hz: float) -> tuple[FloatArray, str, str]:
@@ -109,4 +135,3 @@ def gait_phase(r: FloatArray, t: FloatArray, gait_hz: float) -> tuple[FloatArray
             f"phase ranges use the clock phase 2π·{gait_hz:g} Hz·(t − t0) instead"
         )
         return 2 * np.pi * gait_hz * (t - t[0]), "clock", note
-

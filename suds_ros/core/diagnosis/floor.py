@@ -29,12 +29,15 @@ def _d4(x: FloatArray, axis: int = -1) -> FloatArray:
 
 
 def noise_floor(
-    rec_rp: FloatArray, sim_rp: FloatArray, rec_pose: FloatArray, sim_pose: FloatArray, w: int, dt: float
+    rec_rp: FloatArray, sim_rp: FloatArray, rec_pose: FloatArray, sim_pose: FloatArray, w: int, dt: float,
+    gain: float = float(np.sqrt(2.0)),
 ) -> Floors:
     """Noise floor from the white part of the replay residual.
 
     Arrays are per segment (B, m, ·).  Returns σ of each passive angle (np,), and the floor of
-    the windowed ξ translation (m/s) and rotation (rad/s) components.
+    the windowed ξ translation (m/s) and rotation (rad/s) components: gain·σ_pose/(w·dt), with
+    ``gain`` √2 for white pose noise on the grid (two independent window ends) and
+    :func:`~suds_ros.core.diagnosis.data.xi_noise_gain` for a pose stream interpolated onto it.
     """
     e = rec_rp - sim_rp
     sig_rp = np.array([_mad_sigma(_d4(e[..., j], axis=1).ravel()) for j in range(e.shape[-1])]) / np.sqrt(70)
@@ -44,7 +47,7 @@ def noise_floor(
     sth = _mad_sigma(_d4(ep[..., 2], axis=1).ravel())
     s_xy = np.sqrt((sx**2 + sy**2) / 2 / 70)
     s_th = sth / np.sqrt(70)
-    k = np.sqrt(2) / (w * dt)
+    k = gain / (w * dt)
     return sig_rp, float(k * s_xy), float(k * s_th)
 
 

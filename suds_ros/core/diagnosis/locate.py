@@ -30,20 +30,29 @@ class ChannelTable:
     channels: tuple[str, ...]
     held: BoolArray
     xi_rec: FloatArray
+    w: int = 1
 
     @classmethod
     def of(cls, data: Data, w: int) -> "ChannelTable":
         """The table of a prepared recording with the body velocity over ``w``-sample windows."""
         channels = tuple(data.names[j] for j in data.pas) + BODY
         held = np.arange(data.n_used) >= data.n_train
-        return cls(data, channels, held, midpoint_xi(data.pose, data, w))
+        return cls(data, channels, held, midpoint_xi(data.pose, data, w), w)
 
     def residuals(self, rp_sim: FloatArray, xi_sim: FloatArray) -> FloatArray:
-        """Recorded minus simulated, (n_used, channels)."""
+        """Recorded minus simulated, (n_used, channels); NaN where a stream had no sample (:func:`.grid.gaps`).
+
+        A passive angle is left out at a shape gap, a body velocity where its window starts or
+        ends at a pose or a shape gap (the replay's drive is interpolated there).
+        """
         data, n = self.data, self.data.n_used
         e = np.full((n, len(self.channels)), np.nan)
         e[:, : data.pas.size] = data.r[:n][:, data.pas] - rp_sim
         e[:, data.pas.size:] = self.xi_rec - xi_sim
+        if data.shape_gap is not None and data.pose_gap is not None:
+            e[data.shape_gap[:n], : data.pas.size] = np.nan
+            # the replayed pose follows the drive, so a shape gap also bends the simulated ξ
+            e[_window_touches(data.pose_gap[:n] | data.shape_gap[:n], self.w), data.pas.size:] = np.nan
         return e
 
     def rms(self, E: FloatArray) -> dict[str, float]:
@@ -60,6 +69,16 @@ class ChannelTable:
         return dict(zip(self.channels, list(sig_rp) + [s_xy, s_xy, s_th]))
 
 
+def _window_touches(gap: BoolArray, w: int) -> BoolArray:
+    """Window midpoints i (windows [i − w//2, i − w//2 + w]) with an end at a ``gap`` point."""
+    out = np.zeros(gap.size, dtype=bool)
+    g = np.flatnonzero(gap)
+    for end in (g + w // 2, g - w + w // 2):
+        ok = (end >= 0) & (end < gap.size)
+        out[end[ok]] = True
+    return out
+
+
 def locate_channels(
     F: Mapping[str, float], E0: FloatArray, table: ChannelTable, cycle: FloatArray, config: DiagnoseConfig
 ) -> list[Located]:
@@ -68,7 +87,7 @@ def locate_channels(
     ``cycle`` (n_used,) numbers the gait cycles of the phase (the replicates of the phase test); a
     located channel without a significant phase bin gets the whole cycle.
     """
-    held, phase = table.held, table.data.phase
+    held, phase = table.held, table.data.phase[: table.data.n_used]
     out: list[Located] = []
     for i, c in enumerate(table.channels):
         if F[c] > config.f_threshold:

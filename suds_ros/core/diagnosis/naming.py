@@ -16,7 +16,6 @@ from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
-from suds_ros.core.recording import joint_names
 
 
 # =============================================================================== equation error
@@ -68,7 +67,7 @@ class _EqError:
         xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
         qdot = np.concatenate([xi, rdot], axis=1)
         tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
-        xi_w = self._compose(xi)
+        xi_w = self._compose(chain.to_pose_frame(xi))  # the recorded ξ is the pose frame's
         if len(self._metric_cache) > 64:
             self._metric_cache.clear()
         self._metric_cache[key] = (tau, xi_w)
@@ -183,7 +182,7 @@ def equation_terms(cand: Candidate, x: FloatArray, data: Data, model: ChainModel
 
 def catalogue_candidates(model: ChainModel) -> list[Candidate]:
     """Every single-effect candidate for a system: joint effects on each passive joint, global effects."""
-    names = joint_names(model.n_joints)
+    names = model.joint_names
     out: list[Candidate] = []
     for eid, spec in EFFECTS.items():
         if spec.needs_joint:

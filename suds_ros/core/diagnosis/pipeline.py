@@ -77,7 +77,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.diagnosis.data import Data, prepare
+from suds_ros.core.diagnosis.data import Data, prepare, xi_noise_gain
 from suds_ros.core.diagnosis.floor import Floors, noise_floor
 from suds_ros.core.diagnosis.locate import (
     ChannelTable,
@@ -190,7 +190,7 @@ def _replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refer
     warm = int(round(config.replay_warm / data.dt))
     rep = replay_recording(data, model, 0.0, w, substeps, reference, chunk, warm)
     table = ChannelTable.of(data, w)
-    floors = noise_floor(*rep.floor_arrays, w, data.dt)
+    floors = noise_floor(*rep.floor_arrays, w, data.dt, xi_noise_gain(data, w))
     floor = table.floor(floors)
     E0 = table.residuals(rep.rp, rep.xi)
     return _Nominal(
@@ -227,7 +227,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     fitted_model, delay = apply_effects(model, cand.effects(x))
     rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
     # floor with the better model (effects can leak into the fourth differences)
-    better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt))
+    better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt, xi_noise_gain(data, nom.w)))
     floor = {c: float(min(nom.floor[c], v)) for c, v in better.items()}
     F0 = table.fstats(nom.E0, floor)
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
@@ -345,15 +345,24 @@ def diagnose_recording(
     config: DiagnoseConfig = DiagnoseConfig(),
     reference: Recording | None = None,
     progress: Callable[[str], None] | None = None,
+    model: ChainModel | None = None,
 ) -> DiagnosisReport:
-    """:func:`diagnose` with the nominal model of a named system (default ``rec.system``)."""
-    from suds_ros.core.physics.systems import make_system
+    """:func:`diagnose` with ``model`` (e.g. a robot model file's), else the nominal model of ``system``.
 
+    ``system`` is a built-in chain id or the path of a robot model file; default ``rec.system``.
+    """
+    from suds_ros.core.physics.systems import load_system
+
+    if model is not None:
+        if system is not None and system != model.name:
+            raise SudsConfigError(f"`system` {system!r} and `model` {model.name!r}: give one of them")
+        return diagnose(rec, model, config, reference=reference, progress=progress)
     name = system or rec.system
-    sysobj = make_system(name)
-    model = getattr(sysobj, "model", None)
-    if not isinstance(model, ChainModel):
+    sysobj = load_system(name)
+    chain = getattr(sysobj, "model", None)
+    if not isinstance(chain, ChainModel):
         raise SudsConfigError(
-            f"`system` {name!r}: diagnosis needs an RFT chain (purcell3, swimmer9, nlinkN); got {type(sysobj).__name__}"
+            f"`system` {name!r}: diagnosis needs an RFT chain (purcell3, swimmer9, nlinkN or a robot "
+            f"model file); got {type(sysobj).__name__}"
         )
-    return diagnose(rec, model, config, reference=reference, progress=progress)
+    return diagnose(rec, chain, config, reference=reference, progress=progress)

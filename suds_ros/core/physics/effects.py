@@ -40,7 +40,6 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.rft import ChainModel
-from suds_ros.core.recording import joint_names
 
 
 @dataclass(frozen=True)
@@ -317,7 +316,7 @@ EFFECTS: dict[str, EffectSpec] = {
 
 def joint_index(model: ChainModel, joint: object, effect: str) -> int:
     """0-based index of the passive joint named ``joint`` (``"joint_k"``, 1-based, head to tail)."""
-    names = list(joint_names(model.n_joints))
+    names = list(model.joint_names)
     if isinstance(joint, str) and joint in names:
         j = names.index(joint)
     else:

@@ -1,0 +1,159 @@
+"""One uniform grid for recordings whose shape and pose streams have their own stamps.
+
+A lab records shape (encoders) and pose (motion capture) at their own rates, from their own
+start times, with acquisition jitter and a few dropped messages (``shared/spec/recording.md``:
+"a reader pairs them by stamp").  The diagnosis stages (replay, floors, windows of samples) work
+on one uniform grid at the nominal shape rate; this module makes that grid and brings both
+streams onto it.
+
+- The grid t_k = t_0 + a + b·k is fitted (least squares) to the shape stamps against their nominal
+  index (gaps counted in whole periods, so drops and a slightly wrong median period do not shift
+  indices), so its points sit on the nominal acquisition times — where a servo set-point stream
+  has its kinks: the actuated joints move on straight lines between set-points, and the body
+  velocity jumps at every set-point because ṙ_a does.  It is cut to the span both streams cover.
+- Each stream is brought onto the grid as a linear spline with its knots at the grid points
+  (least squares over the stream's samples, :func:`knot_fit`).  A linear spline with knots at
+  the kinks represents the piecewise-linear drive exactly, and the pose (continuous, its
+  velocity jumping only at the kinks) to within its curvature over one grid step, whereas plain
+  interpolation between jittered samples cuts every kink that falls between two samples.  A grid
+  point with no sample within half a step (a dropped message, or a slower stream) is not a knot:
+  there the spline interpolates linearly between its neighbours.  x, y and the unwrapped yaw are
+  fitted separately; over one 10 ms step this differs from SE(2) interpolation (a circular arc)
+  by ~v·ω·Δt²/8 < 1e-5 m.
+- The windowed body velocity's noise floor then needs the gain of that linear operator on white
+  pose noise (:func:`xi_noise_gain`, calibrated on seeded white noise at the pose stamps).
+Cycles are counted from the time the grid spans, never from the number of messages received.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+
+from suds_ros.core._typing import BoolArray, FloatArray
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsDataError
+from suds_ros.core.recording import Recording
+
+#: Weight of the rows that pull every knot toward plain linear interpolation (keeps the least
+#: squares well posed where a knot has little data; negligible elsewhere).
+_RIDGE = 1e-6
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The uniform grid ``t`` (spacing ``dt``) of a recording; ``resampled`` False: its own stamps."""
+
+    t: FloatArray
+    dt: float
+    resampled: bool
+
+    @classmethod
+    def of(cls, rec: Recording) -> "Grid":
+        """The recording's stamps when both streams share uniform stamps, else a fitted grid."""
+        t, pt = rec.t, rec.pose_t
+        dt = rec.dt
+        rel = t - t[0]
+        if (pt.size == t.size and np.allclose(pt, t, rtol=0.0, atol=1e-6)
+                and np.allclose(np.diff(rel), dt, rtol=1e-3, atol=0.0)):
+            return cls(t, dt, False)
+        k = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(rel) / dt), 1.0))])
+        A = np.column_stack([np.ones_like(k), k])
+        (a, b), *_ = np.linalg.lstsq(A, rel, rcond=None)
+        # grid points less than a step outside either stream's span (a pose stream starting a few
+        # ms after the shape stream does not cost the first grid point: its first sample, within
+        # the knot's support, still pins it; such an end point is marked unreliable)
+        lo, hi = max(t[0], pt[0]) - 0.999 * dt, min(t[-1], pt[-1]) + 0.999 * dt
+        k0 = int(np.ceil((lo - t[0] - a) / b - 1e-9))
+        k1 = int(np.floor((hi - t[0] - a) / b + 1e-9))
+        if k1 - k0 < 2:
+            raise SudsDataError(
+                f"`rec`: shape stamps [{t[0]:.6f}, {t[-1]:.6f}] s and pose stamps [{pt[0]:.6f}, "
+                f"{pt[-1]:.6f}] s overlap on fewer than 3 grid points",
+                code=TOO_LITTLE_DATA,
+            )
+        grid = t[0] + a + b * np.arange(k0, k1 + 1)
+        return cls(grid, float(b), True)
+
+    def shape(self, rec: Recording) -> FloatArray:
+        """Joint angles at the grid points (n, nj)."""
+        return rec.r if not self.resampled else knot_fit(rec.t, rec.r, self.t)
+
+    def unreliable(self, ts: FloatArray) -> BoolArray:
+        """:func:`gaps` of the stream ``ts``, the two ends, and their neighbours (none when not resampled).
+
+        A knot next to a gap spans it, so the kink lost in the gap also bends its value.
+        """
+        if not self.resampled:
+            return np.zeros(self.t.size, dtype=bool)
+        g = gaps(ts, self.t)
+        g[[0, -1]] = True  # the end knots are pinned from one side only
+        out = g.copy()
+        out[1:] |= g[:-1]
+        out[:-1] |= g[1:]
+        return out
+
+    def pose(self, rec: Recording) -> FloatArray:
+        """Pose (x, y, unwrapped yaw) at the grid points (n, 3)."""
+        return rec.pose_at(self.t) if not self.resampled else knot_fit(rec.pose_t, rec.pose, self.t)
+
+
+def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
+    """Grid points with no sample of the stream ``ts`` within half a grid step (e.g. a dropped message).
+
+    There the stream's value is interpolated across a possible kink (for the OU-perturbed drive
+    an error of up to |Δṙ|·Δt/2, several hundredths of a radian), so residuals that use the
+    value at such a point are left out of the statistics (:meth:`ChannelTable.residuals
+    <suds_ros.core.diagnosis.locate.ChannelTable.residuals>`).
+    """
+    dt = float(np.median(np.diff(grid)))
+    i = np.searchsorted(ts, grid)
+    after = np.abs(ts[np.clip(i, 0, ts.size - 1)] - grid) <= 0.5 * dt
+    before = np.abs(ts[np.clip(i - 1, 0, ts.size - 1)] - grid) <= 0.5 * dt
+    return ~(after | before)
+
+
+def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
+    """Least-squares linear spline of the samples ``Y`` (m, c) at stamps ``ts``, evaluated at ``grid``.
+
+    Knots: the grid points that have a sample within half a grid step (not :func:`gaps`; and both
+    ends).  Rows √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
+    """
+    near = ~gaps(ts, grid)
+    near[0] = near[-1] = True
+    knots = grid[near]
+    K = knots.size
+    inside = (ts >= knots[0]) & (ts <= knots[-1])
+    s, y = ts[inside], Y[inside]
+    j = np.clip(np.searchsorted(knots, s, side="right") - 1, 0, K - 2)
+    u = (s - knots[j]) / (knots[j + 1] - knots[j])
+    rows = np.repeat(np.arange(s.size), 2)
+    A = scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
+                                 (rows, np.stack([j, j + 1], axis=1).ravel())), shape=(s.size, K))
+    prior = np.stack([np.interp(knots, ts, Y[:, c]) for c in range(Y.shape[1])], axis=1)
+    N = (A.T @ A + _RIDGE * scipy.sparse.identity(K)).tocsc()
+    rhs = A.T @ y + _RIDGE * prior
+    coef = scipy.sparse.linalg.splu(N).solve(np.asarray(rhs, dtype=float))
+    return np.stack([np.interp(grid, knots, coef[:, c]) for c in range(Y.shape[1])], axis=1)
+
+
+def _mad(x: FloatArray) -> float:
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) -> float:
+    """Gain g such that g·σ̂/(w·dt) is the RMS noise of the windowed body velocity on ``grid``.
+
+    σ̂ is the floor's estimate of the pose noise (MAD of fourth differences over √70,
+    :func:`~suds_ros.core.diagnosis.floor.noise_floor`).  White noise on the grid itself gives
+    g = √2; for a pose stream fitted onto the grid by :func:`knot_fit` both the fourth
+    differences and the window differences see the fit's correlated noise, so g is measured on
+    ``draws`` columns of seeded unit white noise at the pose stamps ``pose_t`` put through the same fit.
+    """
+    noise = np.random.default_rng(0).standard_normal((pose_t.size, draws))
+    G = knot_fit(pose_t, noise, grid)
+    est = np.array([_mad(np.diff(G[:, c], n=4)) for c in range(draws)]) / np.sqrt(70.0)
+    act = np.sqrt(np.mean((G[w:] - G[:-w]) ** 2, axis=0))
+    return float(np.sqrt(np.mean(act**2) / np.mean(est**2)))
