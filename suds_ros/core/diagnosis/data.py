@@ -12,8 +12,8 @@ import numpy as np
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
-from suds_ros.core.diagnosis.grid import Grid
-from suds_ros.core.diagnosis.grid import xi_noise_gain as grid_xi_noise_gain
+from suds_ros.core.resample import Grid
+from suds_ros.core.resample import xi_noise_gain as grid_xi_noise_gain
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.rft import ChainModel
 from suds_ros.core.recording import Recording, samples_per_cycle
@@ -106,7 +106,7 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
 def xi_noise_gain(data: Data, w: int) -> float:
     """Gain of the windowed body velocity's noise floor over ``w`` samples (√2 on aligned streams).
 
-    See :func:`~suds_ros.core.diagnosis.grid.xi_noise_gain`.
+    See :func:`~suds_ros.core.resample.xi_noise_gain`.
     """
     if not data.resampled:
         return float(np.sqrt(2.0))

@@ -74,6 +74,10 @@ class IdentifyConfig:
         contiguous blocks of training cycles (``cv_folds``); empty keeps ``suds`` as given.
     cv_folds : int
         Number of contiguous folds for the order selection.
+    regrid : bool
+        Bring an asynchronous shape stream (jittered stamps, drops, a pose stream of its own)
+        onto its fitted uniform sampling grid first (:func:`~suds_ros.core.resample.on_shape_grid`:
+        the drive's set-point kinks then fall on interval ends).  Aligned recordings are unchanged.
     """
 
     suds: SudsConfig = field(default_factory=SudsConfig)
@@ -83,6 +87,7 @@ class IdentifyConfig:
     phaser_order: int = 10
     order_grid: tuple[tuple[int, int], ...] = ((1, 0), (2, 1), (4, 2), (6, 3))
     cv_folds: int = 3
+    regrid: bool = True
 
     def __post_init__(self) -> None:
         if self.phase not in ("phaser", "truth"):
@@ -185,6 +190,7 @@ class SudsIdentifier:
         """Estimate phase, template and the SUDS regression from a training recording."""
         from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
+        rec = self._prepared(rec)
         phase = self._phase(rec, fit=True)
         span = rec.t[-1] - rec.t[0]
         self.omega_ = float((phase[-1] - phase[0]) / span)
@@ -271,6 +277,13 @@ class SudsIdentifier:
             out.append(e / max(r, 1e-300))
         return float(np.mean(out))
 
+    def _prepared(self, rec: Recording) -> Recording:
+        if not self.config.regrid or self.config.phase == "truth":
+            return rec
+        from suds_ros.core.resample import on_shape_grid
+
+        return on_shape_grid(rec)
+
     def _check(self, rec: Recording) -> None:
         if not hasattr(self, "regressor_"):
             raise NotFittedError("SudsIdentifier is not fitted yet; call fit first")
@@ -283,6 +296,7 @@ class SudsIdentifier:
     def predict(self, rec: Recording) -> Prediction:
         """Model and template predictions with the measured outputs of ``rec``."""
         self._check(rec)
+        rec = self._prepared(rec)
         phase = self._phase(rec, fit=False)
         s = self._samples(rec, phase)
         X = self.features(rec, s.iv, s.ph)

@@ -14,7 +14,7 @@ import pytest
 
 from suds_ros.core.diagnosis import diagnose
 from suds_ros.core.diagnosis.data import prepare, xi_noise_gain
-from suds_ros.core.diagnosis.grid import Grid, gaps, knot_fit
+from suds_ros.core.resample import Grid, gaps, knot_fit
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
 from suds_ros.core.physics.rft import RFTChain
@@ -74,7 +74,7 @@ def test_xi_noise_gain_is_sqrt2_for_white_noise_on_the_grid() -> None:
 
 
 def xi_noise_gain_of(pose_t: np.ndarray, grid: np.ndarray) -> float:
-    from suds_ros.core.diagnosis.grid import xi_noise_gain
+    from suds_ros.core.resample import xi_noise_gain
 
     return xi_noise_gain(pose_t, grid, 10)
 

@@ -27,7 +27,7 @@ Cycles are counted from the time the grid spans, never from the number of messag
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse
@@ -157,3 +157,23 @@ def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) 
     est = np.array([_mad(np.diff(G[:, c], n=4)) for c in range(draws)]) / np.sqrt(70.0)
     act = np.sqrt(np.mean((G[w:] - G[:-w]) ** 2, axis=0))
     return float(np.sqrt(np.mean(act**2) / np.mean(est**2)))
+
+
+def on_shape_grid(rec: Recording) -> Recording:
+    """``rec`` with its shape stream brought onto its fitted uniform grid; the pose stream untouched.
+
+    For a recording whose shape stamps are already uniform and shared with the pose stream the
+    recording itself is returned.  Otherwise the shape samples are replaced by the least-squares
+    linear spline of :func:`knot_fit` at the grid points (the servo set-point times, where the
+    drive has its kinks), so shape intervals coincide with the drive's straight-line segments.
+    Ground truth, which belongs to the original stamps, is dropped.
+    """
+    grid = Grid.of(rec)
+    if not grid.resampled:
+        return rec
+    t = grid.t[(grid.t >= rec.pose_t[0]) & (grid.t <= rec.pose_t[-1])]
+    if t.size < 3:
+        raise SudsDataError(f"`rec`: fewer than 3 grid points inside the pose stream's span",
+                            code=TOO_LITTLE_DATA)
+    effort = None if rec.effort is None else knot_fit(rec.t, rec.effort, t)
+    return replace(rec, t=t, r=knot_fit(rec.t, rec.r, t), effort=effort, truth={})
