@@ -86,10 +86,11 @@ from suds_ros.core.diagnosis.locate import (
     excess_improvement,
     locate_channels,
 )
-from suds_ros.core.diagnosis.naming import Naming, name_mismatch
+from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
 from suds_ros.core.diagnosis.replay import RecordingReplay, replay_recording
 from suds_ros.core.diagnosis.report import Channels, DiagnoseConfig, DiagnosisReport, FittedEffect, Located
+from suds_ros.core.diagnosis.selection import Naming, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -233,8 +234,10 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
     new = [l.channel for l in located if l.channel not in conditions]
     conditions.update(channel_conditions(new, nom.E0, table, model))
-    return _Fit(fitted_effects(cand, x, se), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0, located,
-                conditions, () if dropped else naming.confounded, False)
+    evidence = {Candidate((p,)).label: e for p, e in zip(naming.chosen.cand.parts, naming.evidence)}
+    confounded = tuple(g for g in naming.confounded if g[0] not in dropped)
+    return _Fit(fitted_effects(cand, x, se, evidence), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0,
+                located, conditions, confounded, False)
 
 
 def _show(

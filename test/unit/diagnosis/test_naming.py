@@ -7,7 +7,8 @@ import pytest
 
 from suds_ros.core.diagnosis import DiagnoseConfig, catalogue_candidates
 from suds_ros.core.diagnosis.data import prepare
-from suds_ros.core.diagnosis.naming import Candidate, equation_terms, name_mismatch
+from suds_ros.core.diagnosis.naming import Candidate, equation_terms
+from suds_ros.core.diagnosis.selection import name_mismatch
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
