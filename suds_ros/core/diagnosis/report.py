@@ -152,6 +152,31 @@ class FittedEffect:
 
 
 @dataclass(frozen=True)
+class Discovered:
+    """A candidate formula for a torque missing from a passive joint's balance (:mod:`.discovery`).
+
+    ``terms``: library term → coefficient (N·m per unit of the term); ``stderr`` likewise;
+    ``physics``: words for the recognisable terms; ``heldout_reduction``: fraction of the joint's
+    held-out equation-error residual power the formula removes.
+    """
+
+    joint: str | None
+    terms: Mapping[str, float]
+    stderr: Mapping[str, float]
+    physics: tuple[str, ...]
+    heldout_reduction: float
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "joint": self.joint,
+            "terms": {k: float(v) for k, v in self.terms.items()},
+            "stderr": {k: float(v) for k, v in self.stderr.items()},
+            "physics": list(self.physics),
+            "heldout_reduction": float(self.heldout_reduction),
+        }
+
+
+@dataclass(frozen=True)
 class CandidateScore:
     """Equation-error evidence for one candidate (single effect or pair)."""
 
@@ -204,6 +229,7 @@ class DiagnosisReport:
     timings: Mapping[str, float] = field(default_factory=dict)
     phase_source: str = "phaser"
     notes: tuple[str, ...] = ()
+    discovered: tuple[Discovered, ...] = ()
 
     @property
     def plain_rms_ratio(self) -> float | None:
@@ -216,7 +242,8 @@ class DiagnosisReport:
         return 1.0 - after / before if before > 0 else None
 
     def to_dict(self) -> dict[str, object]:
-        """The JSON schema of ``suds diagnose --json`` (exactly these keys)."""
+        """The JSON schema of ``suds diagnose --json`` (exactly these keys; ``discovered`` and each
+        effect's ``evidence`` were added by the stepwise selection, nothing was removed)."""
         return {
             "mismatch": bool(self.mismatch),
             "located": [
@@ -235,6 +262,7 @@ class DiagnosisReport:
                 "heldout_rms_after": {k: float(v) for k, v in self.heldout_rms_after.items()},
                 "improvement": float(self.improvement),
             },
+            "discovered": [d.as_dict() for d in self.discovered],
         }
 
     def to_json(self, indent: int | None = 2) -> str:

@@ -67,3 +67,32 @@ def test_max_effects_caps_the_set() -> None:
                dict(name="background_flow", vx=0.05, vy=0.0)]
     n = _naming(effects, 16, 4, max_effects=1)
     assert len(n.chosen.cand.parts) == 1 and len(n.gains) == 1
+
+
+# ------------------------------------------------------------------------------ end to end
+@pytest.mark.slow
+def test_three_effects_at_once_swimmer9(run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+    effects = [
+        dict(name="spring_rest_offset", joint="joint_6", offset=0.2),
+        dict(name="joint_viscous_damping", joint="joint_8", d=0.5),
+        dict(name="background_flow", vx=0.03, vy=-0.02),
+    ]
+    rep = run_case("swimmer9", effects, cycles=30, seed=7)
+    check_recovered(rep, effects)
+    assert all(e["evidence"] > DiagnoseConfig().evidence_threshold for e in rep.to_dict()["effects"])
+
+
+@pytest.mark.slow
+def test_a_longer_tail_link_is_named_as_a_model_parameter_error() -> None:
+    """swimmer9 whose tail link is 30 % longer than the model says, model parameters suspected."""
+    from suds_ros.core.diagnosis import diagnose
+    from suds_ros.core.physics.systems import swimmer9_model
+
+    base = swimmer9_model()
+    model, _ = apply_effects(base, [dict(name="link_length_error", link="link_9", scale=1.3)])
+    rec = simulate(RFTChain(model), SimConfig(cycles=20, seed=5))
+    d = diagnose(rec, base, DiagnoseConfig(model_suspects=True)).to_dict()
+    assert d["unexplained"] is False
+    (e,) = d["effects"]  # type: ignore[misc]
+    assert (e["name"], e["target"]) == ("link_length_error", "link_9"), d
+    assert e["parameters"]["scale"] == pytest.approx(1.3, rel=0.25)
