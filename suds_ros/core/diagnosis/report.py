@@ -76,7 +76,7 @@ class DiagnoseConfig:
     phase_alpha: float = 0.01
     step_candidates: int = 5
     max_effects: int = 3
-    evidence_threshold: float = 10.0
+    evidence_threshold: float = 29.0
     model_suspects: bool = False
     confound_margin: float = 3.0
     confound_rel: float = 0.01
