@@ -1,8 +1,8 @@
-"""Naming a mismatch: equation-error fits of every catalogue candidate, ranked on the held-out half."""
+"""Naming a mismatch: the equation error of every candidate effect, fitted on the training half and
+scored on the held-out half (the stepwise choice among them is :mod:`.selection`)."""
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,7 +12,6 @@ from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.replay import window_xi
-from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -42,7 +41,7 @@ class _EqError:
         self.pose_t = data.pose_t
         self.pose_raw = data.pose_raw
         self.yaw_mid = 0.5 * (data.pose[lo:hi - 1, 2] + data.pose[lo + 1:hi, 2])
-        self._metric_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._metric_cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = {}
         self._xi_rec_cache: dict[float, FloatArray] = {}
         self.nint = self.rbar.shape[0]
         self.nwin = self.nint - w + 1
@@ -53,14 +52,14 @@ class _EqError:
         c = np.cumsum(np.concatenate([np.zeros((1,) + x.shape[1:]), x], axis=0), axis=0)
         return (c[self.w:] - c[:-self.w]) / self.w
 
-    def drag_terms(self, ratio: float) -> tuple[FloatArray, FloatArray]:
-        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ (nwin, 3) at drag ratio c⊥/c∥."""
-        key = round(float(ratio), 12)
+    def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray]:
+        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ of the pose frame (nwin, 3),
+        with the geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) applied."""
+        key = p.geometry_key()
         hit = self._metric_cache.get(key)
         if hit is not None:
             return hit
-        model = self.model.with_drag_ratio(ratio)
-        chain = RFTChain(model)
+        chain = RFTChain(p.chain_model(self.model))
         D = chain.drag_metric(self.rbar)  # (m, 3+nj, 3+nj)
         rdot = self.rdot
         rhs = -np.einsum("bij,bj->bi", D[:, :3, 3:], rdot)
@@ -106,7 +105,7 @@ class _EqError:
 
     def residuals(self, p: EquationTerms, rdot_thr: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Torque residuals (nint, np) and body-velocity residuals (nwin, 3) under parameters ``p``."""
-        tau, xi_w = self.drag_terms(p.ratio)
+        tau, xi_w = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
         spring = -p.scale * p.kscale * self.k * e_spring - p.scale * p.k3 * e_spring**3
         e = tau + p.d * self.rdot_p - spring
@@ -129,7 +128,7 @@ class _EqError:
 # =============================================================================== candidates
 @dataclass(frozen=True)
 class Candidate:
-    """One or two catalogue effects with free parameters."""
+    """A set of catalogue effects with free parameters (empty: the nominal model)."""
 
     parts: tuple[tuple[str, str | None], ...]  # (effect id, target joint name or None)
 
@@ -155,7 +154,8 @@ class Candidate:
         out: list[dict[str, object]] = []
         i = 0
         for n, tgt in self.parts:
-            e: dict[str, object] = {"name": n, "joint": tgt}
+            spec = EFFECTS[n]
+            e: dict[str, object] = {"name": n, ("link" if spec.needs_link else "joint"): tgt}
             for p in EFFECTS[n].params:
                 e[p.name] = float(x[i])
                 i += 1
@@ -170,21 +170,35 @@ def _label(name: str, target: str | None) -> str:
 def equation_terms(cand: Candidate, x: FloatArray, data: Data, model: ChainModel) -> EquationTerms:
     """The candidate's effects at parameters ``x`` in equation-error form (each effect's ``equation``)."""
     pas = list(data.pas)
-    terms = EquationTerms.neutral(len(pas), model.drag_ratio)
+    terms = EquationTerms.neutral(len(pas), model.drag_ratio, model.n_links)
     i = 0
     for n, tgt in cand.parts:
         spec = EFFECTS[n]
-        j = None if tgt is None else pas.index(data.names.index(tgt))
+        if tgt is None:
+            j = None
+        elif spec.needs_link:
+            j = int(tgt.rsplit("_", 1)[1]) - 1
+        else:
+            j = pas.index(data.names.index(tgt))
         spec.equation(terms, j, {p.name: x[i + k] for k, p in enumerate(spec.params)})
         i += len(spec.params)
     return terms
 
 
-def catalogue_candidates(model: ChainModel) -> list[Candidate]:
-    """Every single-effect candidate for a system: joint effects on each passive joint, global effects."""
+def catalogue_candidates(model: ChainModel, model_suspects: bool = False) -> list[Candidate]:
+    """Every single-effect candidate for a system: joint effects on each passive joint, global effects.
+
+    With ``model_suspects`` the robot model's own parameters are suspects too (effects whose
+    ``kind`` is ``"model"``: per link, per passive joint or global); test-only effects never are.
+    """
     names = model.joint_names
     out: list[Candidate] = []
     for eid, spec in EFFECTS.items():
+        if spec.kind == "test" or (spec.kind == "model" and not model_suspects):
+            continue
+        if spec.needs_link:
+            out.extend(Candidate(((eid, f"link_{i + 1}"),)) for i in range(model.n_links))
+            continue
         if spec.needs_joint:
             for j in model.passive:
                 out.append(Candidate(((eid, names[j]),)))
@@ -193,7 +207,7 @@ def catalogue_candidates(model: ChainModel) -> list[Candidate]:
     return out
 
 
-class _Scorer:
+class Scorer:
     """Fits candidates by equation error on the training half and scores them on the held-out half."""
 
     DELAY_MAX = 0.2
@@ -245,14 +259,21 @@ class _Scorer:
         b = (ex * (wts[npas:] * self.row_w[npas:])).ravel()
         return np.concatenate([a, b])
 
-    def fit(self, cand: Candidate, x0: FloatArray | None = None) -> tuple[FloatArray, float, float]:
-        """Fit on the training half; returns (parameters, training gain, held-out gain)."""
-        lo, hi = cand.bounds()
-        scales = cand.scales()
-        starts = []
-        if x0 is not None:
-            starts.append(np.asarray(x0, dtype=float))
-        base = cand.neutral()
+    def fit(
+        self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None
+    ) -> tuple[FloatArray, float, float]:
+        """Fit on the training half; returns (parameters, training gain, held-out gain).
+
+        ``fixed`` holds the values of the candidate's first parameters, kept fixed (the forward
+        selection's screening step fits only the added effect); ``x0`` starts the free ones.
+        """
+        xf = np.zeros(0) if fixed is None else np.asarray(fixed, dtype=float)
+        nf = xf.size
+        lo_all, hi_all = cand.bounds()
+        lo, hi = np.asarray(lo_all[nf:], dtype=float), np.asarray(hi_all[nf:], dtype=float)
+        scales = cand.scales()[nf:]
+        base = cand.neutral()[nf:]
+        starts = [] if x0 is None else [np.asarray(x0, dtype=float)]
         starts.append(base + 0.0)
         # a few starts per parameter on both sides (nonconvex: Coulomb dead zone, drag ratio)
         for k, sgn in ((1.0, 1), (1.0, -1), (3.0, 1), (3.0, -1)):
@@ -260,29 +281,29 @@ class _Scorer:
         weights = 1.0 / np.sqrt(self.rss0_train)
         ok = self.ok_train
 
+        def full(x: FloatArray) -> FloatArray:
+            return np.concatenate([xf, x])
+
         def fun(x: FloatArray, wts: FloatArray) -> FloatArray:
-            e, ex = self._res(self.train, cand, x)
+            e, ex = self._res(self.train, cand, full(x))
             return self._stack(e, ex, ok, wts)
 
         best_x, best_c = None, np.inf
         for s in starts:
-            s = np.clip(s, np.asarray(lo) + 1e-9, np.asarray(hi) - 1e-9)
+            s = np.clip(s, lo + 1e-9, hi - 1e-9)
             try:
                 c0 = float(np.sum(fun(s, weights) ** 2))
             except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
                 continue
-            if not np.isfinite(c0):
-                continue
-            if c0 < best_c:
+            if np.isfinite(c0) and c0 < best_c:
                 best_x, best_c = s, c0
         if best_x is None:
-            return base, -np.inf, -np.inf
+            return full(base), -np.inf, -np.inf
         sols = []
-        # refine from the best two starts
+        # refine from the best start and from the given one
         for s in [best_x] + ([starts[0]] if x0 is not None else []):
-            s = np.clip(s, np.asarray(lo) + 1e-9, np.asarray(hi) - 1e-9)
+            x = np.clip(s, lo + 1e-9, hi - 1e-9)
             wts = weights
-            x = s
             for _ in range(2):  # re-estimate channel weights once
                 try:
                     sol = scipy.optimize.least_squares(
@@ -291,87 +312,15 @@ class _Scorer:
                 except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, ValueError):
                     break
                 x = sol.x
-                e, ex = self._res(self.train, cand, x)
-                rss = self._rss(e, ex, ok)
-                wts = 1.0 / np.sqrt(np.maximum(rss, 1e-300))
-            e, ex = self._res(self.train, cand, x)
+                e, ex = self._res(self.train, cand, full(x))
+                wts = 1.0 / np.sqrt(np.maximum(self._rss(e, ex, ok), 1e-300))
+            e, ex = self._res(self.train, cand, full(x))
             sols.append((self.gain(self._rss(e, ex, ok), self.rss0_train, self.n_eff_train), x))
         g_tr, x = max(sols, key=lambda s: s[0])
+        x = full(x)
+        return x, g_tr, self.heldout_gain(cand, x)
+
+    def heldout_gain(self, cand: Candidate, x: FloatArray) -> float:
+        """Held-out log-likelihood gain of ``cand`` at ``x`` over the nominal model, nats."""
         e, ex = self._res(self.test, cand, x)
-        g_te = self.gain(self._rss(e, ex, self.ok_test), self.rss0_test, self.n_eff_test)
-        return x, g_tr, g_te
-
-
-# =============================================================================== ranking
-@dataclass(frozen=True, eq=False)
-class Ranked:
-    """A fitted candidate: its held-out evidence, the candidate and its fitted parameters."""
-
-    score: CandidateScore
-    cand: Candidate
-    x: FloatArray
-
-
-@dataclass(frozen=True)
-class Naming:
-    """Outcome of the naming stage: every candidate's evidence (best first), the chosen candidate
-    and the group of candidates confounded with it (empty when the choice is clear)."""
-
-    ranking: tuple[CandidateScore, ...]
-    chosen: Ranked
-    confounded: tuple[tuple[str, ...], ...]
-
-
-def name_mismatch(data: Data, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray) -> Naming:
-    """Fit every catalogue candidate and each pair of the leading ones by equation error; choose.
-
-    ``sig_rp`` is the noise floor of the passive angles (sets the stick threshold on |ṙ_p|).
-    """
-    scorer = _Scorer(data, model, config.eq_window, sig_rp)
-    pen_unit = 0.5 * np.log(max(float(np.median(scorer.n_eff_train)), 2.0))
-    singles: list[Ranked] = []
-    for cand in catalogue_candidates(model):
-        x, _, g_te = scorer.fit(cand)
-        singles.append(Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, pen_unit * x.size),
-                              cand, x))
-    singles.sort(key=lambda s: -s.score.score)
-    pairs: list[Ranked] = []
-    top = [s for s in singles[: config.top_pairs] if s.score.score > 0]
-    for s1, s2 in itertools.combinations(top, 2):
-        e1, e2 = s1.cand.parts[0][0], s2.cand.parts[0][0]
-        if e1 == e2 and not EFFECTS[e1].needs_joint:  # a global effect twice is one effect
-            continue
-        cand = Candidate(s1.cand.parts + s2.cand.parts)
-        x, _, g_te = scorer.fit(cand, np.concatenate([s1.x, s2.x]))
-        pairs.append(Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, pen_unit * x.size),
-                            cand, x))
-    pairs.sort(key=lambda s: -s.score.score)
-    return _choose(singles, pairs, pen_unit, config)
-
-
-def _choose(singles: list[Ranked], pairs: list[Ranked], pen_unit: float, config: DiagnoseConfig) -> Naming:
-    """The best single, or the best pair if it adds a clear gain; candidates within the margin are confounded."""
-    best = singles[0]
-    pool = singles
-    if pairs:
-        bp = pairs[0]
-        extra = bp.score.score - best.score.score
-        if extra > max(config.pair_rel * max(best.score.gain_heldout, 0.0), pen_unit):
-            best = bp
-            pool = pairs
-    ranking = tuple(s.score for s in sorted(singles + pairs, key=lambda s: -s.score.score))
-    # confounded: candidates of the same size within the margin of the winner
-    margin = max(config.confound_margin, config.confound_rel * max(best.score.gain_heldout, 0.0))
-    close = [s for s in pool if best.score.score - s.score.score <= margin and s.cand != best.cand]
-    chosen = best
-    group = [best] + close
-    if close:
-        chosen = min(group, key=_preference)
-    confounded = (tuple(s.cand.label for s in group),) if close else ()
-    return Naming(ranking, chosen, confounded)
-
-
-def _preference(s: Ranked) -> tuple[int, int]:
-    """Among equivalent explanations prefer the specification's catalogue, then fewer targets."""
-    extra_ids = sum(1 for nme, _ in s.cand.parts if not EFFECTS[nme].specified)
-    return (extra_ids, sum(1 for _, tgt in s.cand.parts if tgt is not None))
+        return self.gain(self._rss(e, ex, self.ok_test), self.rss0_test, self.n_eff_test)

@@ -86,10 +86,14 @@ from suds_ros.core.diagnosis.locate import (
     excess_improvement,
     locate_channels,
 )
-from suds_ros.core.diagnosis.naming import Naming, name_mismatch
+from suds_ros.core.diagnosis.discovery import discover, formula
+from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
 from suds_ros.core.diagnosis.replay import RecordingReplay, replay_recording
-from suds_ros.core.diagnosis.report import Channels, DiagnoseConfig, DiagnosisReport, FittedEffect, Located
+from suds_ros.core.diagnosis.report import (
+    Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
+)
+from suds_ros.core.diagnosis.selection import Naming, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -233,8 +237,10 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
     new = [l.channel for l in located if l.channel not in conditions]
     conditions.update(channel_conditions(new, nom.E0, table, model))
-    return _Fit(fitted_effects(cand, x, se), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0, located,
-                conditions, () if dropped else naming.confounded, False)
+    evidence = {Candidate((p,)).label: e for p, e in zip(naming.chosen.cand.parts, naming.evidence)}
+    confounded = tuple(g for g in naming.confounded if g[0] not in dropped)
+    return _Fit(fitted_effects(cand, x, se, evidence), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0,
+                located, conditions, confounded, False)
 
 
 def _show(
@@ -272,13 +278,26 @@ def _show(
     if unexplained and not effects:
         rms1 = dict(nom.rms0)
         improvement = 0.0
+    discovered = _discover(nom, naming, fit, notes) if unexplained else ()
     clock.mark("total")
     return _report(
         nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),
         confounded_with=confounded, unexplained=unexplained, heldout_rms_after=rms1,
         improvement=float(improvement), noise_floor=floor, statistics=F0, statistics_after=F1,
         ranking=naming.ranking, conditions=fit.conditions, coefficients=coeffs, notes=tuple(notes),
+        discovered=discovered,
     )
+
+
+def _discover(nom: _Nominal, naming: Naming, fit: _Fit, notes: list[str]) -> tuple[Discovered, ...]:
+    """Discovery on the torque residual left by the named effects (nominal if none); notes the formulas."""
+    cand = Candidate(tuple((e.name, e.target) for e in fit.effects))
+    x = np.array([v for e in fit.effects for v in e.parameters.values()])
+    found = discover(nom.data, nom.model, nom.config, nom.floors[0], cand, x)
+    for d in found:
+        notes.append(f"discovered {formula(d)} ({', '.join(d.physics) or 'no recognised physics'}; "
+                     f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %)")
+    return found
 
 
 def _unexplained(

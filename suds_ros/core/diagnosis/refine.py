@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import scipy.optimize
@@ -22,41 +22,49 @@ from suds_ros.core.physics.rft import ChainModel
 def refine_choice(
     cand: Candidate, x0: FloatArray, model: ChainModel, data: Data, config: DiagnoseConfig,
     w: int, substeps: int, floors: Floors,
-) -> tuple[Candidate, FloatArray, FloatArray, bool]:
-    """Refine the chosen candidate in the simulator; returns (candidate, x, stderr, member dropped).
+) -> tuple[Candidate, FloatArray, FloatArray, tuple[str, ...]]:
+    """Refine the chosen set in the simulator; returns (candidate, x, stderr, labels of dropped members).
 
-    After refining a pair, a member whose parameters all lie within ``config.member_z`` standard
-    errors of their neutral values is dropped and the other member is refined alone.
+    After refining a set of several effects, the members whose parameters all lie within
+    ``config.member_z`` standard errors of their neutral values are dropped and the others are
+    refined again (nothing is dropped when no member would remain).
     """
     x, se = _refine(cand, x0, model, data, config, w, substeps, floors)
     if len(cand.parts) < 2:
-        return cand, x, se, False
-    keep, i = [], 0
-    for k, (nme, _) in enumerate(cand.parts):
+        return cand, x, se, ()
+    keep, drop, i = [], [], 0
+    neutral = cand.neutral()
+    for k, (nme, tgt) in enumerate(cand.parts):
         npar = len(EFFECTS[nme].params)
-        neutral = cand.neutral()[i:i + npar]
-        z = np.abs(x[i:i + npar] - neutral) / np.maximum(se[i:i + npar], 1e-300)
+        z = np.abs(x[i:i + npar] - neutral[i:i + npar]) / np.maximum(se[i:i + npar], 1e-300)
         if np.nanmax(z) >= config.member_z:
             keep.append((k, i, npar))
+        else:
+            drop.append(Candidate(((nme, tgt),)).label)
         i += npar
-    if len(keep) != 1:
-        return cand, x, se, False
-    k, i, npar = keep[0]
-    cand = Candidate((cand.parts[k],))
-    x, se = _refine(cand, x[i:i + npar], model, data, config, w, substeps, floors)
-    return cand, x, se, True
+    if not keep or not drop:
+        return cand, x, se, ()
+    sub = Candidate(tuple(cand.parts[k] for k, _, _ in keep))
+    x_sub = np.concatenate([x[i:i + npar] for _, i, npar in keep])
+    x, se = _refine(sub, x_sub, model, data, config, w, substeps, floors)
+    return sub, x, se, tuple(drop)
 
 
-def fitted_effects(cand: Candidate, x: FloatArray, se: FloatArray) -> list[FittedEffect]:
-    """The candidate's effects with parameters ``x`` and standard errors ``se`` (canonical order)."""
+def fitted_effects(
+    cand: Candidate, x: FloatArray, se: FloatArray, evidence: Mapping[str, float] | None = None
+) -> list[FittedEffect]:
+    """The candidate's effects with parameters ``x``, standard errors ``se`` (canonical order) and
+    ``evidence`` (by member label, nats)."""
     out: list[FittedEffect] = []
     i = 0
+    ev = evidence or {}
     for nme, tgt in cand.parts:
         pn = EFFECTS[nme].param_names
         out.append(FittedEffect(
             nme, tgt,
             {p: float(x[i + k]) for k, p in enumerate(pn)},
             {p: float(se[i + k]) for k, p in enumerate(pn)},
+            ev.get(Candidate(((nme, tgt),)).label),
         ))
         i += len(pn)
     return out

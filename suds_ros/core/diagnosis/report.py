@@ -29,16 +29,24 @@ class DiagnoseConfig:
         Phase bins per cycle for the phase-interval test.
     phase_alpha : float
         Family-wise significance of the phase-bin test (Bonferroni over bins).
-    top_pairs : int
-        Number of leading single candidates combined into pairs.
+    step_candidates : int
+        At each forward-selection step after the first, the number of leading candidates (screened
+        with the current set held fixed) refitted jointly with it.
+    max_effects : int
+        Most effects named at once.
+    evidence_threshold : float
+        Held-out evidence (log-likelihood gain after the BIC penalty, nats) an effect must add to
+        the set already chosen to join it, and keep to stay in it.  Calibrated on null recordings
+        (``docs/results/evidence_threshold.md``); judged on its own, never relative to another
+        effect's gain.
+    model_suspects : bool
+        Also suspect the robot model's own parameters (``link_length_error``, ``link_drag_error``,
+        ``pose_frame_offset``; ``docs/effects.md``) alongside the catalogue effects.
     confound_margin : float
         Held-out log-likelihood margin (nats) within which candidates are called confounded;
         the margin grows as ``confound_rel`` × the winner's gain.
     confound_rel : float
         Relative part of the confounding margin.
-    pair_rel : float
-        A pair replaces the best single candidate only if it adds more than this fraction of the
-        single's gain (and more than the BIC penalty).
     unexplained_fraction : float
         Maximum fraction of the excess residual power (over the floor) that may remain after the
         fit for the mismatch to count as explained.
@@ -49,8 +57,8 @@ class DiagnoseConfig:
     refine_nfev : int
         Maximum simulator evaluations per refined parameter (least-squares budget).
     member_z : float
-        After refining a pair, a member whose parameters all lie within ``member_z`` standard
-        errors of their neutral values is dropped (the pair falls back to the other member).
+        After refining a set of effects, a member whose parameters all lie within ``member_z``
+        standard errors of their neutral values is dropped (the others are refined again).
     substeps : int or None
         RK4 steps per sample interval; None picks them from the stiffest passive mode.
     replay_chunk : float
@@ -66,10 +74,12 @@ class DiagnoseConfig:
     f_threshold: float = 2.0
     phase_bins: int = 20
     phase_alpha: float = 0.01
-    top_pairs: int = 5
+    step_candidates: int = 5
+    max_effects: int = 3
+    evidence_threshold: float = 29.0
+    model_suspects: bool = False
     confound_margin: float = 3.0
     confound_rel: float = 0.01
-    pair_rel: float = 0.05
     unexplained_fraction: float = 0.25
     segment_cycles: int = 1
     refine_cycles: int = 30
@@ -86,10 +96,11 @@ class DiagnoseConfig:
             ("f_threshold", self.f_threshold > 1),
             ("phase_bins", self.phase_bins >= 4),
             ("phase_alpha", 0 < self.phase_alpha < 1),
-            ("top_pairs", self.top_pairs >= 0),
+            ("step_candidates", self.step_candidates >= 1),
+            ("max_effects", self.max_effects >= 1),
+            ("evidence_threshold", self.evidence_threshold >= 0),
             ("confound_margin", self.confound_margin >= 0),
             ("confound_rel", self.confound_rel >= 0),
-            ("pair_rel", self.pair_rel >= 0),
             ("unexplained_fraction", 0 < self.unexplained_fraction < 1),
             ("segment_cycles", self.segment_cycles >= 1),
             ("refine_nfev", self.refine_nfev >= 1),
@@ -118,12 +129,17 @@ class Located:
 
 @dataclass(frozen=True)
 class FittedEffect:
-    """A catalogue effect with fitted parameters and standard errors."""
+    """A catalogue effect with fitted parameters, standard errors and its evidence.
+
+    ``evidence`` is the held-out log-likelihood (nats, after the BIC penalty) lost when this effect
+    is left out of the named set (equation error; None when not measured).
+    """
 
     name: str
     target: str | None
     parameters: Mapping[str, float]
     stderr: Mapping[str, float]
+    evidence: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -131,6 +147,32 @@ class FittedEffect:
             "target": self.target,
             "parameters": {k: float(v) for k, v in self.parameters.items()},
             "stderr": {k: float(v) for k, v in self.stderr.items()},
+            "evidence": None if self.evidence is None else float(self.evidence),
+        }
+
+
+@dataclass(frozen=True)
+class Discovered:
+    """A candidate formula for a torque missing from a passive joint's balance (:mod:`.discovery`).
+
+    ``terms``: library term → coefficient (N·m per unit of the term); ``stderr`` likewise;
+    ``physics``: words for the recognisable terms; ``heldout_reduction``: fraction of the joint's
+    held-out equation-error residual power the formula removes.
+    """
+
+    joint: str | None
+    terms: Mapping[str, float]
+    stderr: Mapping[str, float]
+    physics: tuple[str, ...]
+    heldout_reduction: float
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "joint": self.joint,
+            "terms": {k: float(v) for k, v in self.terms.items()},
+            "stderr": {k: float(v) for k, v in self.stderr.items()},
+            "physics": list(self.physics),
+            "heldout_reduction": float(self.heldout_reduction),
         }
 
 
@@ -187,6 +229,7 @@ class DiagnosisReport:
     timings: Mapping[str, float] = field(default_factory=dict)
     phase_source: str = "phaser"
     notes: tuple[str, ...] = ()
+    discovered: tuple[Discovered, ...] = ()
 
     @property
     def plain_rms_ratio(self) -> float | None:
@@ -199,7 +242,8 @@ class DiagnosisReport:
         return 1.0 - after / before if before > 0 else None
 
     def to_dict(self) -> dict[str, object]:
-        """The JSON schema of ``suds diagnose --json`` (exactly these keys)."""
+        """The JSON schema of ``suds diagnose --json`` (exactly these keys; ``discovered`` and each
+        effect's ``evidence`` were added by the stepwise selection, nothing was removed)."""
         return {
             "mismatch": bool(self.mismatch),
             "located": [
@@ -218,6 +262,7 @@ class DiagnosisReport:
                 "heldout_rms_after": {k: float(v) for k, v in self.heldout_rms_after.items()},
                 "improvement": float(self.improvement),
             },
+            "discovered": [d.as_dict() for d in self.discovered],
         }
 
     def to_json(self, indent: int | None = 2) -> str:

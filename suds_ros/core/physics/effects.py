@@ -26,6 +26,13 @@ Additions to the specification
     ``stiffness_to_drag_error`` it changes one joint only.  On a system with a single passive
     joint the two are the same physics, and the diagnosis reports them as confounded.
 
+Model parameters as suspects
+----------------------------
+``link_length_error(link, scale)``, ``link_drag_error(link, scale)`` and
+``pose_frame_offset(x, y, yaw)`` change a parameter of the robot model itself (``kind="model"``):
+the diagnosis suspects them alongside the catalogue when asked (``DiagnoseConfig.model_suspects``).
+Link effects name their link ``link_k`` (1-based, head to tail).  Units and meanings: ``docs/effects.md``.
+
 Joint effects act only on passive joints (actuated joints follow their set-points whatever
 the torque); naming an actuated joint raises :class:`~suds_ros.core.errors.SudsConfigError`.
 """
@@ -99,13 +106,37 @@ class EquationTerms:
     ratio: float = 2.0
     flow: tuple[float, float] = (0.0, 0.0)
     delay: float = 0.0
+    length: FloatArray | None = None
+    drag: FloatArray | None = None
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @classmethod
-    def neutral(cls, n_passive: int, ratio: float) -> "EquationTerms":
-        """No effect on ``n_passive`` passive joints, nominal drag ratio c⊥/c∥ = ``ratio``."""
+    def neutral(cls, n_passive: int, ratio: float, n_links: int = 0) -> "EquationTerms":
+        """No effect on ``n_passive`` passive joints and ``n_links`` links, nominal c⊥/c∥ = ``ratio``."""
         z = np.zeros(n_passive)
         return cls(mu=z.copy(), d=z.copy(), offset=z.copy(), k3=z.copy(), kscale=np.ones(n_passive),
-                   ratio=ratio)
+                   ratio=ratio, length=np.ones(n_links), drag=np.ones(n_links))
+
+    def geometry_key(self) -> tuple[float, ...]:
+        """The terms that change the drag metric or the pose frame (a cache key, rounded)."""
+        vals = [self.ratio, *self.pose]
+        for a in (self.length, self.drag):
+            if a is not None:
+                vals.extend(a)
+        return tuple(round(float(v), 12) for v in vals)
+
+    def chain_model(self, model: ChainModel) -> ChainModel:
+        """``model`` with the geometric terms (link lengths, link drag, pose frame, drag ratio) applied."""
+        changes: dict[str, object] = {}
+        if self.length is not None and np.any(self.length != 1.0):
+            changes["link_length"] = tuple(float(v) for v in np.asarray(model.link_length) * self.length)
+        if self.drag is not None and np.any(self.drag != 1.0):
+            changes["c_par"] = tuple(float(v) for v in np.asarray(model.c_par) * self.drag)
+            changes["c_perp"] = tuple(float(v) for v in np.asarray(model.c_perp) * self.drag)
+        if any(v != 0.0 for v in self.pose):
+            changes["pose_offset"] = tuple(float(a + b) for a, b in zip(model.pose_offset, self.pose))
+        out = model.with_(**changes) if changes else model
+        return out.with_drag_ratio(self.ratio)
 
 
 _Applier = Callable[[ChainModel, "int | None", Mapping[str, float]], tuple[ChainModel, float]]
@@ -134,6 +165,11 @@ class EffectSpec:
     specified : bool
         True for the effects of the specification (``shared/spec/effects.md``), False for the
         additions; among equally good explanations the diagnosis prefers specified effects.
+    kind : str
+        ``"catalogue"`` (physics the nominal model leaves out), ``"model"`` (an error in one of the
+        robot model's own parameters) or ``"test"`` (for tests only: never a diagnosis suspect).
+    target : str
+        ``"joint"`` (a passive joint), ``"link"`` (a link, ``link_k``) or ``""`` (the whole chain).
     """
 
     id: str
@@ -143,6 +179,16 @@ class EffectSpec:
     apply: _Applier
     equation: _Equation
     specified: bool = True
+    kind: str = "catalogue"
+    target: str = ""
+
+    def __post_init__(self) -> None:
+        if self.needs_joint and not self.target:
+            object.__setattr__(self, "target", "joint")
+
+    @property
+    def needs_link(self) -> bool:
+        return self.target == "link"
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -232,6 +278,38 @@ def _time_offset_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> 
     t.delay += float(p["dt"])
 
 
+def _link_length(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(link_length=_joint_tuple(m.link_length, j, lambda v: v * p["scale"])), 0.0  # type: ignore[arg-type]
+
+
+def _link_length_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    assert t.length is not None
+    t.length[j] *= p["scale"]
+
+
+def _link_drag(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    assert j is not None
+    return m.with_(
+        c_par=_joint_tuple(m.c_par, j, lambda v: v * p["scale"]),  # type: ignore[arg-type]
+        c_perp=_joint_tuple(m.c_perp, j, lambda v: v * p["scale"]),  # type: ignore[arg-type]
+    ), 0.0
+
+
+def _link_drag_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    assert t.drag is not None
+    t.drag[j] *= p["scale"]
+
+
+def _pose_frame(m: ChainModel, j: int | None, p: Mapping[str, float]) -> tuple[ChainModel, float]:
+    o = m.pose_offset
+    return m.with_(pose_offset=(o[0] + p["x"], o[1] + p["y"], o[2] + p["yaw"])), 0.0
+
+
+def _pose_frame_eq(t: EquationTerms, j: int | None, p: Mapping[str, float]) -> None:
+    t.pose = (t.pose[0] + float(p["x"]), t.pose[1] + float(p["y"]), t.pose[2] + float(p["yaw"]))
+
+
 _INF = float("inf")
 
 EFFECTS: dict[str, EffectSpec] = {
@@ -310,6 +388,39 @@ EFFECTS: dict[str, EffectSpec] = {
             _joint_stiffness_eq,
             specified=False,
         ),
+        EffectSpec(
+            "link_length_error",
+            (ParamSpec("scale", "–", 0.2, 5.0, 1.0, 0.1),),
+            False,
+            "length of one link × scale (its drag scales with it: c∥L, c⊥L, c⊥L³/12)",
+            _link_length,
+            _link_length_eq,
+            specified=False,
+            kind="model",
+            target="link",
+        ),
+        EffectSpec(
+            "link_drag_error",
+            (ParamSpec("scale", "–", 0.05, 20.0, 1.0, 0.1),),
+            False,
+            "both drag coefficients (c∥, c⊥) of one link × scale",
+            _link_drag,
+            _link_drag_eq,
+            specified=False,
+            kind="model",
+            target="link",
+        ),
+        EffectSpec(
+            "pose_frame_offset",
+            (ParamSpec("x", "m", -2.0, 2.0, 0.0, 0.05), ParamSpec("y", "m", -2.0, 2.0, 0.0, 0.05),
+             ParamSpec("yaw", "rad", -np.pi, np.pi, 0.0, 0.05)),
+            False,
+            "the recorded pose frame sits at (x, y, yaw) from where the model puts it (body-link frame)",
+            _pose_frame,
+            _pose_frame_eq,
+            specified=False,
+            kind="model",
+        ),
     )
 }
 
@@ -331,6 +442,14 @@ def joint_index(model: ChainModel, joint: object, effect: str) -> int:
     return j
 
 
+def link_index(model: ChainModel, link: object, effect: str) -> int:
+    """0-based index of the link named ``link`` (``"link_k"``, 1-based, head to tail)."""
+    names = [f"link_{i + 1}" for i in range(model.n_links)]
+    if not (isinstance(link, str) and link in names):
+        raise SudsConfigError(f"effect {effect!r}: `link` must be one of {names}, got {link!r}")
+    return names.index(link)
+
+
 def _apply(model: ChainModel, name: str, joint: object, params: Mapping[str, object]) -> tuple[ChainModel, float]:
     spec = EFFECTS.get(name)
     if spec is None:
@@ -342,8 +461,10 @@ def _apply(model: ChainModel, name: str, joint: object, params: Mapping[str, obj
     if missing:
         raise SudsConfigError(f"effect {name!r}: missing parameter(s) {missing}")
     values = {p.name: p.check(name, params[p.name]) for p in spec.params}  # type: ignore[arg-type]
-    if spec.needs_joint:
-        j: int | None = joint_index(model, joint, name)
+    if spec.needs_link:
+        j: int | None = link_index(model, joint, name)
+    elif spec.needs_joint:
+        j = joint_index(model, joint, name)
     else:
         if joint is not None:
             raise SudsConfigError(f"effect {name!r} acts on the whole chain; got a joint {joint!r}")
@@ -376,6 +497,8 @@ def apply_effects(model: ChainModel, effects: Sequence[Mapping[str, object]]) ->
             raise SudsConfigError(f"effect #{i}: missing `name` (one of {', '.join(EFFECTS)})")
         name = str(eff.pop("name"))
         joint = eff.pop("joint", None)
+        if joint is None:
+            joint = eff.pop("link", None)
         target = eff.pop("target", None)
         if joint is None:
             joint = target

@@ -7,7 +7,8 @@ import pytest
 
 from suds_ros.core.diagnosis import DiagnoseConfig, catalogue_candidates
 from suds_ros.core.diagnosis.data import prepare
-from suds_ros.core.diagnosis.naming import Candidate, equation_terms, name_mismatch
+from suds_ros.core.diagnosis.naming import Candidate, equation_terms
+from suds_ros.core.diagnosis.selection import name_mismatch
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
@@ -19,7 +20,9 @@ def test_catalogue_covers_every_effect_on_every_passive_joint() -> None:
     labels = [c.label for c in catalogue_candidates(model)]
     passive = [f"joint_{j + 1}" for j in model.passive]
     for eid, spec in EFFECTS.items():
-        if spec.needs_joint:
+        if spec.kind != "catalogue":
+            assert not any(lab.split(":")[0] == eid for lab in labels)
+        elif spec.needs_joint:
             assert [lab for lab in labels if lab.startswith(eid + ":")] == [f"{eid}:{j}" for j in passive]
         else:
             assert labels.count(eid) == 1
@@ -50,3 +53,22 @@ def test_naming_finds_an_injected_offset() -> None:
     assert naming.chosen.cand.label == "spring_rest_offset:joint_2"
     assert naming.chosen.x[0] == pytest.approx(-0.2, abs=0.02)
     assert naming.ranking[0].score >= naming.ranking[-1].score
+
+
+def test_model_suspects_add_every_link_and_the_pose_frame() -> None:
+    model = swimmer9_model()
+    labels = [c.label for c in catalogue_candidates(model, model_suspects=True)]
+    links = [f"link_{i + 1}" for i in range(model.n_links)]
+    for eid in ("link_length_error", "link_drag_error"):
+        assert [lab for lab in labels if lab.startswith(eid + ":")] == [f"{eid}:{k}" for k in links]
+    assert labels.count("pose_frame_offset") == 1
+
+
+def test_a_model_parameter_has_the_same_physics_in_both_forms(swimmer9_run) -> None:  # type: ignore[no-untyped-def]
+    """link_length_error in equation-error form builds the same chain as applied to the model."""
+    model = swimmer9_model()
+    data = prepare(swimmer9_run, model)
+    t = equation_terms(Candidate((("link_length_error", "link_9"),)), np.array([1.3]), data, model)
+    applied, _ = apply_effects(model, [dict(name="link_length_error", link="link_9", scale=1.3)])
+    assert t.chain_model(model).link_length == pytest.approx(applied.link_length)
+    assert applied.link_length[8] == pytest.approx(1.3)

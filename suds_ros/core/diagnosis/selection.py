@@ -1,0 +1,190 @@
+"""Choosing the effects: stepwise selection on held-out evidence, with a backward check.
+
+Evidence of a set S of effects is its held-out log-likelihood gain over the nominal model minus
+the BIC penalty (p/2)·log n_eff (:class:`~suds_ros.core.diagnosis.naming.Scorer`).  Forward
+step: every candidate compatible with S is fitted added to S (first with S's parameters held,
+as a screen; the leading ``config.step_candidates`` are then refitted jointly); the best is kept
+if its evidence gain over S exceeds ``config.evidence_threshold`` (the first effect needs only a
+positive gain: the located mismatch already passed the noise-floor test).  Backward check after
+each step: a member whose removal costs less than the threshold no longer earns its place and is
+dropped.  At most ``config.max_effects`` effects.  Candidates within the confounding margin of the
+step's winner are reported as confounded with it.  The threshold is judged on its own (a
+likelihood ratio against the model without the effect), never relative to another effect's
+gain; its calibration on null recordings is in ``docs/results/evidence_threshold.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.diagnosis.data import Data
+from suds_ros.core.diagnosis.naming import Candidate, Scorer, catalogue_candidates
+from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
+from suds_ros.core.physics.effects import EFFECTS
+from suds_ros.core.physics.rft import ChainModel
+
+
+@dataclass(frozen=True, eq=False)
+class Ranked:
+    """A fitted candidate: its held-out evidence, the candidate and its fitted parameters."""
+
+    score: CandidateScore
+    cand: Candidate
+    x: FloatArray
+
+
+@dataclass(frozen=True)
+class Naming:
+    """Outcome of the naming stage.
+
+    ``ranking``: every fitted candidate's evidence (best first); ``chosen``: the selected set;
+    ``confounded``: per step with a near tie, the labels of the effects that explain the data about
+    equally well (the chosen one first); ``evidence``: per member of ``chosen`` (in its order), the
+    evidence lost when that member is left out, nats; ``steps``: a log of the selection;
+    ``gains``: the best evidence gain found at each forward step tried (the last one may have
+    failed the threshold), nats.
+    """
+
+    ranking: tuple[CandidateScore, ...]
+    chosen: Ranked
+    confounded: tuple[tuple[str, ...], ...]
+    evidence: tuple[float, ...] = ()
+    steps: tuple[str, ...] = ()
+    gains: tuple[float, ...] = ()
+
+
+class _Selector:
+    """Fits candidate sets with a shared :class:`Scorer` and keeps every result for the ranking."""
+
+    def __init__(self, scorer: Scorer, config: DiagnoseConfig) -> None:
+        self.scorer = scorer
+        self.config = config
+        self.pen_unit = 0.5 * np.log(max(float(np.median(scorer.n_eff_train)), 2.0))
+        self.fitted: dict[str, Ranked] = {}
+
+    def ranked(self, cand: Candidate, x: FloatArray, g_te: float) -> Ranked:
+        r = Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, self.pen_unit * x.size), cand, x)
+        old = self.fitted.get(cand.label)
+        if old is None or r.score.score > old.score.score:
+            self.fitted[cand.label] = r
+        return r
+
+    def fit(self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None) -> Ranked:
+        x, _, g_te = self.scorer.fit(cand, x0, fixed)
+        return self.ranked(cand, x, g_te)
+
+    def extend(self, cur: Ranked, singles: Sequence[Ranked]) -> list[Ranked]:
+        """Every compatible single added to ``cur``: screened with ``cur`` held, the best refitted jointly."""
+        screened = []
+        for s in singles:
+            if not _compatible(cur.cand, s.cand.parts[0]):
+                continue
+            cand = Candidate(cur.cand.parts + s.cand.parts)
+            x, _, g_te = self.scorer.fit(cand, s.x, fixed=cur.x)
+            screened.append((g_te - self.pen_unit * x.size, cand, x))
+        screened.sort(key=lambda t: -t[0])
+        out = [self.fit(cand, x) for _, cand, x in screened[: self.config.step_candidates]]
+        return sorted(out, key=lambda r: -r.score.score)
+
+    def without(self, cur: Ranked, k: int) -> Ranked:
+        """``cur`` with its k-th member left out, refitted from the remaining parameters."""
+        parts = cur.cand.parts
+        if len(parts) == 1:
+            return self.ranked(Candidate(()), np.zeros(0), 0.0)
+        i0 = sum(len(EFFECTS[n].params) for n, _ in parts[:k])
+        n_k = len(EFFECTS[parts[k][0]].params)
+        x0 = np.concatenate([cur.x[:i0], cur.x[i0 + n_k:]])
+        return self.fit(Candidate(parts[:k] + parts[k + 1:]), x0)
+
+    def member_evidence(self, cur: Ranked) -> list[tuple[float, Ranked]]:
+        """Per member: (evidence lost without it, the refitted set without it)."""
+        out = []
+        for k in range(len(cur.cand.parts)):
+            rest = self.without(cur, k)
+            out.append((cur.score.score - rest.score.score, rest))
+        return out
+
+
+def _compatible(cand: Candidate, part: tuple[str, str | None]) -> bool:
+    """Whether ``part`` may join ``cand``: not already in it, and no global effect twice."""
+    return all(p != part and not (p[0] == part[0] and part[1] is None) for p in cand.parts)
+
+
+def name_mismatch(
+    data: Data, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray,
+    candidates: Sequence[Candidate] | None = None,
+) -> Naming:
+    """Select the set of effects that explains the mismatch (module docstring).
+
+    ``sig_rp`` is the noise floor of the passive angles (sets the stick threshold on |ṙ_p|);
+    ``candidates`` default to :func:`~suds_ros.core.diagnosis.naming.catalogue_candidates`.
+    """
+    sel = _Selector(Scorer(data, model, config.eq_window, sig_rp), config)
+    pool = list(candidates) if candidates is not None else catalogue_candidates(model, config.model_suspects)
+    singles = sorted((sel.fit(c) for c in pool), key=lambda r: -r.score.score)
+    cur = sel.ranked(Candidate(()), np.zeros(0), 0.0)
+    groups: list[tuple[str, ...]] = []
+    log: list[str] = []
+    evidence: list[float] = []
+    gains: list[float] = []
+    for step in range(config.max_effects):
+        options = singles if step == 0 else sel.extend(cur, singles)
+        if not options:
+            break
+        best = options[0]
+        gain = best.score.score - cur.score.score
+        gains.append(float(gain))
+        need = 0.0 if step == 0 else config.evidence_threshold
+        log.append(f"step {step + 1}: best {best.cand.label} gains {gain:.1f} nats (needs > {need:g})")
+        if gain <= need:
+            if step == 0:
+                cur = best  # nothing has positive evidence; the pipeline reports it unexplained
+            break
+        margin = max(config.confound_margin, config.confound_rel * gain)
+        close = [o for o in options if best.score.score - o.score.score <= margin and o.cand != best.cand]
+        chosen = min([best] + close, key=_preference) if close else best
+        if close:
+            groups.append(tuple(_added(o.cand, cur.cand) for o in [chosen] + [c for c in [best] + close if c is not chosen]))
+        cur = chosen
+        cur, evidence, dropped = _backward(sel, cur, config.evidence_threshold)
+        log.extend(dropped)
+    if not evidence and cur.cand.parts:
+        evidence = [ev for ev, _ in sel.member_evidence(cur)]
+    kept = {lab for n, t in cur.cand.parts for lab in [_part_label(n, t)]}
+    groups = [g for g in groups if g[0] in kept]
+    ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
+    return Naming(ranking, cur, tuple(groups), tuple(float(e) for e in evidence), tuple(log),
+                  tuple(gains))
+
+
+def _backward(sel: _Selector, cur: Ranked, threshold: float) -> tuple[Ranked, list[float], list[str]]:
+    """Drop members (other than the newest) whose leaving out costs ≤ ``threshold``; their evidence."""
+    log: list[str] = []
+    while True:
+        ev = sel.member_evidence(cur)
+        if len(ev) < 2:
+            return cur, [e for e, _ in ev], log
+        k = int(np.argmin([e for e, _ in ev[:-1]]))
+        if ev[k][0] > threshold:
+            return cur, [e for e, _ in ev], log
+        log.append(f"backward: {_part_label(*cur.cand.parts[k])} no longer earns its place ({ev[k][0]:.1f} nats)")
+        cur = ev[k][1]
+
+
+def _part_label(name: str, target: str | None) -> str:
+    return Candidate(((name, target),)).label
+
+
+def _added(cand: Candidate, base: Candidate) -> str:
+    """Label of the member of ``cand`` not in ``base``."""
+    return " + ".join(_part_label(n, t) for n, t in cand.parts if (n, t) not in base.parts)
+
+
+def _preference(s: Ranked) -> tuple[int, int]:
+    """Among equivalent explanations prefer the specification's catalogue, then fewer targets."""
+    extra_ids = sum(1 for nme, _ in s.cand.parts if not EFFECTS[nme].specified)
+    return (extra_ids, sum(1 for _, tgt in s.cand.parts if tgt is not None))

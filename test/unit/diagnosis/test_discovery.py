@@ -1,0 +1,79 @@
+"""Discovery of a torque outside every list (:mod:`suds_ros.core.diagnosis.discovery`).
+
+The physics injected here, a quadratic drag torque −c·|ṙ|ṙ on a passive joint, is in no
+catalogue: the simulator gets it only through the test-only chain below.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.diagnosis import DiagnoseConfig, diagnose
+from suds_ros.core.diagnosis.data import prepare
+from suds_ros.core.diagnosis.discovery import discover, formula
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import purcell3_model
+
+
+class _QuadraticDragChain(RFTChain):
+    """Test only: an extra torque −c·|ṙ_p|ṙ_p on every passive joint (Newton on the balance)."""
+
+    def __init__(self, model, c: float) -> None:  # type: ignore[no-untyped-def]
+        super().__init__(model)
+        self.c = c
+
+    def solve(self, r, rdot_a):  # type: ignore[no-untyped-def]
+        r = np.atleast_2d(np.asarray(r, dtype=float))
+        rdot_a = np.atleast_2d(np.asarray(rdot_a, dtype=float))
+        D = self._metric_perm(r)
+        nu = self._nu
+        A = D[:, :nu, :nu]
+        b = -np.matmul(D[:, :nu, nu:], rdot_a[..., None])[..., 0]
+        b[:, 3:] += self.passive_torque(r)
+        u = np.linalg.solve(A, b[..., None])[..., 0]
+        for _ in range(30):  # F(u) = A u + c|u_p|u_p − b = 0, Jacobian A + diag(2c|u_p|)
+            F = np.einsum("bij,bj->bi", A, u) - b
+            F[:, 3:] += self.c * np.abs(u[:, 3:]) * u[:, 3:]
+            J = A.copy()
+            idx = np.arange(3, nu)
+            J[:, idx, idx] += 2 * self.c * np.abs(u[:, 3:])
+            step = np.linalg.solve(J, F[..., None])[..., 0]
+            u = u - step
+            if np.max(np.abs(step)) < 1e-12:
+                break
+        return u[:, :3], u[:, 3:], D
+
+
+@pytest.fixture(scope="module")
+def quadratic_run():  # type: ignore[no-untyped-def]
+    return simulate(_QuadraticDragChain(purcell3_model(), 0.3), SimConfig(cycles=16, seed=8))
+
+
+def test_quadratic_drag_is_discovered_on_the_right_joint(quadratic_run) -> None:  # type: ignore[no-untyped-def]
+    base = purcell3_model()
+    found = discover(prepare(quadratic_run, base), base, DiagnoseConfig(), np.array([1e-3]))
+    (d,) = found
+    assert d.joint == "joint_2"
+    assert "|rdot|rdot" in d.terms, formula(d)
+    # torque on r_j: −c·|ṙ|ṙ, c = 0.3 (ṙ from noisy differences biases it a little)
+    assert d.terms["|rdot|rdot"] == pytest.approx(-0.3, rel=0.25), formula(d)
+    assert d.stderr["|rdot|rdot"] > 0
+    assert "quadratic (form) drag" in d.physics
+    assert d.heldout_reduction >= 0.5
+
+
+def test_nothing_is_discovered_in_a_nominal_recording(purcell3_run) -> None:  # type: ignore[no-untyped-def]
+    base = purcell3_model()
+    assert discover(prepare(purcell3_run, base), base, DiagnoseConfig(), np.array([1e-3])) == ()
+
+
+def test_the_report_carries_the_discovery_when_unexplained(quadratic_run) -> None:  # type: ignore[no-untyped-def]
+    d = diagnose(quadratic_run, purcell3_model()).to_dict()
+    assert d["mismatch"] is True
+    assert "discovered" in d
+    if d["unexplained"]:
+        (found,) = d["discovered"]  # type: ignore[misc]
+        assert found["joint"] == "joint_2" and "|rdot|rdot" in found["terms"]
+        assert set(found) == {"joint", "terms", "stderr", "physics", "heldout_reduction"}

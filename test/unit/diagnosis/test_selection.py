@@ -1,0 +1,98 @@
+"""Stepwise selection of effects on absolute evidence (:mod:`suds_ros.core.diagnosis.selection`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from suds_ros.core.diagnosis import DiagnoseConfig
+from suds_ros.core.diagnosis.data import prepare
+from suds_ros.core.diagnosis.naming import Candidate
+from suds_ros.core.diagnosis.selection import _compatible, name_mismatch
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.effects import apply_effects
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import purcell3_model
+
+
+def test_compatible_refuses_a_member_twice_and_a_global_effect_twice() -> None:
+    cur = Candidate((("spring_rest_offset", "joint_6"), ("background_flow", None)))
+    assert not _compatible(cur, ("spring_rest_offset", "joint_6"))
+    assert not _compatible(cur, ("background_flow", None))
+    assert _compatible(cur, ("spring_rest_offset", "joint_7"))
+    assert _compatible(cur, ("sensor_time_offset", None))
+
+
+def test_config_rejects_bad_selection_settings() -> None:
+    for bad in (dict(max_effects=0), dict(step_candidates=0), dict(evidence_threshold=-1.0)):
+        with pytest.raises(SudsConfigError):
+            DiagnoseConfig(**bad)  # type: ignore[arg-type]
+
+
+def _naming(effects, cycles: int, seed: int, **cfg):  # type: ignore[no-untyped-def]
+    base = purcell3_model()
+    model, delay = apply_effects(base, effects)
+    rec = simulate(RFTChain(model), SimConfig(cycles=cycles, seed=seed, pose_delay=delay))
+    config = dataclasses.replace(DiagnoseConfig(), **cfg)
+    return name_mismatch(prepare(rec, base), base, config, np.array([1e-3]))
+
+
+def test_a_weak_second_effect_is_kept_on_its_own_evidence() -> None:
+    """The issue's case: a large rest offset and a weak flow; the flow's evidence is judged on its
+    own, not against the offset's (the old relative rule threw it away)."""
+    effects = [dict(name="spring_rest_offset", joint="joint_2", offset=0.2),
+               dict(name="background_flow", vx=0.015, vy=0.010)]
+    n = _naming(effects, 40, 3)
+    assert n.chosen.cand.label == "spring_rest_offset:joint_2 + background_flow", n.steps
+    assert len(n.evidence) == 2 and n.evidence[1] > DiagnoseConfig().evidence_threshold
+    assert n.evidence[0] > 10 * n.evidence[1]  # the flow is weak next to the offset and still kept
+    assert n.chosen.x[1:] == pytest.approx([0.015, 0.010], rel=0.25)
+    # the same data with a threshold above the flow's evidence names the offset alone
+    n2 = _naming(effects, 40, 3, evidence_threshold=n.evidence[1] + 1.0)
+    assert n2.chosen.cand.label == "spring_rest_offset:joint_2"
+    assert n2.gains[1] == pytest.approx(n.evidence[1], rel=0.05)
+
+
+def test_a_nominal_recording_gives_no_evidence_above_the_threshold(purcell3_run) -> None:  # type: ignore[no-untyped-def]
+    base = purcell3_model()
+    n = name_mismatch(prepare(purcell3_run, base), base, DiagnoseConfig(), np.array([1e-3]))
+    assert n.gains[0] < DiagnoseConfig().evidence_threshold
+
+
+def test_max_effects_caps_the_set() -> None:
+    effects = [dict(name="spring_rest_offset", joint="joint_2", offset=0.2),
+               dict(name="background_flow", vx=0.05, vy=0.0)]
+    n = _naming(effects, 16, 4, max_effects=1)
+    assert len(n.chosen.cand.parts) == 1 and len(n.gains) == 1
+
+
+# ------------------------------------------------------------------------------ end to end
+@pytest.mark.slow
+def test_three_effects_at_once_swimmer9(run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+    effects = [
+        dict(name="spring_rest_offset", joint="joint_6", offset=0.2),
+        dict(name="joint_viscous_damping", joint="joint_8", d=0.5),
+        dict(name="background_flow", vx=0.03, vy=-0.02),
+    ]
+    rep = run_case("swimmer9", effects, cycles=30, seed=7)
+    check_recovered(rep, effects)
+    assert all(e["evidence"] > DiagnoseConfig().evidence_threshold for e in rep.to_dict()["effects"])
+
+
+@pytest.mark.slow
+def test_a_longer_tail_link_is_named_as_a_model_parameter_error() -> None:
+    """swimmer9 whose tail link is 30 % longer than the model says, model parameters suspected."""
+    from suds_ros.core.diagnosis import diagnose
+    from suds_ros.core.physics.systems import swimmer9_model
+
+    base = swimmer9_model()
+    model, _ = apply_effects(base, [dict(name="link_length_error", link="link_9", scale=1.3)])
+    rec = simulate(RFTChain(model), SimConfig(cycles=20, seed=5))
+    d = diagnose(rec, base, DiagnoseConfig(model_suspects=True)).to_dict()
+    assert d["unexplained"] is False
+    (e,) = d["effects"]  # type: ignore[misc]
+    assert (e["name"], e["target"]) == ("link_length_error", "link_9"), d
+    assert e["parameters"]["scale"] == pytest.approx(1.3, rel=0.25)
