@@ -92,7 +92,7 @@ class MonitorConfig:
 
     gait_hz: float = 1.0
     rate: float = 100.0
-    diff_window: int = 5
+    diff_window: int = 10
     window_cycles: float = 1.0
     floor_cycles: float = 3.0
     warn: float = 3.0
@@ -320,7 +320,7 @@ class MismatchMonitor:
             level = ERROR if f > cfg.error else WARN if f > cfg.warn else OK
             prev = old.get(name)
             since = prev.since if prev is not None and prev.level == level else stamp
-            out.append(ChannelStatus(name, level, float(f), since))
+            out.append(ChannelStatus(name, level, float(f), float(since)))
         self.statuses = tuple(out)
         self.updated += 1
         if all(s.level == OK for s in out):
@@ -350,6 +350,11 @@ class MismatchMonitor:
         """The pending diagnosis request (then cleared), or None."""
         req, self._request = self._request, None
         return req
+
+    @property
+    def last_stamp(self) -> float:
+        """Stamp of the newest paired sample, s (nan before the first)."""
+        return self._hist[-1][0] if self._hist else math.nan
 
     @property
     def worst(self) -> int:
