@@ -375,7 +375,7 @@ def diagnosis_json(request: DiagnosisRequest, model: ChainModel,
     report = diagnose(rec, model, config)
     out = report.to_dict()
     out["monitor"] = {"window": [float(rec.t[0]), float(rec.t[-1])],
-                      "cycles": int(round((rec.t[-1] - rec.t[0]) * (rec.gait_hz or 1.0))) + 0,
+                      "cycles": int(round((rec.t[-1] - rec.t[0]) * (rec.gait_hz or 1.0))),
                       "channels": list(request.channels), "since": float(request.since)}
     return json.dumps(out)
 
