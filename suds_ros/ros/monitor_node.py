@@ -17,6 +17,9 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   (``suds diagnose --json`` schema plus a ``monitor`` object: window, channels, since), computed
   in a separate process while the node keeps up with the stream.
 
+Nothing is published on ``suds/mismatch`` until ``floor_cycles`` + ``calibration_cycles`` cycles
+have been seen (the noise floor and the calibration need them).
+
 System
 ------
 ``system`` (built-in id) or ``model_file`` (robot model file, wins when set) is the nominal
@@ -75,6 +78,9 @@ class MonitorNodeConfig:
         "description": "gait cycles of the mean-square residual", "range": (0.05, 100.0)})
     floor_cycles: float = field(default=_DEFAULT.floor_cycles, metadata={
         "description": "gait cycles of data for the noise floor", "range": (0.05, 100.0)})
+    calibration_cycles: float = field(default=_DEFAULT.calibration_cycles, metadata={
+        "description": "cycles (assumed nominal) measuring the model's own discretisation error; 0: none",
+        "range": (0.0, 1000.0)})
     warn: float = field(default=_DEFAULT.warn, metadata={
         "description": "WARN when F = mean-square residual / floor exceeds this", "range": (1.0, 1e9)})
     error: float = field(default=_DEFAULT.error, metadata={
@@ -101,7 +107,8 @@ class MonitorNodeConfig:
         """The core settings (``gait_hz`` when the parameter is unset)."""
         return MonitorConfig(
             gait_hz=float(self.gait_hz or gait_hz), rate=self.rate, diff_window=self.diff_window,
-            window_cycles=self.window_cycles, floor_cycles=self.floor_cycles, warn=self.warn,
+            window_cycles=self.window_cycles, floor_cycles=self.floor_cycles,
+            calibration_cycles=self.calibration_cycles, warn=self.warn,
             error=self.error, persist_cycles=self.persist_cycles, history_cycles=self.history_cycles,
             update_every=self.update_every)
 

@@ -52,6 +52,15 @@ def test_nominal_60_cycles_never_alarm(purcell3, seed):
     assert mon.channels == ("joint_2", "xi_x", "xi_y", "xi_theta")
 
 
+def test_nominal_swimmer9_never_errs():
+    """Stiff passive joints: the calibrated discretisation error keeps F near 1 (max ≈ 3.8 seen)."""
+    swimmer9 = load_system("swimmer9")
+    mon, history, requests = run(swimmer9, 60, seed=1)
+    F = np.array([[s.statistic for s in sts] for _, sts in history])
+    assert F.max() < MonitorConfig().error and requests == []
+    assert np.all(np.median(F, axis=0) < 1.6), np.median(F, axis=0)
+
+
 def test_friction_onset_alarms_fast_and_requests_one_diagnosis(purcell3):
     cfg = MonitorConfig()
     mon, history, requests = run(purcell3, 30, seed=2, onset=20, config=cfg)
