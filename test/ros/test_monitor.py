@@ -89,3 +89,75 @@ def test_friction_appearing_mid_run_is_flagged_and_named(start_process, node_com
     assert report["monitor"]["window"][0] >= onset
     assert stop(sim) == 0 or sim.poll() == 0, sim.output()
     assert stop(mon) == 0, mon.output()
+
+
+# ------------------------------------------------------------------ parameters (in process)
+@pytest.mark.parametrize(("kind", "params", "match"), [
+    ("simulator", {"effects": "[{"}, r"`effects`: expected a JSON list"),
+    ("simulator", {"effects": '{"name": "joint_coulomb_friction"}'}, r"`effects`: expected a JSON list of objects"),
+    ("simulator", {"effects": '[{"name": "joint_coulomb_friction", "joint": "joint_1", "mu": 0.5}]'},
+     r"joint 'joint_1' is actuated"),
+    ("monitor", {"warn": 5.0, "error": 4.0}, r"`error`: expected a threshold > warn"),
+    ("monitor", {"persist_cycles": 2}, r"persist_cycles"),
+    ("monitor", {"system": "nope"}, r"unknown system 'nope'"),
+    ("monitor", {"gait_hz": 0.0}, r"`gait_hz`"),
+])
+def test_bad_start_parameter_is_refused_with_reason(ros_context, kind, params, match):
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.ros.monitor_node import MonitorNode
+    from suds_ros.ros.simulator_node import SimulatorNode
+
+    cls = {"simulator": SimulatorNode, "monitor": MonitorNode}[kind]
+    with pytest.raises(SudsConfigError, match=match):
+        cls(context=ros_context, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+
+
+def test_simulator_effects_at_run_time(ros_context):
+    from rclpy.parameter import Parameter
+
+    from suds_ros.ros.simulator_node import SimulatorNode
+
+    node = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter("real_time_factor", value=0.0), Parameter("cycles", value=3)])
+    try:
+        assert node.describe_parameter("effects").read_only is False
+        node._next_sample()  # the first chunk: nominal
+        assert node.sim.effects == ()
+        bad = node.set_parameters([Parameter("effects", value='[{"name": "glue"}]')])[0]
+        assert not bad.successful and "unknown effect 'glue'" in bad.reason
+        assert node.config.effects == ""
+        ok = node.set_parameters([Parameter("effects", value=json.dumps(FRICTION))])[0]
+        assert ok.successful and node.sim.effects == ()  # applied from the next chunk on
+        for _ in range(100):
+            node._next_sample()
+        assert node.sim.effects == tuple(FRICTION) and node._chunk.t[0] == pytest.approx(T0 + 1.0)
+    finally:
+        node.destroy_node()
+
+
+def test_monitor_node_publishes_per_channel_statuses(ros_context):
+    """Fed in process: one status per channel after the floor and calibration cycles."""
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.stream import StreamingSimulator
+    from suds_ros.ros.conversions import diagnostics_from_msg, joint_state_to_msg, pose_to_msg
+    from suds_ros.ros.monitor_node import MonitorNode
+
+    node = MonitorNode(context=ros_context, parameter_overrides=[Parameter("diagnose", value=False)])
+    try:
+        sim = StreamingSimulator(node.system, SimConfig(seed=0))
+        for _ in range(7):
+            ch = sim.step(100)
+            for k in range(100):
+                node._on_pose(pose_to_msg(ch.t[k], *ch.pose[k]))
+                node._on_shape(joint_state_to_msg(ch.t[k], ("joint_1", "joint_2"), ch.r[k]))
+        reports = diagnostics_from_msg(node.mismatch_msg())
+        assert [r.name for r in reports] == [f"suds_monitor/{c}" for c in ("joint_2", "xi_x", "xi_y", "xi_theta")]
+        assert all(r.level == 0 and float(r.values["statistic"]) < 4.0 for r in reports)
+        assert reports[0].stamp == pytest.approx(ch.t[-1]) and float(reports[0].values["since"]) <= ch.t[-1]
+    finally:
+        node.close()
+        node.destroy_node()

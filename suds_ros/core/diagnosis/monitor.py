@@ -242,10 +242,11 @@ class MismatchMonitor:
         self.names = tuple(system.joint_names)
         spc = config.samples_per_cycle
         self._spc = spc
-        self._hist: deque[tuple[float, FloatArray, FloatArray]] = deque(
-            maxlen=int(math.ceil(config.history_cycles * spc)) + config.diff_window + 1)
-        self._shapes: deque[tuple[float, FloatArray]] = deque()
-        self._poses: deque[tuple[float, FloatArray]] = deque()
+        keep = int(math.ceil(config.history_cycles * spc)) + config.diff_window + 1
+        self._hist: deque[tuple[float, FloatArray, FloatArray]] = deque(maxlen=keep)
+        # samples waiting for the other stream (bounded: a stream that stops cannot fill memory)
+        self._shapes: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
+        self._poses: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
         self._since_update = 0
         self.statuses: tuple[ChannelStatus, ...] = ()
         self.updated = 0  # number of statistic updates
