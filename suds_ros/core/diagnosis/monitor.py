@@ -180,18 +180,30 @@ def channel_names(system: SudsSystem) -> tuple[str, ...]:
     return tuple(system.joint_names[j] for j in system.passive) + body
 
 
-def equation_residuals(system: SudsSystem, t: FloatArray, r: FloatArray, pose: FloatArray,
-                       w: int) -> FloatArray:
-    """Measured minus predicted rates over every window of ``w`` intervals, shape (n − w, channels).
+def interval_rates(system: SudsSystem, t: FloatArray, r: FloatArray,
+                   pose: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Predicted body velocity (n − 1, 3) and passive rates (n − 1, np) on each sample interval.
 
-    ``t`` (n,) stamps, ``r`` (n, nj) joints in the system's order, ``pose`` (n, 3) at the same
-    stamps (yaw unwrapped).  Columns as :func:`channel_names`.
+    Midpoint shape and heading, actuated rate Δr_a/Δt: the nominal physics, no integration.
     """
-    act, pas = list(system.actuated), list(system.passive)
+    act = list(system.actuated)
     dt = np.diff(t)
     mid = 0.5 * (r[1:] + r[:-1])
     yaw = 0.5 * (pose[1:, 2] + pose[:-1, 2])
-    xi, rdot_p = system.velocities(mid, np.diff(r[:, act], axis=0) / dt[:, None], yaw=yaw)
+    return system.velocities(mid, np.diff(r[:, act], axis=0) / dt[:, None], yaw=yaw)
+
+
+def equation_residuals(system: SudsSystem, t: FloatArray, r: FloatArray, pose: FloatArray,
+                       w: int, rates: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
+    """Measured minus predicted rates over every window of ``w`` intervals, shape (n − w, channels).
+
+    ``t`` (n,) stamps, ``r`` (n, nj) joints in the system's order, ``pose`` (n, 3) at the same
+    stamps (yaw unwrapped); ``rates``: :func:`interval_rates` of the same data, if at hand.
+    Columns as :func:`channel_names`.
+    """
+    pas = list(system.passive)
+    xi, rdot_p = interval_rates(system, t, r, pose) if rates is None else rates
+    dt = np.diff(t)
     span = t[w:] - t[:-w]
     nwin = t.size - w
     cum = np.concatenate([np.zeros((1, len(pas))), np.cumsum(rdot_p * dt[:, None], axis=0)])
@@ -215,8 +227,9 @@ def residual_floor(system: SudsSystem, t: FloatArray, r: FloatArray, pose: Float
     of the accumulated one-interval residual S_k = Σ_{i<k} e1_i Δt_i, whose fourth difference
     keeps only it: σ_m = 1.4826·MAD(Δ⁴S)/√70, floor = 2σ_m²/T² (T the median window span).
     """
-    e = equation_residuals(system, t, r, pose, w)
-    e1 = equation_residuals(system, t, r, pose, 1)
+    rates = interval_rates(system, t, r, pose)
+    e = equation_residuals(system, t, r, pose, w, rates)
+    e1 = equation_residuals(system, t, r, pose, 1, rates)
     S = np.cumsum(e1 * np.diff(t)[:, None], axis=0)
     d4 = S[4:] - 4 * S[3:-1] + 6 * S[2:-2] - 4 * S[1:-3] + S[:-4]
     sig = 1.4826 * np.median(np.abs(d4 - np.median(d4, axis=0)), axis=0) / math.sqrt(70.0)
