@@ -12,6 +12,7 @@ EXECUTABLES = {
     "predictor": "suds_ros.ros.predictor_node",
     "recorder": "suds_ros.ros.recorder_node",
     "player": "suds_ros.ros.player_node",
+    "monitor": "suds_ros.ros.monitor_node",
     "pipeline": "suds_ros.ros.pipeline",
     "suds": "suds_ros.cli.main",
 }

@@ -33,10 +33,22 @@ time at start for ``real_time_factor`` = 1 (stamps then track the wall clock)
 and 1.7e9 s otherwise.  ``cycles`` > 0 stops after that many gait cycles: the
 node waits (≤ 5 s) for reliable subscribers to acknowledge the tail and exits
 with code 0.
+
+Effects at run time
+-------------------
+``effects`` (JSON text, settable while running) lists catalogue effects
+(``shared/spec/effects.md``) added to the nominal model, e.g.
+``[{"name": "joint_coulomb_friction", "joint": "joint_2", "mu": 0.5}]``; ``[]`` or
+empty returns to the nominal physics.  A new value is checked against the system
+(unknown effect, actuated joint, out-of-range parameter: the set is refused with
+the reason) and applied from the next chunk (gait cycle) on; the node logs
+``effects <json> on from stamp <s>`` with the stamp of the first sample simulated
+with them.  ``sensor_time_offset`` is not available while streaming.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import time
@@ -97,8 +109,13 @@ class SimulatorConfig:
         "range": (1, 10_000_000)})
     tick: float = field(default=0.01, metadata={
         "description": "wall-clock s between publishing timer ticks", "range": (1e-4, 1.0)})
+    effects: str = field(default="", metadata={
+        "description": "JSON list of effects added to the nominal model from the next gait cycle on, e.g. "
+                       '[{"name": "joint_coulomb_friction", "joint": "joint_2", "mu": 0.5}] (empty: none)',
+        "read_only": False})
 
     def __post_init__(self) -> None:
+        parse_effects(self.effects)
         if self.gait_hz is not None:
             self._check_gait()
         if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
@@ -148,6 +165,25 @@ class SimulatorConfig:
                          noise_std=self.noise, seed=self.seed, t0=t0)
 
 
+def parse_effects(text: str) -> list[dict[str, Any]]:
+    """The ``effects`` parameter as a list of effect mappings (empty text: none).
+
+    Raises
+    ------
+    SudsConfigError
+        Text that is not a JSON list of objects each with a ``name``.
+    """
+    if not text.strip():
+        return []
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SudsConfigError(f"`effects`: expected a JSON list of effects, got {text!r} ({exc})") from None
+    if not isinstance(value, list) or not all(isinstance(e, dict) and "name" in e for e in value):
+        raise SudsConfigError(f"`effects`: expected a JSON list of objects with a `name`, got {text!r}")
+    return value
+
+
 class SimulatorNode(Node):
     """Publish the streamed simulation on /suds/shape, /suds/body_pose (and /clock, /suds/system)."""
 
@@ -157,9 +193,13 @@ class SimulatorNode(Node):
         self.system = load_system(params.system_spec)
         self.config = params.resolved(getattr(getattr(self.system, "model", None), "gait_hz", 1.0))
         add_validator(self, lambda: self.config, on_valid=self._on_config)
+        self.add_on_set_parameters_callback(self._check_effects)  # runs before the validator above
         cfg = self.config
         self.t0 = cfg.first_stamp()
         self.sim = StreamingSimulator(self.system, cfg.sim_config(self.t0))
+        self._pending_effects: list[dict[str, Any]] | None = parse_effects(cfg.effects) or None
+        if self._pending_effects:
+            self.sim.set_effects(self._pending_effects)  # a bad start value stops the node here
         names = self.system.joint_names
         self.names = tuple(names)
         from geometry_msgs.msg import PoseStamped
@@ -194,7 +234,22 @@ class SimulatorNode(Node):
             f"real_time_factor {cfg.real_time_factor:g}, t0 {self.t0:.3f} s, "
             f"{'forever' if not cfg.cycles else f'{cfg.cycles} cycles'}")
 
+    def _check_effects(self, params: list[Any]) -> Any:
+        """Refuse an ``effects`` value the system cannot take (checked on a scratch simulator)."""
+        from rcl_interfaces.msg import SetParametersResult
+
+        for p in params:
+            if p.name == "effects":
+                try:
+                    StreamingSimulator(self.system, replace(self.sim.config, warmup=0.0)).set_effects(
+                        parse_effects(str(p.value)))
+                except SudsConfigError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
     def _on_config(self, new: SimulatorConfig) -> None:
+        if new.effects != self.config.effects:
+            self._pending_effects = parse_effects(new.effects)
         if new.real_time_factor != self.config.real_time_factor:
             self._anchor = None  # re-anchor the pacing at the next tick
             self.get_logger().info(f"real_time_factor → {new.real_time_factor:g}")
@@ -214,8 +269,13 @@ class SimulatorNode(Node):
 
     def _next_sample(self) -> tuple[float, np.ndarray, np.ndarray]:
         if self._chunk is None or self._chunk_i >= self._chunk.t.size:
+            effects, self._pending_effects = self._pending_effects, None
+            if effects is not None:
+                self.sim.set_effects(effects)
             self._chunk = self.sim.step(self.config.samples_per_cycle)
             self._chunk_i = 0
+            if effects is not None:
+                self.get_logger().info(f"effects {json.dumps(effects)} on from stamp {self._chunk.t[0]:.6f}")
         c, i = self._chunk, self._chunk_i
         self._chunk_i += 1
         return float(c.t[i]), c.r[i], c.pose[i]

@@ -3,15 +3,23 @@
 :class:`StreamingSimulator` carries the OU drive, the passive state and the
 pose from one chunk to the next, so a node can publish an unbounded run at any
 rate.  It uses the same physics and integrator as :func:`suds_ros.core.physics.sim.simulate`.
+
+Effects (``shared/spec/effects.md``) can be switched on while it runs
+(:meth:`StreamingSimulator.set_effects`): the next :meth:`~StreamingSimulator.step`
+integrates the nominal model with the effects applied, from the state the previous
+step left (drive, passive joints, pose), so the change is a step in the physics at a
+sample boundary, not a jump in the state.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.sim import SimConfig, _rest_angles, _still, auto_substeps, integrate
 from suds_ros.core.physics.system import SudsSystem
 
@@ -46,8 +54,11 @@ class StreamingSimulator:
 
     def __init__(self, system: SudsSystem, config: SimConfig = SimConfig()) -> None:
         self.system = system
+        self.nominal = system
         self.config = config
+        self.effects: tuple[dict[str, object], ...] = ()
         self._still, self._flow = _still(system)
+        self._drift = np.zeros(2)  # position offset that keeps the pose continuous across flow changes
         ss = np.random.SeedSequence(config.seed)
         self._rng_ou, self._rng_noise = (np.random.default_rng(s) for s in ss.spawn(2))
         self._dt = config.dt
@@ -63,6 +74,35 @@ class StreamingSimulator:
         self._pose = np.zeros(3)
         if nw:
             self._advance(nw)
+
+    def set_effects(self, effects: Sequence[Mapping[str, object]]) -> None:
+        """Simulate the nominal system with ``effects`` (replacing any earlier ones) from the next sample on.
+
+        ``effects`` as :func:`~suds_ros.core.physics.effects.apply_effects` takes them; an empty
+        list returns to the nominal physics.
+
+        Raises
+        ------
+        SudsConfigError
+            For a system that is not an RFT chain, an invalid effect, or ``sensor_time_offset``
+            (the stream has no pose delay).
+        """
+        from suds_ros.core.physics.effects import apply_effects
+        from suds_ros.core.physics.rft import ChainModel, RFTChain
+
+        model = getattr(self.nominal, "model", None)
+        if not isinstance(model, ChainModel):
+            raise SudsConfigError(f"`effects`: only RFT chain systems take effects, got {self.nominal.name!r}")
+        effects = tuple(dict(e) for e in effects)
+        new_model, delay = apply_effects(model, effects)
+        if delay != 0.0:
+            raise SudsConfigError(f"`effects`: sensor_time_offset is not supported while streaming, got dt = {delay!r} s")
+        system = RFTChain(new_model) if effects else self.nominal
+        still, flow = _still(system)
+        tt = self._k * self._dt  # at the last sample the old flow's drift holds; the new one acts after it
+        self._drift += (np.asarray(self._flow) - np.asarray(flow)) * tt
+        self.system, self._still, self._flow, self.effects = system, still, flow, effects
+        self._substeps = self.config.substeps or auto_substeps(still, self._dt)
 
     def _setpoint(self, k: int) -> FloatArray:
         t = k * self._dt * self.config.gait_hz
@@ -88,8 +128,8 @@ class StreamingSimulator:
         k, r, pose = self._advance(n)
         tt = k * self._dt
         pose = pose.copy()
-        pose[:, 0] += self._flow[0] * tt
-        pose[:, 1] += self._flow[1] * tt
+        pose[:, 0] += self._flow[0] * tt + self._drift[0]
+        pose[:, 1] += self._flow[1] * tt + self._drift[1]
         sd = self.config.noise_std
         pose_noise = sd * self._rng_noise.standard_normal(pose.shape)
         if not getattr(self.system, "planar", True):  # 1-D swimmers: y and yaw stay exactly 0
