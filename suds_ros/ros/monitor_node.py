@@ -51,10 +51,7 @@ from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS
 from suds_ros.ros.runner import run_node
 
-SHAPE = "suds/shape"
-POSE = "suds/body_pose"
-MISMATCH = "suds/mismatch"
-DIAGNOSIS = "suds/diagnosis"
+from suds_ros.ros.topics import DIAGNOSIS, MISMATCH, POSE, SHAPE
 
 _DEFAULT = MonitorConfig()
 
