@@ -219,13 +219,3 @@ class Recording:
             effort=None if self.effort is None else self.effort[start:stop],
             truth=truth,
         )
-
-
-def joint_names(n_joints: int) -> tuple[str, ...]:
-    """Default joint names of a chain, head to tail: ``joint_1`` … ``joint_{n_joints}``."""
-    return tuple(f"joint_{j + 1}" for j in range(n_joints))
-
-
-def samples_per_cycle(dt: float, gait_hz: float) -> int:
-    """Nominal samples per gait cycle of a stream sampled every ``dt`` s at ``gait_hz`` Hz."""
-    return int(round(1.0 / (gait_hz * dt)))

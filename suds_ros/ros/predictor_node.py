@@ -45,6 +45,7 @@ from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS, overriding_options, subscr
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import MODEL, PREDICTED_BODY, PREDICTED_PASSIVE, SHAPE
 
+
 @dataclass(frozen=True)
 class PredictorConfig:
     """Parameters of the predictor node (all read-only)."""

@@ -84,7 +84,5 @@ def js(ns: int, names=("joint_1", "joint_2"), pos=(0.1, 0.2), vel=(), eff=()) ->
     return cdr.joint_state(ns, names, pos, vel, eff)
 
 
-
-
 STAMPS = [1_700_000_000_000_000_000 + k * 10_000_000 for k in range(20)]
 META = {"system": "purcell3", "actuated": "joint_1", "passive": "joint_2", "gait_hz": "1"}

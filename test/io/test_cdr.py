@@ -107,6 +107,3 @@ def test_fast_parsers_read_big_endian() -> None:
           + (1).to_bytes(4, "big") + np.array([2.5], ">f8").tobytes()
           + (0).to_bytes(4, "big") + (0).to_bytes(4, "big"))
     assert cdr.parse_joint_state(be) == (3, 7, ("a",), (2.5,), (), ())
-
-
-

@@ -47,8 +47,6 @@ def test_shared_bag_info_and_raw() -> None:
     assert m.header.frame_id == "world" and m.header.stamp.sec == 1_700_000_000
 
 
-
-
 def test_truncated_copies_read_up_to_last_complete_record(tmp_path: Path) -> None:
     rec = make_rec(n=400)
     full = tmp_path / "full.mcap"
@@ -140,8 +138,6 @@ def test_missing_file(tmp_path: Path) -> None:
         read_recording(tmp_path / "nope.mcap")
 
 
-
-
 def test_writer_argument_errors(tmp_path: Path) -> None:
     with pytest.raises(SudsBagError, match=r"compression: expected one of .*got 'gzip'"):
         BagWriter(tmp_path / "a.mcap", compression="gzip")
@@ -172,8 +168,6 @@ def test_decode_message_errors() -> None:
         decode_message(JS, b"\x00\x01\x00\x00\x01")
 
 
-
-
 def test_cut_at_any_offset_reads_or_raises_bag_error(tmp_path: Path) -> None:
     path = tmp_path / "rec.mcap"
     rec = make_rec(n=200)
@@ -198,8 +192,6 @@ def test_cut_at_any_offset_reads_or_raises_bag_error(tmp_path: Path) -> None:
                                                "no messages")), str(exc)
             counts.append(0)
     assert counts == sorted(counts) and counts[-1] == 200 and 0 < counts[30] < 200
-
-
 
 
 def _top_records(data: bytes) -> list[tuple[int, int]]:

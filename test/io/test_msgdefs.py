@@ -23,6 +23,3 @@ def test_msg_defs_match_shared_bags_schemas() -> None:
 def test_msg_defs_unknown_type() -> None:
     with pytest.raises(SudsBagError, match=r"'nav_msgs/msg/Odometry' has no schema"):
         msgdefs.schema_text("nav_msgs/msg/Odometry")
-
-
-

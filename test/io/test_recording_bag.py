@@ -56,8 +56,6 @@ def test_read_shared_bags(name: str) -> None:
         assert rec.r[:, 4].mean() == pytest.approx(-0.08, abs=0.01)
 
 
-
-
 def test_shared_bag_rewrite_equal(tmp_path: Path) -> None:
     rec = read_recording(shared("swimmer9_nominal"))
     out = tmp_path / "copy.mcap"
@@ -128,8 +126,6 @@ def test_our_files_open_with_rosbags(tmp_path: Path) -> None:
     assert poses[0].header.frame_id == "world"
 
 
-
-
 def test_missing_topic(tmp_path: Path) -> None:
     path = tmp_path / "rec.mcap"
     write_recording(path, make_rec())
@@ -152,8 +148,6 @@ def test_refuses_to_overwrite(tmp_path: Path) -> None:
     assert path.read_bytes() == b"precious"
     write_recording(path, make_rec(), overwrite=True)
     assert read_recording(path).n_samples == 50
-
-
 
 
 def test_joint_count_change(tmp_path: Path) -> None:
@@ -231,8 +225,6 @@ def test_stamps_are_header_stamps_not_log_time(tmp_path: Path) -> None:
     assert rec.t[0] == pytest.approx(1_699_999_997.0, abs=1e-6)
 
 
-
-
 def test_metadata_override(tmp_path: Path) -> None:
     path = tmp_path / "m.mcap"
     raw_bag(path, [js(ns) for ns in STAMPS], STAMPS, meta=META)
@@ -273,7 +265,3 @@ def test_io_does_not_import_rclpy() -> None:
             "suds_ros.io.cdr, suds_ros.io.msgdefs; sys.exit('rclpy' in sys.modules)")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     assert subprocess.run([sys.executable, "-c", code], env=env, check=False).returncode == 0
-
-
-
-

@@ -51,7 +51,6 @@ def noise_floor(
     return sig_rp, float(k * s_xy), float(k * s_th)
 
 
-
 def floor_arrays(
     data: Data, segs: Sequence[tuple[int, int]], sim_rp: Sequence[FloatArray], sim_pose: Sequence[FloatArray]
 ) -> FloorArrays:

@@ -172,4 +172,3 @@ def _sandwich_stderr(J: FloatArray, R: FloatArray, p: int) -> FloatArray:
     s2 = float(np.sum(Rb**2)) / max(Rb.size - p, 1)
     se_model = np.sqrt(np.maximum(np.diag(inv), 0.0) * s2)
     return np.maximum(se_sand, se_model)
-

@@ -268,4 +268,3 @@ class DiagnosisReport:
     def to_json(self, indent: int | None = 2) -> str:
         """JSON text of :meth:`to_dict`."""
         return json.dumps(self.to_dict(), indent=indent)
-

@@ -52,6 +52,7 @@ class _Samples:
         """The outputs fitted on the shape intervals themselves."""
         return self.Y if self.pose is None else self.Y[:, len(_BODY):]
 
+
 @dataclass(frozen=True)
 class IdentifyConfig:
     """Settings of the identification pipeline.

@@ -199,7 +199,6 @@ def test_public_rest_offset_recording(shared_bag, check_recovered) -> None:  # t
                      [dict(name="spring_rest_offset", joint="joint_6", offset=0.25)])
 
 
-
 # ------------------------------------------------------------------------------ command line
 def test_cli_json_and_errors(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     from suds_ros.io.recording_bag import write_recording
