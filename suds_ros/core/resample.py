@@ -173,7 +173,7 @@ def on_shape_grid(rec: Recording) -> Recording:
         return rec
     t = grid.t[(grid.t >= rec.pose_t[0]) & (grid.t <= rec.pose_t[-1])]
     if t.size < 3:
-        raise SudsDataError(f"`rec`: fewer than 3 grid points inside the pose stream's span",
+        raise SudsDataError("`rec`: fewer than 3 grid points inside the pose stream's span",
                             code=TOO_LITTLE_DATA)
     effort = None if rec.effort is None else knot_fit(rec.t, rec.effort, t)
     return replace(rec, t=t, r=knot_fit(rec.t, rec.r, t), effort=effort, truth={})

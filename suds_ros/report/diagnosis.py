@@ -22,7 +22,7 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
         a = rep.heldout_rms_after.get(c, b)
         fb = rep.statistics.get(c, float("nan"))
         fa = rep.statistics_after.get(c, fb)
-        flag = " *" if any(l.channel == c for l in rep.located) else ""
+        flag = " *" if any(loc.channel == c for loc in rep.located) else ""
         lines.append(
             f"  {c:<10}{rep.noise_floor.get(c, float('nan')):>10.3g}{b:>12.4g}{a:>12.4g}{fb:>10.1f}{fa:>9.1f}{flag}"
         )

@@ -33,7 +33,6 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 

@@ -84,7 +84,7 @@ def test_roundtrip(tmp_path: Path, effort: bool, compression: str) -> None:
     info = bag_info(path)
     assert info.compression == (compression,) and info.has_summary
     assert info.metadata["suds"] == {"system": "swimmer4", "actuated": "joint_1",
-                                        "passive": "joint_2,joint_3", "gait_hz": "1.5"}
+                                     "passive": "joint_2,joint_3", "gait_hz": "1.5"}
 
 
 def test_roundtrip_unaligned_streams_and_truth_not_written(tmp_path: Path) -> None:

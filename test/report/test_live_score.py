@@ -50,7 +50,7 @@ def write_bag(path, rec, preds, passive_names=None) -> None:
                                  (PREDICTED_PASSIVE_TOPIC, SHAPE_TYPE)):
             w.add_topic(topic, type_name)
         w.write_metadata(METADATA_NAME, {"system": rec.system, "actuated": ",".join(rec.actuated),
-                                  "passive": ",".join(rec.passive), "gait_hz": "1.0"})
+                                         "passive": ",".join(rec.passive), "gait_hz": "1.0"})
         for k, t in enumerate(rec.t):
             ns = float_to_ns(t)
             w.write_raw(SHAPE_TOPIC, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)

@@ -133,7 +133,7 @@ class MonitorConfig:
             ("error", self.error > self.warn, f"a threshold > warn ({self.warn})"),
             ("persist_cycles", self.persist_cycles >= 4, "an integer ≥ 4 cycles"),
             ("history_cycles", self.history_cycles >= max(self.persist_cycles, self.window_cycles,
-                                                           self.floor_cycles),
+                                                          self.floor_cycles),
              "≥ persist_cycles, window_cycles and floor_cycles"),
             ("update_every", self.update_every >= 1, "an integer ≥ 1"),
         ]

@@ -222,7 +222,7 @@ class _Fit:
 def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock) -> _Fit:
     """Stage 4: refine the chosen effect in the simulator, replay it, re-locate with the better floor."""
     data, model, config, table = nom.data, nom.model, nom.config, nom.table
-    conditions = channel_conditions([l.channel for l in located], nom.E0, table, model)
+    conditions = channel_conditions([loc.channel for loc in located], nom.E0, table, model)
     if naming.chosen.score.score <= 0:
         return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
     cand, x, se, dropped = refine_choice(naming.chosen.cand, naming.chosen.x, model, data, config,
@@ -235,7 +235,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     floor = {c: float(min(nom.floor[c], v)) for c, v in better.items()}
     F0 = table.fstats(nom.E0, floor)
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
-    new = [l.channel for l in located if l.channel not in conditions]
+    new = [loc.channel for loc in located if loc.channel not in conditions]
     conditions.update(channel_conditions(new, nom.E0, table, model))
     evidence = {Candidate((p,)).label: e for p, e in zip(naming.chosen.cand.parts, naming.evidence)}
     confounded = tuple(g for g in naming.confounded if g[0] not in dropped)
@@ -251,7 +251,7 @@ def _show(
     data, config, table = nom.data, nom.config, nom.table
     effects, confounded, rep1, E1, floor, F0 = fit.effects, fit.confounded, fit.replay, fit.E1, fit.floor, fit.F0
     F1 = table.fstats(E1, floor)
-    affected = [l.channel for l in fit.located]
+    affected = [loc.channel for loc in fit.located]
     improvement = excess_improvement(F0, F1, affected)
     unexplained, left = _unexplained(F0, F1, affected, config, fit.unexplained)
     notes: list[str] = [data.phase_note] if data.phase_note else []

@@ -237,8 +237,8 @@ class DiagnosisReport:
 
         Unlike :attr:`improvement` it keeps the noise, which no model removes, in both sums.
         """
-        before = sum(self.heldout_rms_before[l.channel] for l in self.located)
-        after = sum(self.heldout_rms_after[l.channel] for l in self.located)
+        before = sum(self.heldout_rms_before[loc.channel] for loc in self.located)
+        after = sum(self.heldout_rms_after[loc.channel] for loc in self.located)
         return 1.0 - after / before if before > 0 else None
 
     def to_dict(self) -> dict[str, object]:

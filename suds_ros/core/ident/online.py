@@ -409,7 +409,7 @@ class OnlineSudsEstimator:
         self.flush()
         if not hasattr(self.regressor, "coef_"):
             raise SudsDataError("no model yet: the estimator has not finished initialising",
-                            code=TOO_LITTLE_DATA)
+                                code=TOO_LITTLE_DATA)
         return SudsModel(
             joint_names=self.joint_names,
             actuated=self.actuated,

@@ -170,10 +170,10 @@ def test_mismatch_outside_the_catalogue_is_unexplained(case: str) -> None:
     d = rep.to_dict()
     assert d["mismatch"] is True
     assert d["unexplained"] is True, d
-    located = {l["channel"] for l in d["located"]}
+    located = {loc["channel"] for loc in d["located"]}
     assert OUTSIDE[case] <= located, (located, d)
-    for l in d["located"]:
-        assert l["phase_ranges"] and all(0.0 <= a < b <= 2 * np.pi + 1e-3 for a, b in l["phase_ranges"])
+    for loc in d["located"]:
+        assert loc["phase_ranges"] and all(0.0 <= a < b <= 2 * np.pi + 1e-3 for a, b in loc["phase_ranges"])
     if d["effects"] or d["confounded_with"]:
         cfg = DiagnoseConfig()
         assert any(rep.statistics_after[c] > cfg.f_threshold for c in located), d
@@ -188,7 +188,7 @@ def test_public_friction_recording(shared_bag, check_recovered) -> None:  # type
 
     rec = read_recording(shared_bag("purcell3_real_friction.mcap"))
     check_recovered(diagnose(rec, purcell3_model()),
-                     [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.7)])
+                    [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.7)])
 
 
 def test_public_rest_offset_recording(shared_bag, check_recovered) -> None:  # type: ignore[no-untyped-def]
@@ -196,7 +196,7 @@ def test_public_rest_offset_recording(shared_bag, check_recovered) -> None:  # t
 
     rec = read_recording(shared_bag("swimmer9_real_rest_offset.mcap"))
     check_recovered(diagnose(rec, swimmer9_model()),
-                     [dict(name="spring_rest_offset", joint="joint_6", offset=0.25)])
+                    [dict(name="spring_rest_offset", joint="joint_6", offset=0.25)])
 
 
 # ------------------------------------------------------------------------------ command line
