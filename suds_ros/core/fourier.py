@@ -127,7 +127,8 @@ class NormalEquations:
         else:
             Xw, YY, sw = X * sample_weight[:, None], sample_weight @ (Y * Y), float(sample_weight.sum())
         if decay != 1.0:
-            self.xtx, self.xty, self.yty, self.sw = decay * self.xtx, decay * self.xty, decay * self.yty, decay * self.sw
+            self.xtx, self.xty, self.yty, self.sw = (decay * self.xtx, decay * self.xty, decay * self.yty,
+                                                     decay * self.sw)
         self.xtx = self.xtx + Xw.T @ X
         self.xty = self.xty + Xw.T @ Y
         self.yty = self.yty + YY
@@ -137,7 +138,8 @@ class NormalEquations:
 
     def decay(self, factor: float) -> "NormalEquations":
         """Scale the accumulated statistics by ``factor`` (forgetting without new rows)."""
-        self.xtx, self.xty, self.yty, self.sw = factor * self.xtx, factor * self.xty, factor * self.yty, factor * self.sw
+        self.xtx, self.xty, self.yty, self.sw = (factor * self.xtx, factor * self.xty, factor * self.yty,
+                                                 factor * self.sw)
         return self
 
     def merge(self, other: "NormalEquations") -> "NormalEquations":

@@ -13,9 +13,10 @@ standardised), and keeps it if the held-out log-likelihood gain it adds, minus t
 non-overlapping blocks of ``config.eq_window`` intervals first (the same evidence rule as the effect selection).
 Coefficients and their standard errors come from ordinary least squares on the training half
 (units: N·m per unit of the term).  The terms are built from the samples next to each interval,
-not from its own two, so their noise is independent of the residual's (:func:`_library`).  Recognisable terms get physics words.  The formula is a
-candidate, not re-simulated: the report keeps ``unexplained`` and gives the held-out fraction of
-the joint's residual power the formula removes.
+not from its own two, so their noise is independent of the residual's (:func:`_library`).
+Recognisable terms get physics words.  The formula is a candidate, not re-simulated: the report
+keeps ``unexplained`` and gives the held-out fraction of the joint's residual power the formula
+removes.
 """
 
 from __future__ import annotations

@@ -192,18 +192,21 @@ def conditions(
         if 5 < pos.sum() < e.size - 5:
             a, b = e[pos], e[~pos]
             t = (a.mean() - b.mean()) / np.sqrt(a.var() / a.size + b.var() / b.size + 1e-300)
-            out.append((abs(t), f"sign of ṙ({nm}): mean residual {a.mean():+.3g} when ṙ>0 vs {b.mean():+.3g} when ṙ<0 (t={t:.1f})"))
+            out.append((abs(t), f"sign of ṙ({nm}): mean residual {a.mean():+.3g} when ṙ>0 "
+                                f"vs {b.mean():+.3g} when ṙ<0 (t={t:.1f})"))
         dev = r[:, j] - rest[j]
         c = np.corrcoef(e, dev)[0, 1]
         c3 = np.corrcoef(e, dev**3)[0, 1]
         big = np.abs(dev) > np.quantile(np.abs(dev), 0.75)
         ratio = np.sqrt(np.mean(e[big] ** 2) / max(np.mean(e[~big] ** 2), 1e-300))
-        out.append((abs(c) * np.sqrt(e.size), f"r({nm}) − rest: correlation {c:+.2f} (cubic {c3:+.2f}); RMS at large |r − rest| ×{ratio:.2f}"))
+        out.append((abs(c) * np.sqrt(e.size),
+                    f"r({nm}) − rest: correlation {c:+.2f} (cubic {c3:+.2f}); RMS at large |r − rest| ×{ratio:.2f}"))
     yaw = data.pose[idx, 2]
     X = np.stack([np.cos(yaw), np.sin(yaw), np.ones_like(yaw)], axis=1)
     coef, *_ = np.linalg.lstsq(X, e, rcond=None)
     r2 = 1 - np.var(e - X @ coef) / max(np.var(e), 1e-300)
-    out.append((r2 * np.sqrt(e.size) * 3, f"heading: residual ≈ {coef[0]:+.3g}·cos(yaw) {coef[1]:+.3g}·sin(yaw) (R²={r2:.2f})"))
+    out.append((r2 * np.sqrt(e.size) * 3,
+                f"heading: residual ≈ {coef[0]:+.3g}·cos(yaw) {coef[1]:+.3g}·sin(yaw) (R²={r2:.2f})"))
     xy = data.pose[idx, :2]
     X = np.column_stack([xy, np.ones(e.size)])
     coef, *_ = np.linalg.lstsq(X, e, rcond=None)
@@ -224,7 +227,9 @@ def conditions(
             if abs(c) > abs(best[0]):
                 best = (c, lag, data.names[j])
     if best[2]:
-        out.append((abs(best[0]) * np.sqrt(e.size), f"lag: peak cross-correlation {best[0]:+.2f} with ṙ({best[2]}) at {best[1] * data.dt * 1e3:+.0f} ms"))
+        out.append((abs(best[0]) * np.sqrt(e.size),
+                    f"lag: peak cross-correlation {best[0]:+.2f} with ṙ({best[2]}) "
+                    f"at {best[1] * data.dt * 1e3:+.0f} ms"))
     out.sort(key=lambda z: -z[0])
     return tuple(s for _, s in out[:4])
 

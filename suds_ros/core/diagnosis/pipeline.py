@@ -8,8 +8,8 @@ number in the report is computed on the held-out half.
 
 1. Replay (output error).  The simulator is driven with the recorded actuated angles r_a
    (piecewise linear between samples, as the servo stream) from the recorded passive angles and
-   pose at the start of each half (:func:`~suds_ros.core.diagnosis.replay.replay`; batched RK4 over independent segments, the
-   pose by the same integrator as the simulator,
+   pose at the start of each half (:func:`~suds_ros.core.diagnosis.replay.replay`; batched RK4
+   over independent segments, the pose by the same integrator as the simulator,
    :func:`~suds_ros.core.physics.integrate.integrate_batch`).  Channels: each
    passive angle r_j (rad) and the body velocity ξx, ξy (m/s), ξθ (rad/s), the latter estimated
    from the pose by the exact SE(2) logarithm of g_k⁻¹g_{k+w} over ``window`` seconds, with the
@@ -26,11 +26,11 @@ number in the report is computed on the held-out half.
    mean is significant (Bonferroni t-test across cycles) are merged into ranges [a, b] of the gait
    phase in rad: the phaser's phase (:class:`~suds_ros.core.phase.phaser.Phaser`) of the recorded shape,
    shared by the replay (same r_a), zero at the upward crossing of the shape's first principal
-   component; the clock phase 2π·gait_hz·(t − t0) only if the phaser fails (noted in the report).  Conditions (sign of ṙ_p, |r_p − rest|, heading, position, lag of
-   the cross-correlation with the recorded signals) and the paper's structure (SUDS coefficients
-   C, C_r, B, B_r identified from the recording and from the replay on the same gait, compared
-   phase by phase against a split-half noise scale) are attached to the report for the human
-   summary.
+   component; the clock phase 2π·gait_hz·(t − t0) only if the phaser fails (noted in the report).
+   Conditions (sign of ṙ_p, |r_p − rest|, heading, position, lag of the cross-correlation with the
+   recorded signals) and the paper's structure (SUDS coefficients C, C_r, B, B_r identified from
+   the recording and from the replay on the same gait, compared phase by phase against a
+   split-half noise scale) are attached to the report for the human summary.
 
 3. Name (equation error).  On interval data (sample k → k+1, midpoint shape, ṙ = Δr/Δt, which is
    exact for the piecewise-linear servo stream) the still-fluid RFT metric gives, without
@@ -57,12 +57,13 @@ number in the report is computed on the held-out half.
    to < 1e-4 rad).  The fitted model is replayed on the held-out
    half; held-out RMS per channel before/after, and improvement = 1 − Σ e_after / Σ e_before over
    the located channels with e = √max(F − 1, 0) the RMS of the residual in excess of the noise
-   floor, in floor units (:func:`~suds_ros.core.diagnosis.locate.excess_improvement`): the fraction of the mismatch removed.  (The
-   plain RMS ratio would be capped by the noise, which no model removes, on weakly affected
-   channels.)  A mismatch whose best explanation leaves a significant excess (more than
-   ``unexplained_fraction`` of the excess residual power, in total or on any located channel) is
-   reported as unexplained, with its location kept; if that fit also improves the held-out
-   residual by less than half, no effect is reported (the attempt is in ``notes``).
+   floor, in floor units (:func:`~suds_ros.core.diagnosis.locate.excess_improvement`): the
+   fraction of the mismatch removed.  (The plain RMS ratio would be capped by the noise, which no
+   model removes, on weakly affected channels.)  A mismatch whose best explanation leaves a
+   significant excess (more than ``unexplained_fraction`` of the excess residual power, in total
+   or on any located channel) is reported as unexplained, with its location kept; if that fit also
+   improves the held-out residual by less than half, no effect is reported (the attempt is in
+   ``notes``).
 
 Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording), :mod:`.replay`,
 :mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.refine`; this module runs the stages.

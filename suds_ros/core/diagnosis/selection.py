@@ -148,7 +148,8 @@ def name_mismatch(
         close = [o for o in options if best.score.score - o.score.score <= margin and o.cand != best.cand]
         chosen = min([best] + close, key=_preference) if close else best
         if close:
-            groups.append(tuple(_added(o.cand, cur.cand) for o in [chosen] + [c for c in [best] + close if c is not chosen]))
+            others = [c for c in [best] + close if c is not chosen]
+            groups.append(tuple(_added(o.cand, cur.cand) for o in [chosen] + others))
         cur = chosen
         cur, evidence, dropped = _backward(sel, cur, config.evidence_threshold)
         log.extend(dropped)
