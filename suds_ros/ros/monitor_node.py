@@ -92,7 +92,8 @@ class MonitorNodeConfig:
     depth: int = field(default=1000, metadata={
         "description": "subscription queue depth of shape and pose", "range": (1, 10_000_000)})
     best_effort: bool = field(default=False, metadata={
-        "description": "subscribe best effort (matches sensor-data publishers, e.g. motion capture) instead of reliable"})
+        "description": "subscribe best effort (matches sensor-data publishers, e.g. motion capture) "
+                       "instead of reliable"})
 
     def __post_init__(self) -> None:
         if self.gait_hz is not None and not (isinstance(self.gait_hz, (int, float)) and math.isfinite(self.gait_hz)

@@ -140,7 +140,8 @@ class RecorderNode(Node):
                 self._skip(topic, str(exc))
                 continue
             self._subs[topic] = self.create_subscription(
-                cls, topic, self._callback(topic), subscription_qos_for(offered, depth=self.config.queue_depth), raw=True)
+                cls, topic, self._callback(topic), subscription_qos_for(offered, depth=self.config.queue_depth),
+                raw=True)
             self.get_logger().info(f"recording {topic} ({types[0]})")
 
     def _skip(self, topic: str, why: str) -> None:

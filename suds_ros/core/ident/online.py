@@ -130,7 +130,9 @@ class OnlineSudsEstimator:
         The incremental SUDS regression.
     """
 
-    def __init__(self, joint_names: tuple[str, ...], actuated: tuple[str, ...], config: OnlineConfig = OnlineConfig()) -> None:
+    def __init__(
+        self, joint_names: tuple[str, ...], actuated: tuple[str, ...], config: OnlineConfig = OnlineConfig()
+    ) -> None:
         self.config = config
         self.joint_names = tuple(joint_names)
         unknown = [j for j in actuated if j not in self.joint_names]
@@ -355,7 +357,8 @@ class OnlineSudsEstimator:
         if hasattr(self.regressor, "coef_"):
             tc = self._output_template_coef()
             nb = len(BODY_CHANNELS)
-            err_m = np.abs(np.asarray(avg.weights @ self.regressor.predict(avg.X)[:, :nb]) - avg.y)  # type: ignore[operator]
+            pred = self.regressor.predict(avg.X)[:, :nb]
+            err_m = np.abs(np.asarray(avg.weights @ pred) - avg.y)  # type: ignore[operator]
             err_t = np.abs(Bb @ tc[:, :nb] - avg.y)
             err_mp = np.abs(self.regressor.predict(X)[:, nb:] - Y)
             err_tp = np.abs(Bt @ tc[:, nb:] - Y)
@@ -479,7 +482,8 @@ class OnlineSudsEstimator:
         except (OSError, pickle.UnpicklingError, EOFError, AttributeError) as exc:
             raise SudsDataError(f"checkpoint {str(path)!r} is unreadable: {exc}") from None
         if not isinstance(obj, OnlineSudsEstimator) or getattr(obj, "version", None) != CHECKPOINT_VERSION:
-            raise SudsDataError(f"checkpoint {str(path)!r} is not a suds_ros estimator state (version {CHECKPOINT_VERSION})")
+            raise SudsDataError(
+                f"checkpoint {str(path)!r} is not a suds_ros estimator state (version {CHECKPOINT_VERSION})")
         return obj
 
 

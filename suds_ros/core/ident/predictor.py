@@ -103,7 +103,9 @@ class StreamingPredictor:
             return None
         tp, rp, php = prev
         self.last_mid_phase = 0.5 * (php + phase)
-        out = self.model.predict(np.array([0.5 * (php + phase)]), (0.5 * (rp + r))[None], ((r - rp) / (t - tp))[None])[0]
+        out = self.model.predict(
+            np.array([0.5 * (php + phase)]), (0.5 * (rp + r))[None], ((r - rp) / (t - tp))[None]
+        )[0]
         return out[:3], out[3 : 3 + len(self.passive)]
 
 

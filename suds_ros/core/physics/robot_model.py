@@ -261,7 +261,10 @@ def model_to_dict(model: ChainModel) -> dict[str, Any]:
         joints.append(joint)
     doc: dict[str, Any] = {
         "format": FORMAT, "name": model.name, "gait_hz": float(model.gait_hz), "drag": drag, "links": links,
-        "body": {"link": int(model.body_link) + 1, "offset": [float(v) for v in model.pose_offset]},  # type: ignore[arg-type]
+        "body": {
+            "link": int(model.body_link) + 1,
+            "offset": [float(v) for v in model.pose_offset],  # type: ignore[arg-type]
+        },
         "joints": joints,
     }
     if model.flow != (0.0, 0.0):

@@ -96,7 +96,8 @@ class StreamingSimulator:
         effects = tuple(dict(e) for e in effects)
         new_model, delay = apply_effects(model, effects)
         if delay != 0.0:
-            raise SudsConfigError(f"`effects`: sensor_time_offset is not supported while streaming, got dt = {delay!r} s")
+            raise SudsConfigError(
+                f"`effects`: sensor_time_offset is not supported while streaming, got dt = {delay!r} s")
         system = RFTChain(new_model) if effects else self.nominal
         still, flow = _still(system)
         tt = self._k * self._dt  # at the last sample the old flow's drift holds; the new one acts after it
