@@ -232,7 +232,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     ap.add_argument("bags", nargs="*")
     ap.add_argument("--table", action="store_true", help="run every case and write the Markdown table")
-    ap.add_argument("--out", default="docs/results/diagnose.md", help="Markdown file; the table replaces the block between the table markers")
+    ap.add_argument("--out", default="docs/results/diagnose.md",
+                    help="Markdown file; the table replaces the block between the table markers")
     ap.add_argument("--only-lab", action="store_true",
                     help="with --table: only the lab-condition bags and the model-file robot rows")
     a = ap.parse_args()

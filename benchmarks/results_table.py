@@ -44,7 +44,8 @@ def main() -> None:
             print(f"{name} seed {seed}: Γ_body {sc.gamma_body:.3f}  Γ_passive {sc.gamma_passive:.3f}", flush=True)
         rows.append((name, np.array(gb), np.array(gp), n_par))
     lines = [
-        f"# Γ on held-out cycles ({args.cycles_train} train / {args.cycles_test} test, regressor set {args.regressors})",
+        f"# Γ on held-out cycles ({args.cycles_train} train / {args.cycles_test} test, "
+        f"regressor set {args.regressors})",
         "",
         f"Measured {stamp()} on {machine()} by `python benchmarks/results_table.py`; seeds {args.seeds}.",
         "Phase from the phaser on shape data only; noise std 1e-3; OU drive κ = 8/s, std 0.175 rad.",
@@ -54,7 +55,8 @@ def main() -> None:
     ]
     for name, gb, gp, n_par in rows:
         per = ", ".join(f"{b:.3f}/{p:.3f}" for b, p in zip(gb, gp))
-        lines.append(f"| {name} | {gb.mean():.3f} ± {gb.std():.3f} | {gp.mean():.3f} ± {gp.std():.3f} | {per} | {n_par} |")
+        lines.append(f"| {name} | {gb.mean():.3f} ± {gb.std():.3f} | {gp.mean():.3f} ± {gp.std():.3f} "
+                     f"| {per} | {n_par} |")
     write("gamma_table.md", "\n".join(lines) + "\n")
 
 

@@ -46,7 +46,8 @@ def main() -> None:
         "Training cycles are the ones just before the test block. Parameters per output after the",
         "cross-validated choice of Fourier orders (so they can differ between runs).",
         "",
-        "| training cycles | set 1 Γ body / passive | set 2 Γ body / passive | set 3 Γ body / passive | parameters (1 / 2 / 3) |",
+        "| training cycles | set 1 Γ body / passive | set 2 Γ body / passive | set 3 Γ body / passive "
+        "| parameters (1 / 2 / 3) |",
         "|---|---|---|---|---|",
     ]
     for n in TRAIN:
