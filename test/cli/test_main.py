@@ -14,7 +14,8 @@ from suds_ros.cli.main import main
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "suds_ros.cli.main", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "suds_ros.cli.main", *args],
+                          capture_output=True, text=True, timeout=300)
 
 
 @pytest.fixture(scope="module")

@@ -40,9 +40,9 @@ def published_samples(cycles: int, seed: int):
     chunks = [sim.step(cfg.samples_per_cycle) for _ in range(cycles)]  # one cycle per chunk, as the node
     t = np.array([ns_to_float(float_to_ns(x)) for c in chunks for x in c.t])
     names = system.joint_names
-    return Recording(t=t, r=np.vstack([c.r for c in chunks]), joint_names=names, actuated=[names[i] for i in system.actuated],
-                     passive=[names[i] for i in system.passive], pose_t=t, pose=np.vstack([c.pose for c in chunks]),
-                     system=cfg.system)
+    return Recording(t=t, r=np.vstack([c.r for c in chunks]), joint_names=names,
+                     actuated=[names[i] for i in system.actuated], passive=[names[i] for i in system.passive],
+                     pose_t=t, pose=np.vstack([c.pose for c in chunks]), system=cfg.system)
 
 
 def _checkpoint_rows(path) -> int:

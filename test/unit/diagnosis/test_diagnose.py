@@ -45,7 +45,9 @@ PURCELL3_CASES = [
 
 
 @pytest.mark.parametrize("effects", PURCELL3_CASES, ids=lambda e: e[0]["name"])
-def test_purcell3_effect_is_named_and_fitted(effects: list[dict[str, Any]], run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_purcell3_effect_is_named_and_fitted(  # type: ignore[no-untyped-def]
+    effects: list[dict[str, Any]], run_case, check_recovered,
+) -> None:
     rep = run_case("purcell3", effects, cycles=20, seed=21)
     if effects[0]["name"] == "stiffness_to_drag_error":
         # with one passive joint the global scale and that joint's stiffness are the same physics
@@ -72,13 +74,17 @@ SWIMMER9_SLOW = [
 
 
 @pytest.mark.parametrize("effects", SWIMMER9_FAST, ids=lambda e: e[0]["name"])
-def test_swimmer9_effect_is_named_and_fitted(effects: list[dict[str, Any]], run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_swimmer9_effect_is_named_and_fitted(  # type: ignore[no-untyped-def]
+    effects: list[dict[str, Any]], run_case, check_recovered,
+) -> None:
     check_recovered(run_case("swimmer9", effects, cycles=20, seed=31), effects)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("effects", SWIMMER9_SLOW, ids=lambda e: e[0]["name"])
-def test_swimmer9_effect_is_named_and_fitted_slow(effects: list[dict[str, Any]], run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_swimmer9_effect_is_named_and_fitted_slow(  # type: ignore[no-untyped-def]
+    effects: list[dict[str, Any]], run_case, check_recovered,
+) -> None:
     check_recovered(run_case("swimmer9", effects, cycles=24, seed=32), effects)
 
 
@@ -102,7 +108,9 @@ def test_pair_offset_and_damping_swimmer9(run_case, check_recovered) -> None:  #
     ],
     ids=["purcell3-friction+flow", "swimmer9-friction+time_offset"],
 )
-def test_pairs_slow(system: str, effects: list[dict[str, Any]], run_case, check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_pairs_slow(  # type: ignore[no-untyped-def]
+    system: str, effects: list[dict[str, Any]], run_case, check_recovered,
+) -> None:
     check_recovered(run_case(system, effects, cycles=30, seed=42), effects)
 
 

@@ -104,7 +104,9 @@ def test_lab_null_runs_and_stays_clean() -> None:
     [dict(name="background_flow", vx=0.1, vy=-0.05)],
     [dict(name="sensor_time_offset", dt=0.017)],
 ], ids=lambda e: e[0]["name"])
-def test_lab_recording_names_the_twins_effect(effects: list[dict[str, Any]], check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_lab_recording_names_the_twins_effect(  # type: ignore[no-untyped-def]
+    effects: list[dict[str, Any]], check_recovered,
+) -> None:
     twin = diagnose(_lab(effects, 20, 21, aligned=True), purcell3_model())
     lab = diagnose(_lab(effects, 20, 21), purcell3_model())
     check_recovered(twin, effects)

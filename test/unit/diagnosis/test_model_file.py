@@ -46,7 +46,9 @@ def eel4(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, ChainModel]:
     return path, model
 
 
-def _record(model: ChainModel, effects: list[dict[str, object]], cycles: int, seed: int):  # type: ignore[no-untyped-def]
+def _record(  # type: ignore[no-untyped-def]
+    model: ChainModel, effects: list[dict[str, object]], cycles: int, seed: int,
+):
     m, delay = apply_effects(model, effects)
     return simulate(RFTChain(m), SimConfig(cycles=cycles, seed=seed, pose_delay=delay))
 
@@ -69,7 +71,9 @@ def test_diagnose_recording_takes_a_model_or_a_model_file(eel4) -> None:  # type
 
 
 @pytest.mark.slow
-def test_offset_frame_nominal_is_clean_and_damping_is_named(eel4, check_recovered) -> None:  # type: ignore[no-untyped-def]
+def test_offset_frame_nominal_is_clean_and_damping_is_named(  # type: ignore[no-untyped-def]
+    eel4, check_recovered,
+) -> None:
     _, model = eel4
     null = diagnose(_record(model, [], 20, 5), model)
     assert null.mismatch is False, null.statistics

@@ -14,7 +14,8 @@ def test_stderr_is_consistent_with_the_seed_to_seed_spread(run_case) -> None:  #
     true = -0.15
     vals, ses = [], []
     for seed in range(1, 7):
-        rep = run_case("swimmer9", [dict(name="spring_rest_offset", joint="joint_8", offset=true)], cycles=20, seed=seed)
+        rep = run_case("swimmer9", [dict(name="spring_rest_offset", joint="joint_8", offset=true)],
+                       cycles=20, seed=seed)
         (e,) = [e for e in rep.effects if e.name == "spring_rest_offset" and e.target == "joint_8"]
         vals.append(e.parameters["offset"])
         ses.append(e.stderr["offset"])

@@ -56,7 +56,9 @@ def test_a_weak_second_effect_is_kept_on_its_own_evidence() -> None:
     assert n2.gains[1] == pytest.approx(n.evidence[1], rel=0.05)
 
 
-def test_a_nominal_recording_gives_no_evidence_above_the_threshold(purcell3_run) -> None:  # type: ignore[no-untyped-def]
+def test_a_nominal_recording_gives_no_evidence_above_the_threshold(  # type: ignore[no-untyped-def]
+    purcell3_run,
+) -> None:
     base = purcell3_model()
     n = name_mismatch(prepare(purcell3_run, base), base, DiagnoseConfig(), np.array([1e-3]))
     assert n.gains[0] < DiagnoseConfig().evidence_threshold

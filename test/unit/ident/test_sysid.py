@@ -48,7 +48,11 @@ def test_forgetting_weights_old_samples_geometrically() -> None:
 def test_parameter_counts(nj: int, na: int) -> None:
     cfg = SudsConfig(intercept_order=8, linear_order=3, bilinear_order=1)
     h = lambda m: 2 * m + 1  # noqa: E731
-    counts = {k: feature_layout(SudsConfig(regressors=k, intercept_order=8, linear_order=3, bilinear_order=1), nj, na).n_columns for k in (1, 2, 3)}
+    counts = {
+        k: feature_layout(SudsConfig(regressors=k, intercept_order=8, linear_order=3, bilinear_order=1),
+                          nj, na).n_columns
+        for k in (1, 2, 3)
+    }
     assert counts[1] == h(8) + (nj + na) * h(3)
     assert counts[2] == counts[1] + nj * na * h(1)
     assert counts[3] == counts[2] + (nj * (nj + 1) // 2 + na * (na + 1) // 2) * h(1)

@@ -18,7 +18,9 @@ from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 FS = 100.0
 
 
-def oscillator(cycles: float = 40, seed: int = 0, ou_std: float = 0.12, diffusion: float = 0.01, noise_channel: bool = True):
+def oscillator(
+    cycles: float = 40, seed: int = 0, ou_std: float = 0.12, diffusion: float = 0.01, noise_channel: bool = True
+):
     """Channels A_i·f_i(φ + c_i) + offset_i + OU + 1e-3 noise, φ = 2πt + diffusion; returns t, φ, X."""
     rng = np.random.default_rng(seed)
     n = int(round(cycles * FS))

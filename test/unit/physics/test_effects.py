@@ -144,7 +144,8 @@ def test_every_effect_has_both_parts_and_they_agree() -> None:
         spec.equation(terms, k if spec.needs_joint else None, values)
         want = _terms_from_model(base, model, delay)
         for field in ("mu", "d", "offset", "k3", "kscale"):
-            np.testing.assert_allclose(getattr(terms, field), getattr(want, field), atol=1e-12, err_msg=f"{name}.{field}")
+            np.testing.assert_allclose(getattr(terms, field), getattr(want, field), atol=1e-12,
+                                       err_msg=f"{name}.{field}")
         for field in ("scale", "ratio", "delay"):
             assert getattr(terms, field) == pytest.approx(getattr(want, field), abs=1e-12), (name, field)
         assert terms.flow == pytest.approx(want.flow, abs=1e-12), name

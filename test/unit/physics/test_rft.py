@@ -49,7 +49,9 @@ def test_jacobian_matches_finite_differences(model: ChainModel) -> None:
     V = J @ qdot  # link frame
     ang = world_links(model, g, r)[:, 2]
     ca, sa = np.cos(ang), np.sin(ang)
-    v_link = np.stack([ca * v_world[:, 0] + sa * v_world[:, 1], -sa * v_world[:, 0] + ca * v_world[:, 1], v_world[:, 2]], 1)
+    v_link = np.stack([ca * v_world[:, 0] + sa * v_world[:, 1],
+                       -sa * v_world[:, 0] + ca * v_world[:, 1],
+                       v_world[:, 2]], 1)
     np.testing.assert_allclose(V, v_link, atol=1e-7)
 
 
