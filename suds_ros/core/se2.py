@@ -17,7 +17,7 @@ def _coeffs(w: FloatArray, series_below: float = 1e-6) -> tuple[FloatArray, Floa
 
 
 def exp_step(pose: FloatArray, twist: FloatArray) -> FloatArray:
-    """g · exp(twist) for world poses (…, 3) and body twists (…, 3) (velocity already times the step).
+    """The pose g · exp(twist) for world poses (…, 3) and body twists (…, 3) (velocity already times the step).
 
     The exact SE(2) exponential: a constant body twist carries the pose along a circular arc.
     Every integrator of the package takes its pose steps with this function.  It switches to the

@@ -19,8 +19,10 @@ def identify_figure(
     path: str | Path,
     title: str = "",
 ) -> Path:
-    """Write a four-panel figure: gait data (train/test) with the phase average, residuals of the
-    data-driven model vs the template for body and passive velocity, and predicted vs true velocities.
+    """Write a four-panel figure of gait data, residuals and predicted vs true velocities.
+
+    The panels: gait data (train/test) with the phase average, residuals of the data-driven model
+    vs the template for body and passive velocity, and predicted vs true velocities.
 
     Returns the path written (PNG or any format matplotlib infers from the suffix).
     """

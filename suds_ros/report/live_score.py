@@ -122,7 +122,7 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...]
 
 
 def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """values at each stamp (NaN rows where no key is within 1 µs); the last duplicate wins.
+    """The values at each stamp (NaN rows where no key is within 1 µs); the last duplicate wins.
 
     (Float-second stamps near 1.7e9 s are only good to ~240 ns, hence the tolerance.)
     """
@@ -138,10 +138,13 @@ def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> n
 
 def _body_over_pose_intervals(rec: Recording, mid: np.ndarray, pred: np.ndarray, template_order: int,
                               cut: float) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
-    """With a pose stream of its own stamps: the live body predictions (one per shape interval,
-    midpoint phases ``mid``) averaged over each pose interval after ``cut``, the measured body
-    velocity there, and the phase-only template fitted before ``cut`` and averaged the same way;
-    (None, None, None) when the streams share their stamps."""
+    """With a pose stream of its own stamps: live body predictions, measured body velocity, template.
+
+    The live body predictions (one per shape interval, midpoint phases ``mid``) averaged over each
+    pose interval after ``cut``, the measured body velocity there, and the phase-only template
+    fitted before ``cut`` and averaged the same way; (None, None, None) when the streams share
+    their stamps.
+    """
     pv = pose_intervals(rec, rec.t[:-1], rec.t[1:])
     if pv.is_identity(0.5 * (rec.t[:-1] + rec.t[1:])):
         return None, None, None

@@ -186,7 +186,7 @@ def _system_params(args: argparse.Namespace) -> dict[str, list[str]]:
 
 
 def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
-    """argv of every node to start, from the parsed pipeline options.
+    """The argv of every node to start, from the parsed pipeline options.
 
     Raises
     ------

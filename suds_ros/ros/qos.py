@@ -44,8 +44,11 @@ REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def burst_qos(depth: int) -> QoSProfile:
-    """:data:`ESTIMATE_QOS` with depth ``depth``: for a publisher that may send many messages at once
-    (the estimator's measured velocities of its initial cycles), so reliable subscribers get them all."""
+    """:data:`ESTIMATE_QOS` with depth ``depth``, for a publisher that may send many messages at once.
+
+    Such a burst (the estimator's measured velocities of its initial cycles) then reaches reliable
+    subscribers in full.
+    """
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -60,7 +63,7 @@ def latched_state_qos(depth: int) -> QoSProfile:
 
 
 def overriding_options() -> QoSOverridingOptions:
-    """QoS overriding options every suds publisher/subscription accepts (``qos_overrides.<topic>...``)."""
+    """The QoS overriding options every suds publisher/subscription accepts (``qos_overrides.<topic>...``)."""
     return QoSOverridingOptions.with_default_policies()
 
 

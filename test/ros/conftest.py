@@ -115,11 +115,11 @@ class Started(subprocess.Popen):
 def start_process(
     ros_env: dict[str, str], tmp_path: Path
 ) -> Iterator[Callable[..., Started]]:
-    """Factory ``start_process(args, name=...)``: start a child with :func:`ros_env`.
+    """Factory that starts a child with :func:`ros_env`.
 
-    The child runs in its own session (process group); its stdout and stderr go
-    to ``tmp_path/<name>.log`` (``proc.output()``).  Every child still running at
-    teardown is stopped, SIGKILL as last resort.
+    Called as ``start_process(args, name=...)``.  The child runs in its own session (process
+    group); its stdout and stderr go to ``tmp_path/<name>.log`` (``proc.output()``).  Every child
+    still running at teardown is stopped, SIGKILL as last resort.
     """
     procs: list[Started] = []
 
@@ -150,5 +150,8 @@ def _node_command(module: str, *params: str) -> list[str]:
 
 @pytest.fixture
 def node_command() -> Callable[..., list[str]]:
-    """``node_command(module, "name:=value", ...)``: ``python -m suds_ros.ros.<module> --ros-args -p ...``."""
+    """Factory of node command lines: ``python -m suds_ros.ros.<module> --ros-args -p ...``.
+
+    Called as ``node_command(module, "name:=value", ...)``.
+    """
     return _node_command

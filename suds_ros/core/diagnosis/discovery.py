@@ -75,8 +75,10 @@ def _trim(y: FloatArray) -> FloatArray:
 
 
 def _blocks(x: FloatArray, w: int) -> FloatArray:
-    """Means over consecutive non-overlapping blocks of ``w`` rows (the drag torque's rate noise
-    telescopes in the mean, so the residual's noise drops about w-fold)."""
+    """Means over consecutive non-overlapping blocks of ``w`` rows.
+
+    The drag torque's rate noise telescopes in the mean, so the residual's noise drops about w-fold.
+    """
     n = (x.shape[0] // w) * w
     return x[:n].reshape(n // w, w, *x.shape[1:]).mean(axis=1)
 

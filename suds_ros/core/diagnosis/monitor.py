@@ -1,4 +1,4 @@
-"""Live mismatch monitor: is the robot still the simulator?  (No ROS; the ``monitor`` node adapts it.)
+"""Live mismatch monitor: is the robot still the simulator?  No ROS; the ``monitor`` node adapts it.
 
 Residual (equation error of the nominal physics, no integration)
 ----------------------------------------------------------------

@@ -1,5 +1,8 @@
-"""Naming a mismatch: the equation error of every candidate effect, fitted on the training half and
-scored on the held-out half (the stepwise choice among them is :mod:`.selection`)."""
+"""Naming a mismatch: the equation error of every candidate effect.
+
+Each candidate is fitted on the training half and scored on the held-out half (the stepwise choice
+among them is :mod:`.selection`).
+"""
 
 from __future__ import annotations
 
@@ -53,8 +56,10 @@ class _EqError:
         return (c[self.w:] - c[:-self.w]) / self.w
 
     def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray]:
-        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ of the pose frame (nwin, 3),
-        with the geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) applied."""
+        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ of the pose frame (nwin, 3).
+
+        The geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) are applied.
+        """
         key = p.geometry_key()
         hit = self._metric_cache.get(key)
         if hit is not None:
@@ -104,7 +109,7 @@ class _EqError:
         return ok
 
     def residuals(self, p: EquationTerms, rdot_thr: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Torque residuals (nint, np) and body-velocity residuals (nwin, 3) under parameters ``p``."""
+        """Torque residuals, shape (nint, np), and body-velocity residuals, shape (nwin, 3), under parameters ``p``."""
         tau, xi_w = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
         spring = -p.scale * p.kscale * self.k * e_spring - p.scale * p.k3 * e_spring**3

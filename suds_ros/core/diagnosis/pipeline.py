@@ -324,8 +324,11 @@ def _unexplained(
 
 
 def _report(nom: _Nominal, rep1: RecordingReplay, timings: dict[str, float], **fields: object) -> DiagnosisReport:
-    """Stage 5: the report: ``fields`` of :class:`DiagnosisReport` over the no-mismatch defaults
-    (held-out series of the nominal replay and of ``rep1`` included, for the figures)."""
+    """Stage 5: the report.
+
+    ``fields`` of :class:`DiagnosisReport` over the no-mismatch defaults (held-out series of the
+    nominal replay and of ``rep1`` included, for the figures).
+    """
     data = nom.data
     base: dict[str, object] = dict(
         mismatch=False, located=(), effects=(), confounded_with=(), unexplained=False,

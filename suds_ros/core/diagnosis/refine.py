@@ -53,8 +53,10 @@ def refine_choice(
 def fitted_effects(
     cand: Candidate, x: FloatArray, se: FloatArray, evidence: Mapping[str, float] | None = None
 ) -> list[FittedEffect]:
-    """The candidate's effects with parameters ``x``, standard errors ``se`` (canonical order) and
-    ``evidence`` (by member label, nats)."""
+    """The candidate's effects with parameters ``x``, standard errors ``se`` and ``evidence``.
+
+    ``x`` and ``se`` are in canonical order; ``evidence`` is by member label, in nats.
+    """
     out: list[FittedEffect] = []
     i = 0
     ev = evidence or {}

@@ -193,8 +193,10 @@ class CandidateScore:
 
 @dataclass(frozen=True)
 class Channels:
-    """Per-channel held-out series for figures: phase (rad, wrapped), time (s), recorded,
-    predicted before and after."""
+    """Per-channel held-out series for figures.
+
+    Phase (rad, wrapped), time (s), recorded, predicted before and after.
+    """
 
     t: FloatArray
     phase: FloatArray
@@ -205,8 +207,10 @@ class Channels:
 
 @dataclass(frozen=True)
 class DiagnosisReport:
-    """Result of :func:`diagnose`.  ``to_json()`` gives the machine-readable schema; the other
-    attributes feed the human report."""
+    """Result of :func:`diagnose`.
+
+    ``to_json()`` gives the machine-readable schema; the other attributes feed the human report.
+    """
 
     mismatch: bool
     located: tuple[Located, ...]
@@ -242,8 +246,11 @@ class DiagnosisReport:
         return 1.0 - after / before if before > 0 else None
 
     def to_dict(self) -> dict[str, object]:
-        """The JSON schema of ``suds diagnose --json`` (exactly these keys; ``discovered`` and each
-        effect's ``evidence`` were added by the stepwise selection, nothing was removed)."""
+        """The JSON schema of ``suds diagnose --json`` (exactly these keys).
+
+        ``discovered`` and each effect's ``evidence`` were added by the stepwise selection; nothing
+        was removed.
+        """
         return {
             "mismatch": bool(self.mismatch),
             "located": [

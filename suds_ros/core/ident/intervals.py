@@ -117,8 +117,10 @@ class PoseIntervals:
     weights: object
 
     def is_identity(self, shape_t: FloatArray) -> bool:
-        """True when every pose interval is exactly one shape interval, in order (aligned streams),
-        ``shape_t`` being the shape intervals' midpoints."""
+        """True when every pose interval is exactly one shape interval, in order (aligned streams).
+
+        ``shape_t`` are the shape intervals' midpoints.
+        """
         W = self.weights
         q, m = W.shape  # type: ignore[attr-defined]
         return bool(q == m == shape_t.size and W.nnz == m  # type: ignore[attr-defined]
@@ -126,8 +128,11 @@ class PoseIntervals:
                     and np.array_equal(self.seg_t, shape_t))
 
     def over_shape(self, n_shape: int) -> object:
-        """Weights (q, n_shape) onto the shape intervals: the time average over each pose interval
-        of a signal constant on each shape interval."""
+        """Weights (q, n_shape) onto the shape intervals.
+
+        They give the time average over each pose interval of a signal constant on each shape
+        interval.
+        """
         import scipy.sparse
 
         S = scipy.sparse.csr_matrix((np.ones(self.seg_k.size), (np.arange(self.seg_k.size), self.seg_k)),
@@ -202,10 +207,13 @@ def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, w
 
 def segment_states(rec: Recording, pv: PoseIntervals, phase: FloatArray, window: int = 1
                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Phase (s,), joint values (s, nj) at the segments' midpoints — on the straight line of their
-    shape interval — and the joint velocities (s, nj) of their shape intervals.
+    """Phase (s,) and joint values (s, nj) at the segments' midpoints, and joint velocities (s, nj).
 
-    ``phase`` (n,) is the phase at the shape stamps."""
+    The midpoint values lie on the straight line of the segment's shape interval; the joint
+    velocities are those of the segments' shape intervals.
+
+    ``phase`` (n,) is the phase at the shape stamps.
+    """
     k = pv.seg_k
     t0, t1 = rec.t[k], rec.t[k + window]
     frac = (pv.seg_t - t0) / (t1 - t0)

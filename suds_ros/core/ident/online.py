@@ -322,8 +322,11 @@ class OnlineSudsEstimator:
             self.flush()
 
     def _pose_rows(self, t_now: float) -> None:
-        """Turn every pose interval ending by ``t_now`` (the last featurised shape stamp) into an
-        averaged row; forget what no later pose interval can need."""
+        """Turn every pose interval ending by ``t_now`` into an averaged row.
+
+        ``t_now`` is the last featurised shape stamp.  Afterwards, forget what no later pose
+        interval can need.
+        """
         q, hist = self._pose_q, self._shape_hist
         while len(q) >= 2 and q[1][0] <= t_now:
             (t0, g0), (t1, g1) = q[0], q[1]
@@ -408,7 +411,7 @@ class OnlineSudsEstimator:
         return out
 
     def model(self) -> SudsModel:
-        """Snapshot of the current model (flushes the pending chunk first)."""
+        """Snapshot of the current model, flushing the pending chunk first."""
         self.flush()
         if not hasattr(self.regressor, "coef_"):
             raise SudsDataError("no model yet: the estimator has not finished initialising",

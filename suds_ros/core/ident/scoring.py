@@ -50,9 +50,11 @@ class PoseIntervalPrediction:
 
 def average_over_pose_intervals(rec: "Recording", model: FloatArray, template: FloatArray, window: int = 1
                                 ) -> PoseIntervalPrediction | None:
-    """Body-channel predictions on the shape intervals of ``rec`` (rows k → k + ``window``,
-    columns ``BODY_CHANNELS`` first) averaged over its pose intervals, beside the measured body
-    velocity there; None when both streams share their stamps (nothing to average).
+    """Body-channel predictions on the shape intervals of ``rec``, averaged over its pose intervals.
+
+    Returns the averaged predictions (rows k → k + ``window``, columns ``BODY_CHANNELS`` first)
+    beside the measured body velocity there; None when both streams share their stamps (nothing
+    to average).
 
     The predictions are taken as constant on each shape interval, so the average is the
     overlap-weighted mean (what a live predictor publishing one value per interval claims).

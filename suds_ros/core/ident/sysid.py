@@ -152,8 +152,10 @@ def design_matrix(
 
 @dataclass(frozen=True)
 class AveragedTargets:
-    """Outputs measured as time averages of the model's row predictions (e.g. the body velocity
-    measured over pose intervals that straddle several shape intervals).
+    """Outputs measured as time averages of the model's row predictions.
+
+    For example the body velocity measured over pose intervals that straddle several shape
+    intervals.
 
     Attributes
     ----------
@@ -320,8 +322,11 @@ class SudsRegressor:
         return float(np.mean(1.0 - ss_res / np.where(ss_tot > 0, ss_tot, 1.0)))
 
     def coefficients(self, phase: FloatArray) -> dict[str, FloatArray]:
-        """Coefficients evaluated at ``phase`` (k,): C (k, n_out), C_r (k, n_out, nj),
-        B (k, n_out, na), B_r (k, n_out, nj, na), and for set 3 D_rr, D_aa (packed upper triangles)."""
+        """Coefficients evaluated at ``phase`` (k,).
+
+        C (k, n_out), C_r (k, n_out, nj), B (k, n_out, na), B_r (k, n_out, nj, na), and for set 3
+        D_rr, D_aa (packed upper triangles).
+        """
         self._check_fitted()
         phase = np.asarray(phase, dtype=float)
         out: dict[str, FloatArray] = {}

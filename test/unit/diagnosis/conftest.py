@@ -47,12 +47,17 @@ def _check_recovered(rep: DiagnosisReport, effects: list[dict[str, Any]]) -> Non
 
 @pytest.fixture(scope="session")
 def run_case() -> Callable[[str, list[dict[str, Any]], int, int], DiagnosisReport]:
-    """``run_case(system, effects, cycles, seed)``: simulate with the effects injected, diagnose
-    against the nominal model."""
+    """Simulate with the effects injected, diagnose against the nominal model.
+
+    Called as ``run_case(system, effects, cycles, seed)``.
+    """
     return _run
 
 
 @pytest.fixture(scope="session")
 def check_recovered() -> Callable[[DiagnosisReport, list[dict[str, Any]]], None]:
-    """``check_recovered(report, effects)``: the injected effects were named, fitted and shown."""
+    """Check that the injected effects were named, fitted and shown.
+
+    Called as ``check_recovered(report, effects)``.
+    """
     return _check_recovered
