@@ -74,11 +74,11 @@ class FoxgloveBridgeNode(Node):
         self.config = config_from_parameters(self, FoxgloveBridgeConfig)
         cfg = self.config
         self.patterns = tuple(resolve(t, self.get_namespace()) for t in cfg.topics)
-        self._foxglove = foxglove
-        self._context = foxglove.Context()
+        self._fox = foxglove
+        self._fox_context = foxglove.Context()  # not `_context`: rclpy's Node uses that name
         try:
             self._server = foxglove.start_server(name="suds_ros", host=cfg.host, port=cfg.port,
-                                                 context=self._context)
+                                                 context=self._fox_context)
         except RuntimeError as exc:
             raise SudsConfigError(f"`host`/`port`: cannot serve on {cfg.host}:{cfg.port}: {exc}") from None
         self.port = self._server.port
@@ -107,9 +107,9 @@ class FoxgloveBridgeNode(Node):
             except SudsError as exc:
                 self._skip(topic, str(exc))
                 continue
-            self._channels[topic] = self._foxglove.Channel(
-                topic, schema=self._foxglove.Schema(name=types[0], encoding="ros2msg", data=schema),
-                message_encoding="cdr", context=self._context)
+            self._channels[topic] = self._fox.Channel(
+                topic, schema=self._fox.Schema(name=types[0], encoding="ros2msg", data=schema),
+                message_encoding="cdr", context=self._fox_context)
             qos = subscription_qos_for([i.qos_profile for i in infos], depth=self.config.queue_depth)
             self._subs[topic] = self.create_subscription(cls, topic, self._callback(topic), qos,
                                                          raw=True)
