@@ -26,6 +26,7 @@ except ImportError:
     from _ros_helpers import stop, wait_for
 
 HERE = Path(__file__).resolve().parent
+CONFIG = HERE.parents[1] / "config" / "foxglove_bridge.yaml"
 
 
 def free_port() -> int:
@@ -35,9 +36,10 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def bridge_command(port: int, *ros_args: str) -> list[str]:
+def bridge_command(port: int) -> list[str]:
+    """The bridge with the shipped parameter file, on ``port``."""
     return [sys.executable, "-m", "suds_ros.ros.foxglove_node", "--ros-args",
-            "-p", f"port:={port}", *ros_args]
+            "--params-file", str(CONFIG), "-p", f"port:={port}"]
 
 
 @pytest.mark.ros
