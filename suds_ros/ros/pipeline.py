@@ -17,6 +17,10 @@ Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
 ``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
 ``system``, ``actuated``, ``passive`` (the recorder runs only with ``--output``).
 
+``--foxglove PORT`` (default 0: off) also starts ``foxglove_bridge``
+(:mod:`suds_ros.ros.foxglove_node`, ``-p port:=PORT``): the Foxglove app then shows
+the live topics at ``ws://127.0.0.1:PORT`` without a ROS installation.
+
 With ``--model FILE`` (or ``--system`` given a path) the robot model file is loaded
 here first (a bad file stops the pipeline before any node starts): the simulator
 gets ``model_file`` (and ``rate`` = 100 samples per cycle at the file's ``gait_hz``
@@ -41,7 +45,8 @@ from suds_ros.core.errors import SudsError
 from suds_ros.executables import EXECUTABLES
 
 #: the nodes the pipeline can start: name → module (``python -m <module>``)
-NODES = {name: EXECUTABLES[name] for name in ("simulator", "estimator", "predictor", "recorder")}
+NODES = {name: EXECUTABLES[name]
+         for name in ("simulator", "estimator", "predictor", "recorder", "foxglove_bridge")}
 #: exit codes that count as a clean stop after we asked a child to stop
 _STOPPED_OK = {0, -signal.SIGINT, -signal.SIGTERM, 130, 143}
 
@@ -206,6 +211,10 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
     if "recorder" in params:
         params["recorder"] = (_param("output", os.path.abspath(args.output)) + params["recorder"]
                               + _param("overwrite", "true" if args.overwrite else "false"))
+    if args.foxglove:
+        params["foxglove_bridge"] = _param("port", args.foxglove)
+        if "foxglove_bridge" not in nodes:
+            nodes.append("foxglove_bridge")
     ns = ["-r", f"__ns:={args.namespace}"] if args.namespace else []
     return {
         n: [sys.executable, "-m", NODES[n], "--ros-args", *ns, *params[n], *args.ros_args]
@@ -256,8 +265,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                    help="simulated seconds per wall-clock second")
     p.add_argument("--output", metavar="BAG", help="record to this .mcap (starts the recorder)")
     p.add_argument("--overwrite", action="store_true", help="let the recorder replace BAG")
+    p.add_argument("--foxglove", type=int, default=0, metavar="PORT",
+                   help="also serve the topics to the Foxglove app on ws://127.0.0.1:PORT "
+                        "(foxglove_bridge; default 0: off)")
     p.add_argument("--nodes", default="simulator,estimator,predictor,recorder",
-                   help="comma-separated nodes to start (the recorder needs --output)")
+                   help="comma-separated nodes to start (the recorder needs --output, "
+                        "foxglove_bridge --foxglove)")
     p.add_argument("--drain", type=float, default=2.0,
                    help="s the other nodes keep running after the simulator is done (default 2)")
     p.add_argument("--no-score", dest="score", action="store_false",
@@ -269,6 +282,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     args = p.parse_args(argv)
     if args.namespace and not _valid_namespace(args.namespace):
         p.error(f"--namespace: expected an absolute ROS namespace such as /robot1, got {args.namespace!r}")
+    if not 0 <= args.foxglove <= 65535:
+        p.error(f"--foxglove: expected a port in 1..65535 (0: off), got {args.foxglove}")
     if args.drain < 0:
         p.error(f"--drain: expected a value ≥ 0, got {args.drain}")
     for opt in ("cycles", "rate", "realtime_factor", "stop_timeout"):
