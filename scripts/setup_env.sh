@@ -15,11 +15,11 @@ fi
 VPY="$VENV/bin/python"
 
 DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap
-      mcap-ros2-support matplotlib pytest rosbags flake8 pydocstyle)
+      mcap-ros2-support matplotlib pytest rosbags flake8 pydocstyle foxglove-sdk)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 
-if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle' 2>/dev/null; then
+if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
   echo "setup_env: installing dependencies"
   "$VPY" -m pip install --quiet --disable-pip-version-check "${DEPS[@]}" "${BUILD[@]}"
 fi
@@ -34,7 +34,7 @@ echo "setup_env: installing suds_ros into $VENV"
 "$VPY" -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
   --force-reinstall "$ROOT"
 
-for exe in simulator estimator predictor recorder player pipeline suds; do
+for exe in simulator estimator predictor monitor recorder player foxglove_bridge pipeline suds; do
   if [ ! -x "$VENV/lib/suds_ros/$exe" ]; then
     echo "setup_env: ERROR: $VENV/lib/suds_ros/$exe was not installed" >&2
     exit 1

@@ -20,10 +20,12 @@ except ImportError:
     from _ros_helpers import stop, wait_for
     from test_recorder_player import _make_bag
 
+from suds_ros.executables import EXECUTABLES
+
 pytestmark = pytest.mark.ros
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
-NODES = ("simulator", "estimator", "predictor", "recorder", "player")
+NODES = ("simulator", "estimator", "predictor", "recorder", "player", "monitor", "foxglove_bridge")
 
 
 def params_file(path: Path, values: dict[str, str]) -> Path:
@@ -47,7 +49,7 @@ def required(node: str, tmp_path: Path) -> list[str]:
 
 def command(node: str, files: list[Path], tmp_path: Path) -> list[str]:
     args = [a for f in files for a in ("--params-file", str(f))]
-    return [sys.executable, "-m", f"suds_ros.ros.{node}_node", "--ros-args", *args, *required(node, tmp_path)]
+    return [sys.executable, "-m", EXECUTABLES[node], "--ros-args", *args, *required(node, tmp_path)]
 
 
 #: node -> (one changed parameter, text its start-up log then shows)
@@ -57,6 +59,8 @@ CHANGE = {
     "predictor": ({"frame_id": "base_link", "depth": "42"}, "frame_id base_link, depth 42"),
     "recorder": ({"topics": "['/robot7/suds/*']"}, "recording ['/robot7/suds/*']"),
     "player": ({"rate": "3.5"}, "at rate 3.5"),
+    "monitor": ({"warn": "5.0"}, "warn F > 5,"),
+    "foxglove_bridge": ({"port": "0"}, "on ws://127.0.0.1:"),
 }
 #: node -> (a bad value, the parameter name and reason the node stops with)
 BAD = {
@@ -65,6 +69,8 @@ BAD = {
     "predictor": ({"executor": "threads"}, ("`executor`", "'events' or 'single'")),
     "recorder": ({"compression": "gzip"}, ("compression", "gzip")),
     "player": ({"rate": "-2.0"}, ("rate", "range")),
+    "monitor": ({"warn": "0.5"}, ("warn", "> 1")),
+    "foxglove_bridge": ({"port": "70000"}, ("port", "range")),
 }
 
 
