@@ -293,21 +293,7 @@ class Phaser:
         combined_coef = _correction(combined, cfg.order)
         phase = _apply_correction(combined, combined_coef, cfg.order)
 
-        # reference event: upward mean crossing of the first harmonic of the reference signal
-        if cfg.zero_channel is not None:
-            y = Z[:, int(np.flatnonzero(idx == cfg.zero_channel)[0])]
-            loadings = None
-        else:
-            keep = w > 0
-            _, _, Vt = np.linalg.svd(Z[:, keep], full_matrices=False)
-            v = Vt[0]
-            v = v * np.sign(v[np.argmax(np.abs(v))])
-            loadings = np.zeros(idx.size)
-            loadings[keep] = v
-            y = Z @ loadings
-        B = fourier_basis(phase, 1)
-        (a0, a, b), *_ = np.linalg.lstsq(B, y, rcond=None)
-        zero = float(np.arctan2(a, b))  # y ≈ a0 + A sin(φ + zero)
+        zero, loadings = self._zero_reference(Z, idx, w, phase)
 
         full = np.zeros(C)
         self.n_features_in_ = C
@@ -334,6 +320,30 @@ class Phaser:
         k = np.arange(n, dtype=float)
         self.omega_per_sample_ = float(np.polyfit(k, self.phase_, 1)[0])
         return self
+
+    def _zero_reference(self, Z: FloatArray, idx: FloatArray, w: FloatArray, phase: FloatArray
+                        ) -> tuple[float, FloatArray | None]:
+        """Phase offset of the reference event and the channel loadings that define it.
+
+        The event is the upward mean crossing of the first harmonic of the reference signal:
+        the ``zero_channel`` if configured, else the first principal component of the
+        channels with weight.
+        """
+        cfg = self.config
+        if cfg.zero_channel is not None:
+            y = Z[:, int(np.flatnonzero(idx == cfg.zero_channel)[0])]
+            loadings = None
+        else:
+            keep = w > 0
+            _, _, Vt = np.linalg.svd(Z[:, keep], full_matrices=False)
+            v = Vt[0]
+            v = v * np.sign(v[np.argmax(np.abs(v))])
+            loadings = np.zeros(idx.size)
+            loadings[keep] = v
+            y = Z @ loadings
+        B = fourier_basis(phase, 1)
+        (a0, a, b), *_ = np.linalg.lstsq(B, y, rcond=None)
+        return float(np.arctan2(a, b)), loadings  # y ≈ a0 + A sin(φ + zero)
 
     def _align(self, Phi: FloatArray, anchor0: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Offsets c_i (rad), normalised weights and leave-one-out phase locking R_i of the channels.
