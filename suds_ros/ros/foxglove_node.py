@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
-from fnmatch import fnmatchcase
 from typing import Any
 
 from rclpy.node import Node
@@ -32,6 +31,7 @@ from suds_ros.io import msgdefs
 from suds_ros.ros.conversions import message_class
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import subscription_qos_for
+from suds_ros.ros.discovery import TopicFinder
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import PUBLISHED, resolve
 
@@ -84,40 +84,27 @@ class FoxgloveBridgeNode(Node):
         self.port = self._server.port
         self._channels: dict[str, Any] = {}
         self._subs: dict[str, Any] = {}
-        self._skipped: set[str] = set()
+        self._finder = TopicFinder(self, self.patterns, "serving")
         self.create_timer(cfg.discovery_period, self._discover)
         self.get_logger().info(f"serving {list(self.patterns)} on ws://{cfg.host}:{self.port}")
         self._discover()
 
     def _discover(self) -> None:
-        for topic, types in self.get_topic_names_and_types():
-            if topic in self._subs or topic in self._skipped:
-                continue
-            if not any(fnmatchcase(topic, p) for p in self.patterns):
-                continue
-            infos = self.get_publishers_info_by_topic(topic)
-            if not infos:
-                continue  # only subscribers so far
-            if len(types) != 1:
-                self._skip(topic, f"it has several types {types}")
-                continue
+        for topic, type_name, infos in self._finder.new():
             try:
-                cls = message_class(types[0])
-                schema = msgdefs.schema_text(types[0]).encode("utf-8")
+                cls = message_class(type_name)
+                schema = msgdefs.schema_text(type_name).encode("utf-8")
             except SudsError as exc:
-                self._skip(topic, str(exc))
+                self._finder.skip(topic, str(exc))
                 continue
             self._channels[topic] = self._fox.Channel(
-                topic, schema=self._fox.Schema(name=types[0], encoding="ros2msg", data=schema),
+                topic, schema=self._fox.Schema(name=type_name, encoding="ros2msg", data=schema),
                 message_encoding="cdr", context=self._fox_context)
             qos = subscription_qos_for([i.qos_profile for i in infos], depth=self.config.queue_depth)
             self._subs[topic] = self.create_subscription(cls, topic, self._callback(topic), qos,
                                                          raw=True)
-            self.get_logger().info(f"serving {topic} ({types[0]})")
-
-    def _skip(self, topic: str, why: str) -> None:
-        self._skipped.add(topic)
-        self.get_logger().warning(f"not serving {topic}: {why}")
+            self._finder.take(topic)
+            self.get_logger().info(f"serving {topic} ({type_name})")
 
     def _callback(self, topic: str) -> Any:
         channel = self._channels[topic]

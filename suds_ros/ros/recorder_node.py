@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
-from fnmatch import fnmatchcase
 from typing import Any
 
 from rclpy.node import Node
@@ -41,6 +40,7 @@ from suds_ros.io.recording_bag import (
 from suds_ros.ros.conversions import message_class
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import qos_to_yaml, subscription_qos_for
+from suds_ros.ros.discovery import TopicFinder
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import RECORDED, resolve
 
@@ -114,39 +114,26 @@ class RecorderNode(Node):
         if cfg.suds_metadata():
             self._writer.write_metadata(METADATA_NAME, cfg.suds_metadata())
         self._subs: dict[str, Any] = {}
-        self._skipped: set[str] = set()
+        self._finder = TopicFinder(self, self.patterns, "recording")
         self.create_timer(cfg.discovery_period, self._discover)
         self.create_timer(cfg.flush_period, self._writer.flush)
         self.get_logger().info(f"recording {list(self.patterns)} to {cfg.output}")
         self._discover()
 
     def _discover(self) -> None:
-        for topic, types in self.get_topic_names_and_types():
-            if topic in self._subs or topic in self._skipped:
-                continue
-            if not any(fnmatchcase(topic, p) for p in self.patterns):
-                continue
-            infos = self.get_publishers_info_by_topic(topic)
-            if not infos:
-                continue  # only subscribers so far
-            if len(types) != 1:
-                self._skip(topic, f"it has several types {types}")
-                continue
+        for topic, type_name, infos in self._finder.new():
             offered = [i.qos_profile for i in infos]
             try:
-                cls = message_class(types[0])
-                self._writer.add_topic(topic, types[0], qos_yaml=qos_to_yaml(offered))
+                cls = message_class(type_name)
+                self._writer.add_topic(topic, type_name, qos_yaml=qos_to_yaml(offered))
             except SudsError as exc:
-                self._skip(topic, str(exc))
+                self._finder.skip(topic, str(exc))
                 continue
             self._subs[topic] = self.create_subscription(
                 cls, topic, self._callback(topic), subscription_qos_for(offered, depth=self.config.queue_depth),
                 raw=True)
-            self.get_logger().info(f"recording {topic} ({types[0]})")
-
-    def _skip(self, topic: str, why: str) -> None:
-        self._skipped.add(topic)
-        self.get_logger().warning(f"not recording {topic}: {why}")
+            self._finder.take(topic)
+            self.get_logger().info(f"recording {topic} ({type_name})")
 
     def _callback(self, topic: str) -> Any:
         def on_message(data: bytes, info: dict[str, int]) -> None:
