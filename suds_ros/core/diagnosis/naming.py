@@ -18,6 +18,7 @@ from suds_ros.core.diagnosis.replay import window_xi
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
+from suds_ros.core.resample import knot_fit
 
 
 # =============================================================================== equation error
@@ -43,6 +44,7 @@ class _EqError:
         self.t = data.t[lo:hi]
         self.pose_t = data.pose_t
         self.pose_raw = data.pose_raw
+        self.resampled = data.resampled
         self.yaw_mid = 0.5 * (data.pose[lo:hi - 1, 2] + data.pose[lo + 1:hi, 2])
         self._metric_cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = {}
         self._xi_rec_cache: dict[float, FloatArray] = {}
@@ -93,7 +95,10 @@ class _EqError:
         if hit is not None:
             return hit
         ts = self.t + delay
-        P = np.stack([np.interp(ts, self.pose_t, self.pose_raw[:, c]) for c in range(3)], axis=1)
+        if self.resampled:  # a stream of its own: the spline with knots where the drive has its kinks
+            P = knot_fit(self.pose_t, self.pose_raw, ts)
+        else:
+            P = np.stack([np.interp(ts, self.pose_t, self.pose_raw[:, c]) for c in range(3)], axis=1)
         out = window_xi(P, self.w, self.dt)
         if len(self._xi_rec_cache) > 256:
             self._xi_rec_cache.clear()
