@@ -221,7 +221,7 @@ def run_sindy(dtr: Data, dte: Data, groups, seed):
 
 
 def run_edmdc(dtr: Data, dte: Data, groups, seed, passive_idx, out_cols):
-    """EDMDc: ψ(r_{k+1}) ≈ A ψ(r_k) + B u_k with u_k = [ṙ_a, cos φ̄, sin φ̄]; ṙ_p = (r̂_{k+1} − r_k)_p / Δt.
+    """EDMDc: ψ(r_{k+1}) ≈ A ψ(r_k) + B u_k, u_k = [ṙ_a, cos φ̄, sin φ̄]; ṙ_p = (r̂_{k+1} − r_k)_p / Δt.
 
     The body velocity is no state of a shape-space Koopman model (the pose lives on SE(2) and
     its translation grows without bound), and pykoopman fits no separate output map, so only
