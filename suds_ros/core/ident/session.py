@@ -275,12 +275,16 @@ class EstimatorSession:
 
     def _feed_pose(self, pose: Any) -> None:
         assert self.est is not None
+        self._feed("pose", self.est.add_pose, pose.stamp, pose.x, pose.y, pose.yaw)
+
+    def _feed(self, stream: str, add: Any, *args: Any) -> None:
+        """Hand one sample to the estimator; a bad sample is skipped (counted by its code), never fatal."""
         try:
-            self.est.add_pose(pose.stamp, pose.x, pose.y, pose.yaw)
+            add(*args)
         except SudsPhaseError as exc:
             self._phase_error(exc)
         except Exception as exc:  # noqa: BLE001 - the session never stops on traffic
-            self.skip("pose", exc)
+            self.skip(stream, exc)
         else:
             self._dirty = True
 
@@ -297,14 +301,7 @@ class EstimatorSession:
             if est.last_pose_stamp < s.stamp and not stalled:
                 break
             self._shapes.popleft()
-            try:
-                est.add_shape(s.stamp, s.names, s.position)
-            except SudsPhaseError as exc:
-                self._phase_error(exc)
-            except Exception as exc:  # noqa: BLE001 - the session never stops on traffic
-                self.skip("shape", exc)
-            else:
-                self._dirty = True
+            self._feed("shape", est.add_shape, s.stamp, s.names, s.position)
         if self.config.model_period == 0 and est.n_rows != self._rows_published:
             return self._take_model(now)
         return None
