@@ -32,7 +32,8 @@ PASSIVE = {"purcell3": ["joint_2"], "swimmer9": ["joint_5", "joint_6", "joint_7"
 
 def draw_effect(rng: np.random.Generator, system: str) -> dict:
     """One effect with a magnitude of the size a robot/simulator mismatch has."""
-    name = str(rng.choice([n for n in EFFECTS if n != "joint_stiffness_error"] + ["null"]))
+    catalogue = [n for n, spec in EFFECTS.items() if spec.kind == "catalogue" and n != "joint_stiffness_error"]
+    name = str(rng.choice(catalogue + ["null"]))
     sign = float(rng.choice([-1.0, 1.0]))
     joint = str(rng.choice(PASSIVE[system]))
     if name == "null":

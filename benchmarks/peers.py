@@ -204,7 +204,10 @@ class _Sindy:
 
 
 def _sindy_fit_predict(model, d: Data, tr, te, Zte=None):
-    """SINDy on raw (unscaled) inputs, as the method is normally used; STLSQ normalises its columns."""
+    """Fit and predict SINDy on raw (unscaled) inputs, as the method is normally used.
+
+    STLSQ normalises its columns itself.
+    """
     Z = d.Z
     model.fit(Z[tr], d.Y[tr])
     return model.predict(Z[te] if Zte is None else Zte)
@@ -255,8 +258,10 @@ def run_edmdc(dtr: Data, dte: Data, groups, seed, passive_idx, out_cols):
 
 
 def interval_map(system, d: Data) -> np.ndarray:
-    """Outputs of the true dynamics over each interval, started from the noisy sample r_k with the
-    actuated joints ramping linearly to r_{k+1}: what an exact sampled-data model would predict."""
+    """Outputs of the true dynamics over each interval: what an exact sampled-data model predicts.
+
+    Started from the noisy sample r_k with the actuated joints ramping linearly to r_{k+1}.
+    """
     from suds_ros.core import se2
     from suds_ros.core.physics.integrate import integrate_batch
     from suds_ros.core.physics.sim import auto_substeps

@@ -7,7 +7,8 @@
 The arguments are the ``pipeline`` supervisor's options (``suds_ros/ros/pipeline.py``;
 test/ros/test_launch_file.py keeps the two in step): ``namespace``, ``system`` or
 ``model`` (a robot model file), ``cycles``, ``rate``, ``seed``, ``realtime_factor``,
-``output``, ``overwrite``; plus ``actuated`` and ``passive``, the joint roles the
+``output``, ``overwrite``, ``foxglove`` (a WebSocket port for the Foxglove app, 0: off);
+plus ``actuated`` and ``passive``, the joint roles the
 recorder writes into the bag's metadata (the supervisor reads them from the system).
 Each node loads ``share/suds_ros/config/<node>.yaml`` first, then the launch
 arguments, and runs in ``namespace`` (its topics are ``<namespace>/suds/...``).  The
@@ -38,6 +39,7 @@ ARGUMENTS = {
     "realtime_factor": ("1.0", "simulated seconds per wall-clock second"),
     "output": ("", "bag to record (.mcap); empty: no recorder"),
     "overwrite": ("false", "let the recorder replace `output`"),
+    "foxglove": ("0", "serve the topics to the Foxglove app on this WebSocket port (0: off)"),
     "actuated": ("joint_1", "recorder metadata: actuated joints"),
     "passive": ("joint_2", "recorder metadata: passive joints"),
 }
@@ -72,4 +74,6 @@ def generate_launch_description() -> LaunchDescription:
             "overwrite": ParameterValue(arg["overwrite"], value_type=bool),
             "actuated": arg["actuated"], "passive": arg["passive"]},
             condition=IfCondition(PythonExpression(["'", arg["output"], "' != ''"]))),
+        node("foxglove_bridge", {"port": ParameterValue(arg["foxglove"], value_type=int)},
+             condition=IfCondition(PythonExpression(["int('", arg["foxglove"], "') != 0"]))),
     ])

@@ -26,6 +26,7 @@ SUPERVISOR_TO_LAUNCH = {
     "realtime_factor": "realtime_factor",
     "output": "output",
     "overwrite": "overwrite",
+    "foxglove": "foxglove",
     "nodes": None,          # launch: comment nodes out / use conditions
     "drain": None,          # launch stops with Ctrl-C, no supervisor timing
     "score": None,          # scoring is `suds score BAG` after a launch

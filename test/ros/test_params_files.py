@@ -69,7 +69,7 @@ BAD = {
     "predictor": ({"executor": "threads"}, ("`executor`", "'events' or 'single'")),
     "recorder": ({"compression": "gzip"}, ("compression", "gzip")),
     "player": ({"rate": "-2.0"}, ("rate", "range")),
-    "monitor": ({"warn": "0.5"}, ("warn", "> 1")),
+    "monitor": ({"warn": "0.5"}, ("warn", "range")),
     "foxglove_bridge": ({"port": "70000"}, ("port", "range")),
 }
 
