@@ -13,8 +13,11 @@ stamps), so every output is scored on the same intervals.
 
 Methods (``--methods``):
 
-ours1, ours2   SudsIdentifier, regressor set 1 / 2 (its own cross-validated Fourier orders)
+ours2          SudsIdentifier as shipped: δ at the interval's start sample, regressor set, gain
+               Fourier orders and ridge chosen by its own blocked cross-validation
+ours1          the previous default: regressor set 2 at the interval midpoint, orders by CV
 krr            scikit-learn KernelRidge, RBF kernel on standardised [r̄, ṙ_a, cos φ, sin φ]
+krr_start      the same with the interval's start sample r_k in place of r̄ (ours' state)
 mlp            scikit-learn MLPRegressor 64×64 (ReLU, Adam) on the same standardised inputs
 sindy          SINDYc: pysindy PolynomialLibrary(degree 3) on [r̄, ṙ_a, cos φ, sin φ] (state r̄,
                controls ṙ_a and the phase) with its STLSQ sparse regression, outputs as x_dot
@@ -45,7 +48,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
+from dataclasses import dataclass, replace  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -65,10 +68,11 @@ try:
 except ImportError:  # environment variables alone
     PINNING = "OMP/OPENBLAS/MKL_NUM_THREADS=1 (threadpoolctl not installed)"
 
-METHODS = ("ours2", "ours1", "krr", "mlp", "sindy", "edmdc", "physics", "physics_iv")
+METHODS = ("ours2", "ours1", "krr", "krr_start", "mlp", "sindy", "edmdc", "physics", "physics_iv")
 LABELS = {
-    "ours2": "ours, set 2",
-    "ours1": "ours, set 1",
+    "ours2": "ours (default: start state; set, orders, ridge by CV)",
+    "ours1": "ours, previous default (set 2 at midpoints)",
+    "krr_start": "KernelRidge RBF on the start sample r_k",
     "krr": "KernelRidge RBF (scikit-learn)",
     "mlp": "MLP 64×64 (scikit-learn)",
     "sindy": "SINDYc poly-3 (pysindy)",
@@ -108,6 +112,11 @@ def data_of(ident: SudsIdentifier, rec, train: bool) -> Data:
     iv = s.iv
     return Data(t=iv.t, ph=s.ph, r=iv.r, rda=iv.rdot[:, rec.actuated_index], r0=rec.r, Y=s.Y,
                 T=ident.output_template(s.ph), dt=iv.dt)
+
+
+def start_state(d: Data) -> Data:
+    """``d`` with each interval's start sample r_k as its state (the state ours regresses on)."""
+    return replace(d, r=d.r0[:-1])
 
 
 def groups_of(channels) -> list[list[int]]:
@@ -277,6 +286,11 @@ def interval_map(system, d: Data) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------- driver
+#: ours2: the shipped identifier; ours1: the previous default (set 2, midpoint state, orders by CV)
+OURS = {2: IdentifyConfig(),
+        1: IdentifyConfig(suds=SudsConfig(state="midpoint"), regressor_grid=(2,), ridge_grid=())}
+
+
 def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
     system = make_system(system_name)
     rec = simulate(system, SimConfig(cycles=CYCLES, samples_per_cycle=SPC, seed=seed))
@@ -289,7 +303,7 @@ def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
         for k in (2, 1):
             if f"ours{k}" in methods or (k == 2 and len(set(methods) - {"ours1"}) > 0):
                 t0 = time.perf_counter()
-                ident = SudsIdentifier(IdentifyConfig(suds=SudsConfig(regressors=k))).fit(train)
+                ident = SudsIdentifier(OURS[k]).fit(train)
                 fitted[k] = (ident, time.perf_counter() - t0)
         ident = fitted[2][0] if 2 in fitted else fitted[1][0]
         dtr, dte = data_of(ident, train, True), data_of(ident, test, False)
@@ -302,7 +316,8 @@ def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
                 p = idn.predict(test)
                 assert np.allclose(p.truth, dte.Y) and np.allclose(p.template, dte.T)
                 pred = p.model
-                info = f"{idn.n_parameters} parameters"
+                c = idn.regressor_.config
+                info = f"set {c.regressors}, orders {c.linear_order}/{c.bilinear_order}, ridge {c.ridge:g}, {idn.n_parameters} parameters"
             elif meth == "physics":
                 t0 = time.perf_counter()
                 xi, rdp = system.velocities(dte.r, dte.rda)
@@ -312,6 +327,8 @@ def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
                 pred, fit_s = interval_map(system, dte), 0.0
             elif meth == "krr":
                 pred, fit_s, info = run_krr(dtr, dte, groups, seed)
+            elif meth == "krr_start":
+                pred, fit_s, info = run_krr(start_state(dtr), start_state(dte), groups, seed)
             elif meth == "mlp":
                 pred, fit_s, info = run_mlp(dtr, dte, groups, seed)
             elif meth == "sindy":
@@ -389,8 +406,8 @@ def _mean(rows, system, method, n, key):
 
 
 def targets(rows: list[dict]) -> list[str]:
-    """Issue 12's targets for our set-2 model, checked on the rows measured (mean of seeds)."""
-    out = ["## Issue 12 targets for ours (set 2) on these rows", ""]
+    """Issue 12's targets for our shipped model, checked on the rows measured (mean of seeds)."""
+    out = ["## Issue 12 targets for ours (the shipped default) on these rows", ""]
     sizes = sorted({r["n"] for r in rows if r["system"] == "swimmer9" and r["method"] == "ours2"})
 
     def both(n, meth="ours2"):
@@ -458,12 +475,14 @@ def main() -> None:
     head = [
         "# Peers: our identifier against kernel ridge, an MLP, SINDYc, EDMDc and the physics limit",
         "",
-        "Every method is given exactly our interval-midpoint inputs [r̄, ṙ_a, phaser phase φ], our outputs",
+        "Every peer is given our interval inputs [r̄, ṙ_a, phaser phase φ] (r̄ the interval midpoint; the",
+        "`krr_start` row the interval's start sample r_k, the state ours regresses on), our outputs",
         "(ξx, ξy, ξθ, ṙ_p over each 100 Hz interval), the same training cycles (the n just before the test",
         "block), the same test cycles (31–60 of a 60-cycle simulated run, noise 1e-3, OU-perturbed drive) and",
         "the same Γ denominator (our phase-only template fitted on the training cycles). Peers choose",
         "hyperparameters by 3-fold blocked cross-validation on the training cycles only (grids in",
-        "`benchmarks/peers.py`); ours uses its own cross-validated Fourier orders. Fit times are single-threaded",
+        "`benchmarks/peers.py`); ours chooses its regressor set, Fourier orders and ridge by its own blocked",
+        "cross-validation (`core/ident/model_selection.py`). Fit times are single-threaded",
         f"wall-clock seconds of the final fit (CV excluded for peers, included for ours); BLAS threads: {PINNING}.",
         "",
         f"Machine: {machine()}. Versions: {versions()}.",

@@ -8,7 +8,7 @@ the actuator torques are identified the same way (``torque=True``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from suds_ros.core.ident.scoring import (
     Scores,
     score_prediction,
 )
-from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
+from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor, interval_state
 
 _BODY = list(range(len(BODY_CHANNELS)))  # the body channels lead every output vector
 
@@ -71,10 +71,17 @@ class IdentifyConfig:
     phaser_order : int
         Fourier order of the phaser's protophase correction.
     order_grid : tuple of (linear_order, bilinear_order)
-        Candidate Fourier orders of the gains, chosen by cross-validation over
-        contiguous blocks of training cycles (``cv_folds``); empty keeps ``suds`` as given.
+        Candidate Fourier orders of the gains.  With ``regressor_grid`` and ``ridge_grid`` they
+        span the candidates chosen from by cross-validation over contiguous blocks of training
+        cycles (``cv_folds``; :mod:`~suds_ros.core.ident.model_selection`), so the model's size
+        and regularisation follow the amount of data.  Empty keeps ``suds`` as given (no
+        selection at all).
+    regressor_grid : tuple of int
+        Candidate regressor sets (empty: ``suds.regressors``).
+    ridge_grid : tuple of float
+        Candidate relative ridges (empty: ``suds.ridge``).
     cv_folds : int
-        Number of contiguous folds for the order selection.
+        Number of contiguous folds for the selection.
     regrid : bool
         Bring an asynchronous shape stream (jittered stamps, drops, a pose stream of its own)
         onto its fitted uniform sampling grid first (:func:`~suds_ros.core.resample.on_shape_grid`:
@@ -87,6 +94,8 @@ class IdentifyConfig:
     phase: str = "phaser"
     phaser_order: int = 10
     order_grid: tuple[tuple[int, int], ...] = ((1, 0), (2, 1), (4, 2), (6, 3))
+    regressor_grid: tuple[int, ...] = (1, 2, 3)
+    ridge_grid: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-2)
     cv_folds: int = 3
     regrid: bool = True
 
@@ -156,6 +165,14 @@ class SudsIdentifier:
                                          y=s.pose.xi, columns=tuple(_BODY))
 
     def _segment_features(self, rec: Recording, s: _Samples) -> FloatArray:
+        """Regressor rows of the pose intervals' segments.
+
+        With ``state="start"`` a row predicts the mean over a whole shape interval from the
+        state it starts in, so a segment takes its shape interval's row; with ``"midpoint"``
+        the instantaneous map is evaluated at the segment's own midpoint.
+        """
+        if self.config.suds.state == "start":
+            return self.features(rec, s.iv, s.ph)[s.pose.seg_k]  # type: ignore[union-attr]
         return self._features(rec, s.seg_r, s.seg_rdot, s.seg_ph)  # type: ignore[arg-type]
 
     def _fit_output_template(self, s: _Samples) -> FloatArray:
@@ -174,8 +191,14 @@ class SudsIdentifier:
         return fourier_basis(phase, self.config.template_order) @ self.output_template_coef_
 
     def features(self, rec: Recording, iv: Intervals, phase_mid: FloatArray) -> FloatArray:
-        """Regressor input X = [φ, δ, δ̇_a] (m, 1 + nj + na) from interval data."""
-        return self._features(rec, iv.r, iv.rdot, phase_mid)
+        """Regressor input X = [φ, δ, δ̇_a] (m, 1 + nj + na) from interval data.
+
+        δ is taken at the state :func:`~suds_ros.core.ident.sysid.interval_state` names
+        (the interval's first sample by default), φ at the interval's midpoint.
+        """
+        k = iv.k.astype(int)
+        r = interval_state(self.config.suds, rec.r[k], rec.r[k + self.config.window])
+        return self._features(rec, r, iv.rdot, phase_mid)
 
     def _features(self, rec: Recording, r: FloatArray, rdot: FloatArray, phase_mid: FloatArray) -> FloatArray:
         theta = self.template_.predict(phase_mid)
@@ -202,7 +225,7 @@ class SudsIdentifier:
         s = self._samples(rec, phase)
         X = self.features(rec, s.iv, s.ph)
         self.output_template_coef_ = self._fit_output_template(s)
-        suds = self._select_orders(rec, X, s, self.output_template(s.ph))
+        suds = self._select_model(rec, X, s, self.output_template(s.ph))
         self.regressor_ = SudsRegressor(len(rec.joint_names), len(rec.actuated), suds)
         self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
@@ -211,72 +234,43 @@ class SudsIdentifier:
         self.channels_ = self.channels(rec)
         return self
 
-    def _select_orders(self, rec: Recording, X: FloatArray, s: _Samples, Yt: FloatArray) -> SudsConfig:
-        """Pick the gains' Fourier orders by blocked cross-validation on the training data.
+    def _select_model(self, rec: Recording, X: FloatArray, s: _Samples, Yt: FloatArray) -> SudsConfig:
+        """Pick regressor set, gain orders and ridge by blocked cross-validation on the training data.
 
-        Score: mean over output groups (body, passive, torque) of Σ|error| / Σ|template error|
-        on the held-out fold; the candidate with the lowest mean over folds wins.  With a
-        separate pose stream the body group is scored over the pose intervals lying wholly in
-        the fold (those straddling a fold boundary are left out of both sides).
-        Stores the table in ``cv_scores_``.
+        See :mod:`~suds_ros.core.ident.model_selection`; the table of scores is kept in
+        ``cv_scores_`` (keyed by regressors, linear order, bilinear order, ridge).
         """
-        base = self.config.suds
-        grid = self.config.order_grid
-        self.cv_scores_: dict[tuple[int, int], float] = {}
-        k = self.config.cv_folds
-        if not grid or k < 2 or X.shape[0] < 10 * k:
-            return base
-        groups = [
-            [i for i, c in enumerate(self.channels(rec)) if c.startswith(pfx)]
-            for pfx in ("xi_", "rdot_", "tau_")
-        ]
-        groups = [g for g in groups if g]
-        edges = np.linspace(0, X.shape[0], k + 1).astype(int)
-        best, best_score = base, np.inf
-        for lin, bil in grid:
-            cfg = replace(base, linear_order=lin, bilinear_order=bil)
-            total = 0.0
-            for f in range(k):
-                test = np.zeros(X.shape[0], dtype=bool)
-                test[edges[f] : edges[f + 1]] = True
-                total += self._fold_score(rec, cfg, X, s, Yt, test, groups)
-            score = total / k
-            self.cv_scores_[(lin, bil)] = score
-            if score < best_score:
-                best, best_score = cfg, score
-        return best
+        from suds_ros.core.ident import model_selection as ms
 
-    def _fold_score(self, rec: Recording, cfg: SudsConfig, X: FloatArray, s: _Samples, Yt: FloatArray,
-                    test: FloatArray, groups: list[list[int]]) -> float:
-        """Mean over output groups of Σ|model error| / Σ|template error| on one held-out fold."""
+        cfg = self.config
+        self.cv_scores_: dict[tuple[int, int, int, float], float] = {}
+        k = cfg.cv_folds
+        if not cfg.order_grid or k < 2 or X.shape[0] < 10 * k:
+            return cfg.suds
         nj, na = len(rec.joint_names), len(rec.actuated)
+        cands = ms.candidates(cfg.suds, cfg.regressor_grid, cfg.order_grid, cfg.ridge_grid)
+        big = SudsRegressor(nj, na, ms.largest(cands))
+        names = self.channels(rec)
+        groups = tuple(tuple(i for i, c in enumerate(names) if c.startswith(p)) for p in ("xi_", "rdot_", "tau_"))
+        edges = np.linspace(0, X.shape[0], k + 1).astype(int)
+        n_out = len(names)
+        averaged = None
         if s.pose is None:
-            reg = SudsRegressor(nj, na, cfg).fit(X[~test], s.Y[~test])
-            err = np.abs(reg.predict(X[test]) - s.Y[test])
-            ref = np.abs(Yt[test] - s.Y[test])
-            return float(np.mean([err[:, g].sum() / max(ref[:, g].sum(), 1e-300) for g in groups]))
-        W = s.pose.weights
-        Xs = self._segment_features(rec, s)
-        seg_test = test[s.pose.seg_k]
-        in_test = np.asarray(W @ seg_test.astype(float)).ravel()
-        rows_tr, rows_te = in_test == 0.0, in_test >= 1.0 - 1e-12
-        avg = AveragedTargets(X=Xs[~seg_test], weights=W[rows_tr][:, ~seg_test], y=s.pose.xi[rows_tr],
-                              columns=tuple(_BODY))
-        reg = SudsRegressor(nj, na, cfg).fit(X[~test], s.direct[~test], avg)
-        pred = reg.predict(X)
-        nb = len(_BODY)
-        out = []
-        for g in groups:
-            if g[0] == 0:  # the body channels, measured over pose intervals
-                Wt = W[rows_te]
-                truth = s.pose.xi[rows_te]
-                e = np.abs(Wt @ reg.predict(Xs)[:, :nb] - truth).sum()
-                r = np.abs(Wt @ self.output_template(s.seg_ph)[:, :nb] - truth).sum()
-            else:
-                e = np.abs(pred[test][:, g] - s.Y[test][:, g]).sum()
-                r = np.abs(Yt[test][:, g] - s.Y[test][:, g]).sum()
-            out.append(e / max(r, 1e-300))
-        return float(np.mean(out))
+            columns = tuple(range(n_out))
+        else:
+            columns = tuple(range(len(_BODY), n_out))
+            block = np.searchsorted(edges, np.arange(X.shape[0]), side="right") - 1
+            onehot = (block[s.pose.seg_k][:, None] == np.arange(k)[None, :]).astype(float)
+            W = s.pose.weights
+            averaged = ms.AveragedRows(
+                A=np.asarray(W @ big._design(self._segment_features(rec, s))), y=s.pose.xi,
+                template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]), columns=tuple(_BODY),
+                fold_frac=np.asarray(W @ onehot))
+        problem = ms.CVProblem(A=big._design(X), y=s.Y[:, list(columns)], template=Yt[:, list(columns)],
+                               columns=columns, groups=tuple(g for g in groups if g), edges=edges,
+                               averaged=averaged)
+        best, self.cv_scores_ = ms.select(problem, cands, nj, na)
+        return best
 
     def _prepared(self, rec: Recording) -> Recording:
         if not self.config.regrid or self.config.phase == "truth":

@@ -61,7 +61,11 @@ class SudsModel:
         return B @ self.template_coef, dB @ self.template_coef
 
     def predict(self, phase: FloatArray, r: FloatArray, rdot: FloatArray) -> FloatArray:
-        """Outputs (n, n_out) at interval midpoints: phase (n,), r (n, nj), ṙ (n, nj)."""
+        """Outputs (n, n_out) of sampling intervals: midpoint phase (n,), r (n, nj), ṙ (n, nj).
+
+        ``r`` is the interval's state as ``suds.state`` names it (its first sample or its
+        midpoint: :func:`~suds_ros.core.ident.sysid.interval_state`), ṙ its mean rate.
+        """
         phase = np.atleast_1d(np.asarray(phase, dtype=float))
         theta, dtheta = self._theta(phase)
         delta = np.atleast_2d(r) - theta
@@ -90,6 +94,7 @@ class SudsModel:
                 "bilinear_order": self.suds.bilinear_order,
                 "ridge": self.suds.ridge,
                 "forgetting": self.suds.forgetting,
+                "state": self.suds.state,
             },
             "coef": self.coef.tolist(),
             "output_template_coef": self.output_template_coef.tolist(),
@@ -101,6 +106,7 @@ class SudsModel:
     def from_dict(cls, d: dict[str, object]) -> "SudsModel":
         """Inverse of :meth:`to_dict`."""
         s = dict(d["suds"])  # type: ignore[call-overload]
+        s.setdefault("state", "midpoint")  # models saved before the choice existed used midpoints
         return cls(
             joint_names=tuple(d["joint_names"]),  # type: ignore[arg-type]
             actuated=tuple(d["actuated"]),  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ estimator
    final when computed;
 3. tracks the phase of each new sample with :class:`PhaseTracker`;
 4. turns consecutive shape samples into interval rows (forward differences,
-   midpoint states) for the passive velocities, and each pose interval — once
+   states at the interval start by default) for the passive velocities, and each pose interval — once
    the shape intervals it overlaps have been featurised — into one averaged row
    for the body velocity (its pose displacement against the duration-weighted
    mean of the model over its segments, as in the batch identifier), and adds
@@ -44,13 +44,13 @@ from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
 from suds_ros.core.ident.intervals import overlap_segments
 from suds_ros.core.ident.scoring import BODY_CHANNELS
-from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
+from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor, interval_state
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.core.recording import Recording
 
-CHECKPOINT_VERSION = 3
+CHECKPOINT_VERSION = 4
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
 
@@ -313,7 +313,8 @@ class OnlineSudsEstimator:
         if prev is None:
             self._first_shape = t
             return
-        X, Y = interval_row(self.template_, self.omega_, self._act, self._pas, prev, (t, r, pose, phase))
+        X, Y = interval_row(self.config.suds, self.template_, self.omega_, self._act, self._pas, prev,
+                            (t, r, pose, phase))
         self._note_measured(t, Y)
         self._rows_X.append(X)
         self._rows_Y.append(Y[len(BODY_CHANNELS):])
@@ -335,12 +336,15 @@ class OnlineSudsEstimator:
                     hist.popleft()
                 T = np.fromiter((h[0] for h in hist), dtype=float)
                 _, k, s0, s1 = overlap_segments(T[:-1], T[1:], np.array([t0]), np.array([t1]))
-                frac = (0.5 * (s0 + s1) - T[k]) / (T[k + 1] - T[k])
                 R = np.array([h[1] for h in hist])
                 P = np.fromiter((h[2] for h in hist), dtype=float)
                 rdot = (R[k + 1] - R[k]) / (T[k + 1] - T[k])[:, None]
-                Xs = interval_features(self.template_, self.omega_, self._act, P[k] + (P[k + 1] - P[k]) * frac,
-                                       R[k] + (R[k + 1] - R[k]) * frac[:, None], rdot)
+                if self.config.suds.state == "start":  # a segment takes its shape interval's row
+                    ph_s, r_s = 0.5 * (P[k] + P[k + 1]), R[k]
+                else:  # the instantaneous map at the segment's midpoint
+                    frac = (0.5 * (s0 + s1) - T[k]) / (T[k + 1] - T[k])
+                    ph_s, r_s = P[k] + (P[k + 1] - P[k]) * frac, R[k] + (R[k + 1] - R[k]) * frac[:, None]
+                Xs = interval_features(self.template_, self.omega_, self._act, ph_s, r_s, rdot)
                 xi = se2.log(se2.relative(g0, g1)) / (t1 - t0)
                 self._rows_avg.append((Xs, (s1 - s0) / (s1 - s0).sum(), xi))
             q.popleft()
@@ -491,6 +495,7 @@ class OnlineSudsEstimator:
 
 
 def interval_row(
+    suds: SudsConfig,
     template: object,
     omega: float,
     act: FloatArray,
@@ -500,13 +505,14 @@ def interval_row(
 ) -> tuple[FloatArray, FloatArray]:
     """One regression row from consecutive samples a, b = (t, r, pose, phase).
 
-    Returns X = [φ̄, δ, δ̇_a] and Y = [ξ, ṙ_p] at the interval midpoint.
+    Returns X = [φ̄, δ, δ̇_a] (midpoint phase, δ at the state ``suds.state`` names) and
+    Y = [ξ, ṙ_p] over the interval.
     """
     ta, ra, pa, fa = a
     tb, rb, pb, fb = b
     dt = tb - ta
     ph = np.array([0.5 * (fa + fb)])
-    rm = 0.5 * (ra + rb)
+    rm = interval_state(suds, ra, rb)
     rdot = (rb - ra) / dt
     xi = se2.log(se2.relative(pa, pb)) / dt
     X = interval_features(template, omega, act, ph, rm[None, :], rdot[None, :])[0]

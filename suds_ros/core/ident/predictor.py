@@ -18,6 +18,7 @@ from suds_ros.core.ident.intervals import make_intervals
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, model_template
 from suds_ros.core.ident.scoring import Prediction, average_over_pose_intervals
 from suds_ros.core.phase.phase_tracker import PhaseTracker
+from suds_ros.core.ident.sysid import interval_state
 from suds_ros.core.recording import Recording
 
 
@@ -43,7 +44,8 @@ class StreamingPredictor:
     """Live predictions of (ξ, ṙ_p) from shape samples with an identified :class:`SudsModel`.
 
     Each shape sample closes the interval from the previous one; the prediction is the
-    model's output for that interval (midpoint state and phase, forward-difference rate),
+    model's output for that interval (the state its ``suds.state`` names, midpoint phase,
+    forward-difference rate),
     i.e. the mean body and passive velocity over the interval ending at the sample.
     The phase is initialised at the template point nearest the first sample and then tracked.
     """
@@ -104,7 +106,7 @@ class StreamingPredictor:
         tp, rp, php = prev
         self.last_mid_phase = 0.5 * (php + phase)
         out = self.model.predict(
-            np.array([0.5 * (php + phase)]), (0.5 * (rp + r))[None], ((r - rp) / (t - tp))[None]
+            np.array([0.5 * (php + phase)]), interval_state(self.model.suds, rp, r)[None], ((r - rp) / (t - tp))[None]
         )[0]
         return out[:3], out[3 : 3 + len(self.passive)]
 

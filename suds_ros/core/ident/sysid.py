@@ -26,6 +26,19 @@ an output, and using it as an input would leak the answer):
 
 δ = r − θ(φ) and δ̇ = ṙ − θ'(φ)·ω̄ with θ the phase-averaged gait and ω̄ the
 mean phase rate (rad/s).
+
+Sampled-data state
+------------------
+The outputs are averages over a sampling interval k → k + 1 (ṙ_p = (r_p,k+1 − r_p,k)/Δt and
+the body twist between the two poses), and a stiff passive mode can relax within one
+interval (swimmer9's stiffest relaxes at ≈ 135 s⁻¹: λ·Δt ≈ 1.35 at 100 Hz).  Such an average
+is set by the state the interval *starts* from and the drive over it, which is what the
+exact one-step map of the dynamics takes; the midpoint r̄ = (r_k + r_k+1)/2 already contains
+half of the answer's end point and blurs the map.  ``state="start"`` (the default) regresses
+on δ at the interval's first sample, ``"midpoint"`` on δ at r̄ (the instantaneous affine map
+at the midpoint, the convention of models saved before it existed).  The phase of a row is
+the interval's midpoint phase in both; δ̇_a is the interval's mean actuated rate, so the
+outputs stay affine in it.  :func:`interval_state` is the one place this choice is made.
 """
 
 from __future__ import annotations
@@ -37,6 +50,17 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
+
+
+#: the interval states a regression row can be built on (see "Sampled-data state")
+STATES = ("start", "midpoint")
+
+
+def interval_state(config: "SudsConfig", r_start: FloatArray, r_end: FloatArray) -> FloatArray:
+    """The joint state a regression row of the interval r_start → r_end uses (``config.state``)."""
+    if config.state == "start":
+        return np.asarray(r_start, dtype=float)
+    return 0.5 * (np.asarray(r_start, dtype=float) + np.asarray(r_end, dtype=float))
 
 
 @dataclass(frozen=True)
@@ -57,6 +81,9 @@ class SudsConfig:
         Relative Tikhonov weight: λ = ridge · mean(diag XᵀX) added to the diagonal.
     forgetting : float
         Per-sample forgetting factor in (0, 1]; 1 keeps all data equally.
+    state : str
+        Which state of a sampling interval the rows regress on: ``"start"`` (its first
+        sample) or ``"midpoint"`` (see the module docstring).
     """
 
     regressors: int = 2
@@ -65,8 +92,11 @@ class SudsConfig:
     bilinear_order: int = 1
     ridge: float = 1e-6
     forgetting: float = 1.0
+    state: str = "start"
 
     def __post_init__(self) -> None:
+        if self.state not in STATES:
+            raise SudsConfigError(f"`state`: expected one of {STATES}, got {self.state!r}")
         if self.regressors not in (1, 2, 3):
             raise SudsConfigError(f"`regressors`: expected 1, 2 or 3, got {self.regressors!r}")
         for name in ("intercept_order", "linear_order", "bilinear_order"):
