@@ -317,7 +317,8 @@ def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
                 assert np.allclose(p.truth, dte.Y) and np.allclose(p.template, dte.T)
                 pred = p.model
                 c = idn.regressor_.config
-                info = f"set {c.regressors}, orders {c.linear_order}/{c.bilinear_order}, ridge {c.ridge:g}, {idn.n_parameters} parameters"
+                info = (f"set {c.regressors}, orders {c.linear_order}/{c.bilinear_order}, ridge {c.ridge:g}, "
+                        f"{idn.n_parameters} parameters")
             elif meth == "physics":
                 t0 = time.perf_counter()
                 xi, rdp = system.velocities(dte.r, dte.rda)

@@ -36,8 +36,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="held-out cycles (default 30; fewer if the bag is short; 0 with "
                         "--streaming: train on everything)")
     p.add_argument("--regressors", type=int, choices=(1, 2, 3), default=None,
-                   help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a] (default), "
-                        "3 full second order")
+                   help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a], 3 full second order "
+                        "(default: chosen with the Fourier orders and ridge by cross-validation on the "
+                        "training cycles; with --streaming the estimator's set 2)")
     p.add_argument("--window", type=int, default=1,
                    help="differencing window in samples (default 1)")
     p.add_argument("--torque", action="store_true",
@@ -78,9 +79,8 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
     from suds_ros.core.ident.scoring import score_prediction
     from suds_ros.core.ident.sysid import SudsConfig
 
-    if args.regressors is None:
-        args.regressors = SudsConfig().regressors
-    cfg = IdentifyConfig(suds=SudsConfig(regressors=args.regressors), window=args.window)
+    grid = IdentifyConfig().regressor_grid if args.regressors is None else (args.regressors,)
+    cfg = IdentifyConfig(suds=SudsConfig(regressors=grid[-1]), regressor_grid=grid, window=args.window)
     if args.torque and rec.effort is None:
         raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
     ident = SudsIdentifier(cfg, torque=bool(args.torque)).fit(train)
@@ -91,7 +91,9 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
         "system": rec.system,
         "train_cycles": args.train_cycles,
         "test_cycles": int(round((test.t[-1] - test.t[0] + test.dt) * (rec.gait_hz or 1.0))),
-        "regressors": args.regressors,
+        "regressors": ident.regressor_.config.regressors,
+        "ridge": ident.regressor_.config.ridge,
+        "state": ident.regressor_.config.state,
         "parameters_per_output": ident.n_parameters,
         "fourier_orders": {
             "intercept": ident.regressor_.config.intercept_order,
@@ -111,7 +113,7 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
         return 0
     print(f"{rec.system}: {args.bag}")
     print(f"  train {args.train_cycles} cycles, test {result['test_cycles']} cycles, regressor set "
-          f"{args.regressors}, {ident.n_parameters} parameters per output")
+          f"{result['regressors']}, {ident.n_parameters} parameters per output")
     print(f"  {'':<14}{'Γ':>8}")
     print(f"  {'body':<14}{sc.gamma_body:>8.3f}")
     print(f"  {'passive':<14}{sc.gamma_passive:>8.3f}")
