@@ -143,28 +143,35 @@ def select(problem: CVProblem, cands: list[SudsConfig], n_joints: int, n_actuate
         Gat, bat = av.A.T @ av.A, av.A.T @ av.y
     pos = {c: i for i, c in enumerate(problem.columns)}
     scores: dict[tuple[int, int, int, float], float] = {}
-    for cfg in cands:
+    layouts: dict[tuple[int, int, int], list[float]] = {}
+    for cfg in cands:  # one design (column subset) per layout, its ridges solved on the same blocks
+        layouts.setdefault((cfg.regressors, cfg.linear_order, cfg.bilinear_order), []).append(cfg.ridge)
+    for (reg, lin, bil), ridges in layouts.items():
+        cfg = replace(cands[0], regressors=reg, linear_order=lin, bilinear_order=bil)
         cols = subset_columns(big, feature_layout(cfg, n_joints, n_actuated))
         ix = np.ix_(cols, cols)
-        total = 0.0
+        total = np.zeros(len(ridges))
         for f in range(k):
-            coef = _solve((Gt - G[f])[ix], (bt - b[f])[cols], cfg.ridge)
             te = test_rows[f]
-            err = np.abs(problem.A[te][:, cols] @ coef - problem.y[te])
+            Gs, bs, Ate = Gt[ix] - G[f][ix], (bt - b[f])[cols], problem.A[te][:, cols]
             ref = np.abs(problem.template[te] - problem.y[te])
             if av is not None:
-                ca = _solve((Gat - Ga[f])[ix], (bat - ba[f])[cols], cfg.ridge)
-                ea = np.abs(av.A[inside[f]][:, cols] @ ca - av.y[inside[f]])
+                Gas, bas, Aate = Gat[ix] - Ga[f][ix], (bat - ba[f])[cols], av.A[inside[f]][:, cols]
                 ra = np.abs(av.template[inside[f]] - av.y[inside[f]])
-            parts = []
-            for g in problem.groups:
-                if av is not None and g[0] in av.columns:
-                    j = [av.columns.index(c) for c in g]
-                    parts.append(ea[:, j].sum() / max(ra[:, j].sum(), 1e-300))
-                else:
-                    j = [pos[c] for c in g]
-                    parts.append(err[:, j].sum() / max(ref[:, j].sum(), 1e-300))
-            total += float(np.mean(parts))
-        scores[(cfg.regressors, cfg.linear_order, cfg.bilinear_order, cfg.ridge)] = total / k
+            for i, ridge in enumerate(ridges):
+                err = np.abs(Ate @ _solve(Gs, bs, ridge) - problem.y[te])
+                if av is not None:
+                    ea = np.abs(Aate @ _solve(Gas, bas, ridge) - av.y[inside[f]])
+                parts = []
+                for g in problem.groups:
+                    if av is not None and g[0] in av.columns:
+                        j = [av.columns.index(c) for c in g]
+                        parts.append(ea[:, j].sum() / max(ra[:, j].sum(), 1e-300))
+                    else:
+                        j = [pos[c] for c in g]
+                        parts.append(err[:, j].sum() / max(ref[:, j].sum(), 1e-300))
+                total[i] += float(np.mean(parts))
+        for i, ridge in enumerate(ridges):
+            scores[(reg, lin, bil, ridge)] = total[i] / k
     best = min(cands, key=lambda c: scores[(c.regressors, c.linear_order, c.bilinear_order, c.ridge)])
     return best, scores
