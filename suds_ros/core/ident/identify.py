@@ -24,7 +24,14 @@ from suds_ros.core.ident.scoring import (
     Scores,
     score_prediction,
 )
-from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor, interval_state
+from suds_ros.core.ident.shape_kernel import gait_kernel_scale
+from suds_ros.core.ident.sysid import (
+    AveragedTargets,
+    SudsConfig,
+    SudsRegressor,
+    interval_state,
+    regressor_input,
+)
 
 _BODY = list(range(len(BODY_CHANNELS)))  # the body channels lead every output vector
 
@@ -80,6 +87,14 @@ class IdentifyConfig:
         Candidate regressor sets (empty: ``suds.regressors``).
     ridge_grid : tuple of float
         Candidate relative ridges (empty: ``suds.ridge``).
+    kernel_grid : tuple of int
+        Candidate numbers of random shape features (0: none; the others go with regressor set 1
+        only, see :mod:`~suds_ros.core.ident.shape_kernel`; empty: ``suds.kernel_features``).
+    kernel_max_rows : int
+        Random-feature candidates are tried only on training sets of at most this many interval
+        rows.  They win with little data (5–10 swimmer9 cycles in ``docs/results/peers.md``);
+        beyond about 20 cycles the Fourier model has won on every benchmark system, and their
+        cross-validation there would cost more than the rest of the fit.
     cv_folds : int
         Number of contiguous folds for the selection.
     regrid : bool
@@ -95,7 +110,9 @@ class IdentifyConfig:
     phaser_order: int = 10
     order_grid: tuple[tuple[int, int], ...] = ((1, 0), (2, 1), (4, 2), (6, 3))
     regressor_grid: tuple[int, ...] = (1, 2, 3)
-    ridge_grid: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-2)
+    ridge_grid: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-3, 1e-2)
+    kernel_grid: tuple[int, ...] = (0, 300)
+    kernel_max_rows: int = 1500
     cv_folds: int = 3
     regrid: bool = True
 
@@ -203,11 +220,8 @@ class SudsIdentifier:
     def _features(self, rec: Recording, r: FloatArray, rdot: FloatArray, phase_mid: FloatArray) -> FloatArray:
         theta = self.template_.predict(phase_mid)
         dtheta = self.template_.derivative(phase_mid)
-        delta = r - theta
-        ddelta = rdot - dtheta * self.omega_
-        return np.concatenate(
-            [phase_mid[:, None], delta, ddelta[:, rec.actuated_index]], axis=1
-        )
+        act = rec.actuated_index
+        return regressor_input(phase_mid, r - theta, (rdot - dtheta * self.omega_)[:, act], r, rdot[:, act])
 
     # -------------------------------------------------------------- API
     def fit(self, rec: Recording) -> "SudsIdentifier":
@@ -222,11 +236,12 @@ class SudsIdentifier:
             raise SudsDataError(f"estimated phase does not advance (rate {self.omega_:.3g} rad/s)")
         tcfg = FourierTemplateConfig(order=self.config.template_order)
         self.template_ = FourierTemplate(tcfg).fit(phase, rec.r)
+        self.kernel_scale_ = gait_kernel_scale(self.template_, self.omega_, rec.actuated_index)
         s = self._samples(rec, phase)
         X = self.features(rec, s.iv, s.ph)
         self.output_template_coef_ = self._fit_output_template(s)
         suds = self._select_model(rec, X, s, self.output_template(s.ph))
-        self.regressor_ = SudsRegressor(len(rec.joint_names), len(rec.actuated), suds)
+        self.regressor_ = SudsRegressor(len(rec.joint_names), len(rec.actuated), suds, self.kernel_scale_)
         self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
         self.actuated_ = rec.actuated
@@ -238,38 +253,43 @@ class SudsIdentifier:
         """Pick regressor set, gain orders and ridge by blocked cross-validation on the training data.
 
         See :mod:`~suds_ros.core.ident.model_selection`; the table of scores is kept in
-        ``cv_scores_`` (keyed by regressors, linear order, bilinear order, ridge).
+        ``cv_scores_`` (keyed by regressors, linear order, bilinear order, ridge, kernel features).
         """
         from suds_ros.core.ident import model_selection as ms
 
         cfg = self.config
-        self.cv_scores_: dict[tuple[int, int, int, float], float] = {}
+        self.cv_scores_: dict[tuple[int, int, int, float, int], float] = {}
         k = cfg.cv_folds
         if not cfg.order_grid or k < 2 or X.shape[0] < 10 * k:
             return cfg.suds
         nj, na = len(rec.joint_names), len(rec.actuated)
-        cands = ms.candidates(cfg.suds, cfg.regressor_grid, cfg.order_grid, cfg.ridge_grid)
-        big = SudsRegressor(nj, na, ms.largest(cands))
+        kernels = tuple(m for m in cfg.kernel_grid if not m or X.shape[0] <= cfg.kernel_max_rows) or (0,)
+        cands = ms.candidates(cfg.suds, cfg.regressor_grid, cfg.order_grid, cfg.ridge_grid, kernels)
         names = self.channels(rec)
         groups = tuple(tuple(i for i, c in enumerate(names) if c.startswith(p)) for p in ("xi_", "rdot_", "tau_"))
         edges = np.linspace(0, X.shape[0], k + 1).astype(int)
-        n_out = len(names)
-        averaged = None
-        if s.pose is None:
-            columns = tuple(range(n_out))
-        else:
-            columns = tuple(range(len(_BODY), n_out))
+        columns = tuple(range(0 if s.pose is None else len(_BODY), len(names)))
+        if s.pose is not None:
             block = np.searchsorted(edges, np.arange(X.shape[0]), side="right") - 1
             onehot = (block[s.pose.seg_k][:, None] == np.arange(k)[None, :]).astype(float)
-            W = s.pose.weights
-            averaged = ms.AveragedRows(
-                A=np.asarray(W @ big._design(self._segment_features(rec, s))), y=s.pose.xi,
-                template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]), columns=tuple(_BODY),
-                fold_frac=np.asarray(W @ onehot))
-        problem = ms.CVProblem(A=big._design(X), y=s.Y[:, list(columns)], template=Yt[:, list(columns)],
-                               columns=columns, groups=tuple(g for g in groups if g), edges=edges,
-                               averaged=averaged)
-        best, self.cv_scores_ = ms.select(problem, cands, nj, na)
+            Xs = self._segment_features(rec, s)
+        best, best_score = cfg.suds, np.inf
+        for family in ms.families(cands):  # designs nest within a family (same random features)
+            big = SudsRegressor(nj, na, ms.largest(family), self.kernel_scale_)
+            averaged = None
+            if s.pose is not None:
+                W = s.pose.weights
+                averaged = ms.AveragedRows(
+                    A=np.asarray(W @ big._design(Xs)), y=s.pose.xi,
+                    template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]), columns=tuple(_BODY),
+                    fold_frac=np.asarray(W @ onehot))
+            problem = ms.CVProblem(A=big._design(X), y=s.Y[:, list(columns)], template=Yt[:, list(columns)],
+                                   columns=columns, groups=tuple(g for g in groups if g), edges=edges,
+                                   averaged=averaged)
+            chosen, scores = ms.select(problem, family, nj, na)
+            self.cv_scores_.update(scores)
+            if scores[ms.key(chosen)] < best_score:
+                best, best_score = chosen, scores[ms.key(chosen)]
         return best
 
     def _prepared(self, rec: Recording) -> Recording:

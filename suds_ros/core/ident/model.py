@@ -21,6 +21,7 @@ from suds_ros.core.errors import (
     SudsDataError,
 )
 from suds_ros.core.fourier import fourier_basis, fourier_basis_and_derivative
+from suds_ros.core.ident.shape_kernel import KernelScale
 from suds_ros.core.ident.sysid import SudsConfig, design_matrix
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
@@ -41,6 +42,8 @@ class SudsModel:
     output_template_coef : (2·To + 1, n_out) phase-only template of the outputs.
     channels : output names.
     n_samples : interval rows the model was fitted on.
+    kernel_scale : KernelScale or None, the gait's scales for random shape features
+        (``suds.kernel_features`` > 0).
     """
 
     joint_names: tuple[str, ...]
@@ -55,6 +58,7 @@ class SudsModel:
     output_template_coef: FloatArray
     channels: tuple[str, ...]
     n_samples: int
+    kernel_scale: KernelScale | None = None
 
     def _theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
         B, dB = fourier_basis_and_derivative(phase, self.template_order)
@@ -71,7 +75,9 @@ class SudsModel:
         delta = np.atleast_2d(r) - theta
         ddelta = np.atleast_2d(rdot) - dtheta * self.omega
         act = [self.joint_names.index(j) for j in self.actuated]
-        return design_matrix(self.suds, phase, delta, ddelta[:, act]) @ self.coef
+        rdot_a = np.atleast_2d(rdot)[:, act]
+        return design_matrix(self.suds, phase, delta, ddelta[:, act], np.atleast_2d(r), rdot_a,
+                             self.kernel_scale) @ self.coef
 
     def template(self, phase: FloatArray) -> FloatArray:
         """Phase-only template prediction (n, n_out)."""
@@ -95,7 +101,11 @@ class SudsModel:
                 "ridge": self.suds.ridge,
                 "forgetting": self.suds.forgetting,
                 "state": self.suds.state,
+                "kernel_features": self.suds.kernel_features,
+                "kernel_gamma": self.suds.kernel_gamma,
+                "kernel_seed": self.suds.kernel_seed,
             },
+            "kernel_scale": None if self.kernel_scale is None else self.kernel_scale.to_dict(),
             "coef": self.coef.tolist(),
             "output_template_coef": self.output_template_coef.tolist(),
             "channels": list(self.channels),
@@ -120,6 +130,8 @@ class SudsModel:
             output_template_coef=np.asarray(d["output_template_coef"], dtype=float),
             channels=tuple(d["channels"]),  # type: ignore[arg-type]
             n_samples=int(d["n_samples"]),  # type: ignore[call-overload]
+            kernel_scale=None if d.get("kernel_scale") is None
+            else KernelScale.from_dict(d["kernel_scale"]),  # type: ignore[arg-type]
         )
 
 

@@ -22,6 +22,7 @@ out of both).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 import scipy.linalg
@@ -73,21 +74,41 @@ class CVProblem:
 
 
 def candidates(base: SudsConfig, regressor_sets: tuple[int, ...], orders: tuple[tuple[int, int], ...],
-               ridges: tuple[float, ...]) -> list[SudsConfig]:
-    """Distinct candidate configurations (set 1 ignores the bilinear order)."""
+               ridges: tuple[float, ...], kernels: tuple[int, ...] = ()) -> list[SudsConfig]:
+    """Distinct candidate configurations.
+
+    Set 1 ignores the bilinear order; random shape features (``kernels`` > 0) go with set 1 at
+    the lowest gain order only (they stand in for the higher-order Fourier groups and carry
+    the phase themselves).
+    """
     out: list[SudsConfig] = []
-    for reg in regressor_sets or (base.regressors,):
-        for lin, bil in orders or ((base.linear_order, base.bilinear_order),):
-            for ridge in ridges or (base.ridge,):
-                cfg = replace(base, regressors=reg, linear_order=lin,
-                              bilinear_order=bil if reg >= 2 else 0, ridge=ridge)
-                if cfg not in out:
-                    out.append(cfg)
+    orders = orders or ((base.linear_order, base.bilinear_order),)
+    for m in kernels or (base.kernel_features,):
+        for reg in (regressor_sets or (base.regressors,)) if not m else (1,):
+            for lin, bil in orders:
+                for ridge in ridges or (base.ridge,):
+                    cfg = replace(base, regressors=reg, linear_order=lin if not m else min(o[0] for o in orders),
+                                  bilinear_order=bil if reg >= 2 else 0, ridge=ridge, kernel_features=m)
+                    if cfg not in out:
+                        out.append(cfg)
     return out
 
 
+def families(cands: list[SudsConfig]) -> list[list[SudsConfig]]:
+    """Candidates grouped by their random features (designs nest only within a group)."""
+    out: dict[tuple[int, float, int], list[SudsConfig]] = {}
+    for c in cands:
+        out.setdefault((c.kernel_features, c.kernel_gamma, c.kernel_seed), []).append(c)
+    return list(out.values())
+
+
+def key(cfg: SudsConfig) -> tuple[int, int, int, float, int]:
+    """The key of a candidate in the score table."""
+    return (cfg.regressors, cfg.linear_order, cfg.bilinear_order, cfg.ridge, cfg.kernel_features)
+
+
 def largest(cands: list[SudsConfig]) -> SudsConfig:
-    """The configuration whose design holds every candidate's columns."""
+    """The configuration whose design holds every candidate's columns (one family)."""
     return replace(cands[0], regressors=max(c.regressors for c in cands),
                    linear_order=max(c.linear_order for c in cands),
                    bilinear_order=max(c.bilinear_order for c in cands))
@@ -115,15 +136,37 @@ def _solve(G: FloatArray, b: FloatArray, ridge: float) -> FloatArray:
         return np.linalg.lstsq(reg, b, rcond=None)[0]
 
 
+def _primal_path(G: FloatArray, b: FloatArray) -> Callable[[float], FloatArray]:
+    """Ridge solutions from the normal equations G c = b."""
+    return lambda ridge: _solve(G, b, ridge)
+
+
+def _dual_path(A: FloatArray, y: FloatArray) -> Callable[[float], FloatArray]:
+    """The same ridge solutions from the rows: c = Aᵀ(AAᵀ + λ·s·I)⁻¹y, s = mean diag AᵀA = tr(AAᵀ)/p."""
+    K = A @ A.T
+    scale = float(np.trace(K)) / A.shape[1] or 1.0
+
+    def path(ridge: float) -> FloatArray:
+        reg = K + (ridge * scale) * np.eye(K.shape[0])
+        try:
+            alpha = scipy.linalg.cho_solve(scipy.linalg.cho_factor(reg, check_finite=False), y, check_finite=False)
+        except np.linalg.LinAlgError:
+            alpha = np.linalg.lstsq(reg, y, rcond=None)[0]
+        return A.T @ alpha
+
+    return path
+
+
 def _gram_blocks(A: FloatArray, y: FloatArray, masks: list[FloatArray]) -> tuple[list[FloatArray], list[FloatArray]]:
     return [A[m].T @ A[m] for m in masks], [A[m].T @ y[m] for m in masks]
 
 
 def select(problem: CVProblem, cands: list[SudsConfig], n_joints: int, n_actuated: int
-           ) -> tuple[SudsConfig, dict[tuple[int, int, int, float], float]]:
+           ) -> tuple[SudsConfig, dict[tuple[int, int, int, float, int], float]]:
     """The candidate with the lowest cross-validated score, and every candidate's score.
 
-    Scores are keyed by (regressors, linear_order, bilinear_order, ridge).
+    ``cands`` must be one of :func:`families` (``problem.A`` is their largest design).
+    Scores are keyed by :func:`key`.
     """
     big = feature_layout(largest(cands), n_joints, n_actuated)
     m = problem.A.shape[0]
@@ -133,16 +176,20 @@ def select(problem: CVProblem, cands: list[SudsConfig], n_joints: int, n_actuate
     for f in range(k):
         block[edges[f]:edges[f + 1]] = f
     test_rows = [block == f for f in range(k)]
-    G, b = _gram_blocks(problem.A, problem.y, test_rows)
-    Gt, bt = sum(G), sum(b)
     av = problem.averaged
+    # fewer training rows than columns: solve each fold in the dual (same coefficients, cheaper)
+    dual = m - int(np.diff(edges).max()) < problem.A.shape[1]
     if av is not None:
         touch = [av.fold_frac[:, f] > 0.0 for f in range(k)]
         inside = [av.fold_frac[:, f] >= 1.0 - 1e-12 for f in range(k)]
-        Ga, ba = _gram_blocks(av.A, av.y, touch)
-        Gat, bat = av.A.T @ av.A, av.A.T @ av.y
+    if not dual:
+        G, b = _gram_blocks(problem.A, problem.y, test_rows)
+        Gt, bt = sum(G), sum(b)
+        if av is not None:
+            Ga, ba = _gram_blocks(av.A, av.y, touch)
+            Gat, bat = av.A.T @ av.A, av.A.T @ av.y
     pos = {c: i for i, c in enumerate(problem.columns)}
-    scores: dict[tuple[int, int, int, float], float] = {}
+    scores: dict[tuple[int, int, int, float, int], float] = {}
     layouts: dict[tuple[int, int, int], list[float]] = {}
     for cfg in cands:  # one design (column subset) per layout, its ridges solved on the same blocks
         layouts.setdefault((cfg.regressors, cfg.linear_order, cfg.bilinear_order), []).append(cfg.ridge)
@@ -153,15 +200,23 @@ def select(problem: CVProblem, cands: list[SudsConfig], n_joints: int, n_actuate
         total = np.zeros(len(ridges))
         for f in range(k):
             te = test_rows[f]
-            Gs, bs, Ate = Gt[ix] - G[f][ix], (bt - b[f])[cols], problem.A[te][:, cols]
+            if dual:
+                path = _dual_path(problem.A[~te][:, cols], problem.y[~te])
+            else:
+                path = _primal_path(Gt[ix] - G[f][ix], (bt - b[f])[cols])
+            Ate = problem.A[te][:, cols]
             ref = np.abs(problem.template[te] - problem.y[te])
             if av is not None:
-                Gas, bas, Aate = Gat[ix] - Ga[f][ix], (bat - ba[f])[cols], av.A[inside[f]][:, cols]
+                if dual:
+                    path_a = _dual_path(av.A[~touch[f]][:, cols], av.y[~touch[f]])
+                else:
+                    path_a = _primal_path(Gat[ix] - Ga[f][ix], (bat - ba[f])[cols])
+                Aate = av.A[inside[f]][:, cols]
                 ra = np.abs(av.template[inside[f]] - av.y[inside[f]])
             for i, ridge in enumerate(ridges):
-                err = np.abs(Ate @ _solve(Gs, bs, ridge) - problem.y[te])
+                err = np.abs(Ate @ path(ridge) - problem.y[te])
                 if av is not None:
-                    ea = np.abs(Aate @ _solve(Gas, bas, ridge) - av.y[inside[f]])
+                    ea = np.abs(Aate @ path_a(ridge) - av.y[inside[f]])
                 parts = []
                 for g in problem.groups:
                     if av is not None and g[0] in av.columns:
@@ -172,6 +227,6 @@ def select(problem: CVProblem, cands: list[SudsConfig], n_joints: int, n_actuate
                         parts.append(err[:, j].sum() / max(ref[:, j].sum(), 1e-300))
                 total[i] += float(np.mean(parts))
         for i, ridge in enumerate(ridges):
-            scores[(reg, lin, bil, ridge)] = total[i] / k
-    best = min(cands, key=lambda c: scores[(c.regressors, c.linear_order, c.bilinear_order, c.ridge)])
+            scores[(reg, lin, bil, ridge, cands[0].kernel_features)] = total[i] / k
+    best = min(cands, key=lambda c: scores[key(c)])
     return best, scores

@@ -44,7 +44,14 @@ from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
 from suds_ros.core.ident.intervals import overlap_segments
 from suds_ros.core.ident.scoring import BODY_CHANNELS
-from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor, interval_state
+from suds_ros.core.ident.shape_kernel import gait_kernel_scale
+from suds_ros.core.ident.sysid import (
+    AveragedTargets,
+    SudsConfig,
+    SudsRegressor,
+    interval_state,
+    regressor_input,
+)
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
@@ -298,6 +305,8 @@ class OnlineSudsEstimator:
         tmpl = FourierTemplate(FourierTemplateConfig(order=self.config.template_order)).fit(phase, R)
         self.template_ = tmpl
         self.omega_ = omega
+        self.regressor = SudsRegressor(len(self.joint_names), len(self.actuated), self.config.suds,
+                                       gait_kernel_scale(tmpl, omega, self._act))
         self._tracker = PhaseTracker(tmpl, omega, float(phase[-1]), float(T[-1]))
         self.initialised = True
         self._phase0 = float(phase[0])
@@ -353,7 +362,7 @@ class OnlineSudsEstimator:
         """Fit the rows waiting in the current chunk (the node calls this before publishing)."""
         if not self._rows_X and not self._rows_avg:
             return
-        d = 1 + len(self.joint_names) + len(self.actuated)
+        d = 1 + 2 * (len(self.joint_names) + len(self.actuated))
         X = np.asarray(self._rows_X).reshape(-1, d)
         Y = np.asarray(self._rows_Y).reshape(X.shape[0], len(self.passive))
         avg = self._averaged()
@@ -381,7 +390,7 @@ class OnlineSudsEstimator:
         """The pending pose-interval rows: segment features, block weights, measured ξ."""
         import scipy.sparse
 
-        d = 1 + len(self.joint_names) + len(self.actuated)
+        d = 1 + 2 * (len(self.joint_names) + len(self.actuated))
         rows = self._rows_avg
         n = [len(w) for _, w, _ in rows]
         Xs = np.concatenate([x for x, _, _ in rows]) if rows else np.zeros((0, d))
@@ -430,6 +439,7 @@ class OnlineSudsEstimator:
             omega=self.omega_,
             suds=self.regressor.config,
             coef=self.regressor.coef_.copy(),
+            kernel_scale=self.regressor.kernel_scale,
             output_template_coef=self._output_template_coef(),
             channels=self.channels,
             n_samples=self.regressor.n_samples_seen_,
@@ -522,10 +532,10 @@ def interval_row(
 
 def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,
                       rdot: FloatArray) -> FloatArray:
-    """Regressor rows X = [φ, δ, δ̇_a] (k, 1 + nj + na) for phases (k,), joint values and rates (k, nj)."""
+    """Regressor rows X = [φ, δ, δ̇_a, r, ṙ_a] for phases (k,), joint values and rates (k, nj)."""
     theta = template.predict(phase)  # type: ignore[attr-defined]
     dtheta = template.derivative(phase)  # type: ignore[attr-defined]
-    return np.concatenate([phase[:, None], r - theta, (rdot - dtheta * omega)[:, act]], axis=1)
+    return regressor_input(phase, r - theta, (rdot - dtheta * omega)[:, act], r, rdot[:, act])
 
 
 def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> OnlineSudsEstimator:

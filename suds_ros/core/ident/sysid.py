@@ -50,6 +50,7 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
+from suds_ros.core.ident.shape_kernel import KernelScale, kernel_features
 
 
 #: the interval states a regression row can be built on (see "Sampled-data state")
@@ -84,6 +85,13 @@ class SudsConfig:
     state : str
         Which state of a sampling interval the rows regress on: ``"start"`` (its first
         sample) or ``"midpoint"`` (see the module docstring).
+    kernel_features : int
+        M random features of the whole shape for coefficients C(r), B(r)
+        (:mod:`~suds_ros.core.ident.shape_kernel`); 0 leaves them out.
+    kernel_gamma : float
+        Their Gaussian-kernel width γ on the standardised shape.
+    kernel_seed : int
+        Seed of their random directions and offsets.
     """
 
     regressors: int = 2
@@ -93,6 +101,9 @@ class SudsConfig:
     ridge: float = 1e-6
     forgetting: float = 1.0
     state: str = "start"
+    kernel_features: int = 0
+    kernel_gamma: float = 0.1
+    kernel_seed: int = 0
 
     def __post_init__(self) -> None:
         if self.state not in STATES:
@@ -105,6 +116,10 @@ class SudsConfig:
                 raise SudsConfigError(f"`{name}`: expected an integer ≥ 0, got {v!r}")
         if not self.ridge >= 0:
             raise SudsConfigError(f"`ridge`: expected ≥ 0, got {self.ridge!r}")
+        if int(self.kernel_features) != self.kernel_features or self.kernel_features < 0:
+            raise SudsConfigError(f"`kernel_features`: expected an integer ≥ 0, got {self.kernel_features!r}")
+        if not self.kernel_gamma > 0:
+            raise SudsConfigError(f"`kernel_gamma`: expected > 0, got {self.kernel_gamma!r}")
         if not 0 < self.forgetting <= 1:
             raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
 
@@ -151,13 +166,20 @@ def feature_layout(config: SudsConfig, n_joints: int, n_actuated: int) -> Featur
     if config.regressors == 3:
         groups.append(("D_rr", n_joints * (n_joints + 1) // 2, config.bilinear_order))
         groups.append(("D_aa", n_actuated * (n_actuated + 1) // 2, config.bilinear_order))
+    if config.kernel_features:
+        groups.append(("K", config.kernel_features * (1 + n_actuated), 0))
     return FeatureLayout(tuple(groups))
 
 
 def design_matrix(
-    config: SudsConfig, phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray
+    config: SudsConfig, phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray,
+    r: FloatArray | None = None, rdot_a: FloatArray | None = None, kernel_scale: KernelScale | None = None,
 ) -> FloatArray:
-    """SUDS design matrix (n, p) for phases (n,), δ (n, nj) and δ̇_a (n, na)."""
+    """SUDS design matrix (n, p) for phases (n,), δ (n, nj) and δ̇_a (n, na).
+
+    With ``config.kernel_features`` the shape r (n, nj), the actuated rate (n, na) and the
+    gait's :class:`~suds_ros.core.ident.shape_kernel.KernelScale` are needed too.
+    """
     n = phase.shape[0]
     feats: dict[str, FloatArray] = {
         "C": np.ones((n, 1)),
@@ -169,6 +191,11 @@ def design_matrix(
     if config.regressors == 3:
         feats["D_rr"] = _upper_products(delta)
         feats["D_aa"] = _upper_products(ddelta_a)
+    if config.kernel_features:
+        if r is None or rdot_a is None:
+            raise SudsDataError("random-feature coefficients need the shape r and the actuated rate; got None")
+        feats["K"] = kernel_features(config.kernel_features, config.kernel_gamma, config.kernel_seed,
+                                     kernel_scale, r, rdot_a, phase)
     layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
     cols = []
     bases: dict[int, FloatArray] = {}
@@ -178,6 +205,12 @@ def design_matrix(
         F = feats[name]
         cols.append((F[:, :, None] * bases[order][:, None, :]).reshape(n, -1))
     return np.concatenate(cols, axis=1)
+
+
+def regressor_input(phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray, r: FloatArray,
+                    rdot_a: FloatArray) -> FloatArray:
+    """The regressor rows X = [φ, δ, δ̇_a, r, ṙ_a] (n, 1 + 2·(nj + na))."""
+    return np.concatenate([np.asarray(phase, dtype=float)[:, None], delta, ddelta_a, r, rdot_a], axis=1)
 
 
 @dataclass(frozen=True)
@@ -206,7 +239,9 @@ class SudsRegressor:
     """Phase-varying SUDS regression fitted from accumulated normal equations.
 
     ``X`` passed to :meth:`fit`, :meth:`partial_fit`, :meth:`predict` is (n, 1 + nj + na):
-    column 0 the phase φ (rad), then δ (nj columns), then δ̇_a (na columns).
+    column 0 the phase φ (rad), then δ (nj columns), then δ̇_a (na columns); optionally (always
+    with kernel features) followed by the shape r (nj) and the actuated rate ṙ_a (na):
+    :func:`regressor_input` builds it.
     ``y`` is (n, n_out): the outputs (body velocity components, passive velocities, …).
 
     Parameters
@@ -233,28 +268,32 @@ class SudsRegressor:
     own relative ridge).  Without averaged targets the fit is the plain one on A.
     """
 
-    def __init__(self, n_joints: int, n_actuated: int, config: SudsConfig = SudsConfig()) -> None:
+    def __init__(self, n_joints: int, n_actuated: int, config: SudsConfig = SudsConfig(),
+                 kernel_scale: KernelScale | None = None) -> None:
         self.n_joints = n_joints
         self.n_actuated = n_actuated
         self.config = config
+        self.kernel_scale = kernel_scale
 
     # -------------------------------------------------------------- helpers
-    def _split(self, X: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def _split(self, X: FloatArray) -> tuple[FloatArray, ...]:
         X = np.asarray(X, dtype=float)
-        want = 1 + self.n_joints + self.n_actuated
-        if X.ndim != 2 or X.shape[1] != want:
+        nj, na = self.n_joints, self.n_actuated
+        narrow, wide = 1 + nj + na, 1 + 2 * (nj + na)
+        ok = X.ndim == 2 and (X.shape[1] == wide or (X.shape[1] == narrow and not self.config.kernel_features))
+        if not ok:
             raise SudsDataError(
-                f"X: expected shape (n, {want}) = [phase, δ ({self.n_joints}), δ̇_a ({self.n_actuated})], "
-                f"got {X.shape}"
-            )
+                f"X: expected shape (n, {narrow}) = [phase, δ ({nj}), δ̇_a ({na})] or (n, {wide}) with the "
+                f"shape r ({nj}) and actuated rate ({na}) after them (needed with kernel features), got {X.shape}")
         if not np.all(np.isfinite(X)):
             raise SudsDataError("X contains NaN or Inf")
-        nj = self.n_joints
-        return X[:, 0], X[:, 1 : 1 + nj], X[:, 1 + nj :]
+        parts = (X[:, 0], X[:, 1 : 1 + nj], X[:, 1 + nj : narrow])
+        if X.shape[1] == wide:
+            return parts + (X[:, narrow : narrow + nj], X[:, narrow + nj :])
+        return parts + (None, None)
 
     def _design(self, X: FloatArray) -> FloatArray:
-        phase, delta, dda = self._split(X)
-        return design_matrix(self.config, phase, delta, dda)
+        return design_matrix(self.config, *self._split(X), kernel_scale=self.kernel_scale)
 
     @property
     def n_parameters(self) -> int:
