@@ -110,7 +110,7 @@ class IdentifyConfig:
     phaser_order: int = 10
     order_grid: tuple[tuple[int, int], ...] = ((1, 0), (2, 1), (4, 2), (6, 3))
     regressor_grid: tuple[int, ...] = (1, 2, 3)
-    ridge_grid: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-3, 1e-2)
+    ridge_grid: tuple[float, ...] = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
     kernel_grid: tuple[int, ...] = (0, 300)
     kernel_max_rows: int = 1500
     cv_folds: int = 3
