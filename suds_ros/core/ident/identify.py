@@ -29,6 +29,7 @@ from suds_ros.core.ident.sysid import (
     AveragedTargets,
     SudsConfig,
     SudsRegressor,
+    feature_layout,
     interval_state,
     regressor_input,
 )
@@ -95,6 +96,10 @@ class IdentifyConfig:
         rows.  They win with little data (5–10 swimmer9 cycles in ``docs/results/peers.md``);
         beyond about 20 cycles the Fourier model has won on every benchmark system, and their
         cross-validation there would cost more than the rest of the fit.
+    max_parameters : int
+        Candidates with more regression parameters per output are left out (the cost of a fit
+        grows with their cube; long chains reach it with set 3 and high orders); the smallest
+        candidate is always kept.
     cv_folds : int
         Number of contiguous folds for the selection.
     regrid : bool
@@ -113,6 +118,7 @@ class IdentifyConfig:
     ridge_grid: tuple[float, ...] = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
     kernel_grid: tuple[int, ...] = (0, 300)
     kernel_max_rows: int = 1500
+    max_parameters: int = 2500
     cv_folds: int = 3
     regrid: bool = True
 
@@ -265,6 +271,8 @@ class SudsIdentifier:
         nj, na = len(rec.joint_names), len(rec.actuated)
         kernels = tuple(m for m in cfg.kernel_grid if not m or X.shape[0] <= cfg.kernel_max_rows) or (0,)
         cands = ms.candidates(cfg.suds, cfg.regressor_grid, cfg.order_grid, cfg.ridge_grid, kernels)
+        size = {c: feature_layout(c, nj, na).n_columns for c in cands}
+        cands = [c for c in cands if size[c] <= cfg.max_parameters] or [min(cands, key=size.__getitem__)]
         names = self.channels(rec)
         groups = tuple(tuple(i for i, c in enumerate(names) if c.startswith(p)) for p in ("xi_", "rdot_", "tau_"))
         edges = np.linspace(0, X.shape[0], k + 1).astype(int)
