@@ -13,12 +13,19 @@ if str(ROOT) not in sys.path:
 
 RESULTS = ROOT / "docs" / "results"
 
+from suds_ros.core.blas import pin_blas_threads  # noqa: E402 - needs ROOT on sys.path
+
+#: BLAS limited to SUDS_BLAS_THREADS threads (default 1) before any benchmark computes
+BLAS = pin_blas_threads()
+
 
 def machine() -> str:
     """One line describing the machine the figures were measured on."""
     import os
 
-    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    cpu = platform.processor() or platform.machine()
+    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"BLAS threads {BLAS.threads or 'unpinned'}")
 
 
 def stamp() -> str:

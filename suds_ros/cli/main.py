@@ -17,6 +17,7 @@ import argparse
 import sys
 from typing import NoReturn, Sequence
 
+from suds_ros.core.blas import pin_blas_threads
 from suds_ros.core.errors import MISSING_JOINT_ROLES, MISSING_SYSTEM, SudsConfigError, SudsError
 
 #: what the user can do about an error of a given code, in the words of this command line
@@ -73,8 +74,12 @@ def error_line(exc: SudsError) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``suds``; returns the process exit code."""
+    """Entry point of ``suds``; returns the process exit code.
+
+    BLAS is limited to ``SUDS_BLAS_THREADS`` threads (default 1) first: see :mod:`suds_ros.core.blas`.
+    """
     try:
+        pin_blas_threads()
         args = build_parser().parse_args(argv)
         return int(args.func(args))
     except SudsError as exc:

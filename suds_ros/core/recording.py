@@ -13,7 +13,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from suds_ros.core._typing import FloatArray, IntArray
-from suds_ros.core.errors import SudsDataError
+from suds_ros.core.errors import NO_POSE, SudsDataError
+
+#: How far (s, absolute) a stamp may lie outside the pose stream's span in :meth:`Recording.pose_at`
+#: and still get the end pose: a few float64 rounding steps of an epoch stamp (~2.4e-7 s at 1.7e9 s).
+POSE_SPAN_TOL = 1e-6
 
 
 def joint_names(n_joints: int) -> tuple[str, ...]:
@@ -188,18 +192,24 @@ class Recording:
     def pose_at(self, t: FloatArray) -> FloatArray:
         """Body pose interpolated at stamps ``t`` (s), shape (len(t), 3): x, y, yaw.
 
-        Linear interpolation of x, y and unwrapped yaw; stamps outside the pose
-        window raise :class:`SudsDataError` rather than extrapolate.
+        Linear interpolation of x, y and unwrapped yaw between the two pose samples around each
+        stamp.  A stamp more than :data:`POSE_SPAN_TOL` (1 µs, absolute: the same on stamps near
+        0 and on epoch stamps ~1.7e9 s) outside ``[pose_t[0], pose_t[-1]]`` raises
+        :class:`SudsDataError` (code ``no_pose``): no pose is held or extrapolated.  Within the
+        tolerance the end pose is used (it moves < 1 µs × the body speed).
         """
         t = np.asarray(t, dtype=float)
         if self.pose_t.size < 2:
-            raise SudsDataError("recording has fewer than 2 pose samples")
+            raise SudsDataError(f"`pose_t`: expected at least 2 pose samples, got {self.pose_t.size}",
+                                code=NO_POSE)
         lo, hi = self.pose_t[0], self.pose_t[-1]
-        tol = 1e-9 * max(1.0, abs(hi))
-        if t.size and (t.min() < lo - tol or t.max() > hi + tol):
+        if t.size and (t.min() < lo - POSE_SPAN_TOL or t.max() > hi + POSE_SPAN_TOL):
+            outside = int(np.count_nonzero((t < lo - POSE_SPAN_TOL) | (t > hi + POSE_SPAN_TOL)))
             raise SudsDataError(
-                f"pose stamps cover [{lo:.6f}, {hi:.6f}] s but shape stamps reach "
-                f"[{t.min():.6f}, {t.max():.6f}] s"
+                f"`t`: expected stamps within the pose stream's span [{lo:.6f}, {hi:.6f}] s "
+                f"(± {POSE_SPAN_TOL:g} s), got {outside} of {t.size} outside it "
+                f"(they reach [{t.min():.6f}, {t.max():.6f}] s); no pose is extrapolated",
+                code=NO_POSE,
             )
         return np.stack([np.interp(t, self.pose_t, self.pose[:, i]) for i in range(3)], axis=1)
 

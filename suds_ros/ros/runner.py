@@ -9,6 +9,7 @@ from typing import Any, TypeVar
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
+from suds_ros.core.blas import pin_blas_threads
 from suds_ros.core.errors import SudsError
 from suds_ros.ros.params import parameters_help, wants_help
 
@@ -32,7 +33,13 @@ def run_node(
     running (a refused parameter, an unreadable checkpoint or bag) prints one
     ``ERROR: <name>: <reason>`` line and returns 1.  ``close`` (then ``destroy_node``)
     always runs on the node once it exists, so bags and checkpoints are finalised.
+    BLAS is first limited to ``SUDS_BLAS_THREADS`` threads (default 1, :mod:`suds_ros.core.blas`).
     """
+    try:
+        pin_blas_threads()
+    except SudsError as exc:
+        print(f"ERROR: {name}: {exc}", file=sys.stderr)
+        return 1
     if wants_help(args):
         print(parameters_help(name, doc.strip().splitlines()[0], config_cls))
         return 0

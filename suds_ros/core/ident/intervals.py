@@ -18,7 +18,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
-from suds_ros.core.recording import Recording
+from suds_ros.core.recording import POSE_SPAN_TOL, Recording
 
 
 @dataclass(frozen=True)
@@ -58,14 +58,18 @@ def make_intervals(rec: Recording, window: int = 1, pose: FloatArray | None = No
         measurement noise at the cost of time resolution.
     pose : (n, 3) float, optional
         Pose already sampled at the shape stamps (e.g. noise-free truth); default
-        ``rec.pose_at(rec.t)``.
+        ``rec.pose_at(rec.t)`` at the shape stamps inside the pose stream's span.  A shape
+        stamp outside that span has no pose (a separate pose stream may start later or end
+        earlier): the intervals ending there get NaN body velocity, never a held or
+        extrapolated pose.  Such recordings score the body over the pose intervals
+        (:func:`pose_intervals`), not over these.
     """
     if window < 1:
         raise SudsDataError(f"`window`: expected ≥ 1, got {window}")
     n = rec.n_samples
     if n <= window + 1:
         raise SudsDataError(f"recording has {n} samples; need more than {window + 1}")
-    P = rec.pose_at(rec.t) if pose is None else np.asarray(pose, dtype=float)
+    P = _pose_in_span(rec) if pose is None else np.asarray(pose, dtype=float)
     dt = rec.t[window:] - rec.t[:-window]
     r0, r1 = rec.r[:-window], rec.r[window:]
     xi = se2.body_velocity(P, dt, stride=window)
@@ -84,6 +88,18 @@ def make_intervals(rec: Recording, window: int = 1, pose: FloatArray | None = No
         effort=effort,
         dt=dt,
     )
+
+
+def _pose_in_span(rec: Recording) -> FloatArray:
+    """Pose (n, 3) at the shape stamps; NaN at the stamps outside the pose stream's span."""
+    t = rec.t
+    inside = (t >= rec.pose_t[0] - POSE_SPAN_TOL) & (t <= rec.pose_t[-1] + POSE_SPAN_TOL)
+    if inside.all():
+        return rec.pose_at(t)
+    P = np.full((t.size, 3), np.nan)
+    if inside.any():
+        P[inside] = rec.pose_at(t[inside])
+    return P
 
 
 @dataclass(frozen=True)

@@ -62,8 +62,14 @@ def test_split_cycles_counts_cycles_in_time_with_drops() -> None:
 
 
 def _interpolated(rec):  # type: ignore[no-untyped-def]
-    """The recording with its pose interpolated at the shape stamps (the old way of pairing)."""
-    return replace(rec, pose_t=rec.t, pose=rec.pose_at(rec.t))
+    """The recording with its pose interpolated at the shape stamps (the old way of pairing).
+
+    Shape samples outside the pose stream's span have no pose and are cut.
+    """
+    inside = np.flatnonzero((rec.t >= rec.pose_t[0]) & (rec.t <= rec.pose_t[-1]))
+    pose = rec.pose_at(rec.t[inside])
+    rec = rec.slice(int(inside[0]), int(inside[-1]) + 1)
+    return replace(rec, pose_t=rec.t, pose=pose)
 
 
 def test_identify_on_a_lab_recording_beats_interpolation(lab_run) -> None:
