@@ -288,7 +288,7 @@ def interval_map(system, d: Data) -> np.ndarray:
 # ---------------------------------------------------------------------------------------- driver
 #: ours2: the shipped identifier; ours1: the previous default (set 2, midpoint state, orders by CV)
 OURS = {2: IdentifyConfig(),
-        1: IdentifyConfig(suds=SudsConfig(state="midpoint"), regressor_grid=(2,), ridge_grid=())}
+        1: IdentifyConfig(suds=SudsConfig(state="midpoint"), regressor_grid=(2,), ridge_grid=(), kernel_grid=())}
 
 
 def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
@@ -318,7 +318,8 @@ def one_run(system_name: str, seed: int, sizes, methods) -> list[dict]:
                 pred = p.model
                 c = idn.regressor_.config
                 info = (f"set {c.regressors}, orders {c.linear_order}/{c.bilinear_order}, ridge {c.ridge:g}, "
-                        f"{idn.n_parameters} parameters")
+                        + (f"{c.kernel_features} random features, " if c.kernel_features else "")
+                        + f"{idn.n_parameters} parameters")
             elif meth == "physics":
                 t0 = time.perf_counter()
                 xi, rdp = system.velocities(dte.r, dte.rda)
