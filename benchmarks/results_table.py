@@ -38,7 +38,7 @@ def main() -> None:
             rec = simulate(make_system(name), SimConfig(cycles=args.cycles_train + args.cycles_test, seed=seed))
             train, test = split_cycles(rec, args.cycles_train, args.cycles_test)
             cfg = IdentifyConfig() if args.regressors is None else IdentifyConfig(
-                suds=SudsConfig(regressors=args.regressors), regressor_grid=(args.regressors,))
+                suds=SudsConfig(regressors=args.regressors), regressor_grid=(args.regressors,), kernel_grid=())
             ident = SudsIdentifier(cfg).fit(train)
             sc = ident.score(test)
             gb.append(sc.gamma_body)

@@ -79,8 +79,11 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
     from suds_ros.core.ident.scoring import score_prediction
     from suds_ros.core.ident.sysid import SudsConfig
 
-    grid = IdentifyConfig().regressor_grid if args.regressors is None else (args.regressors,)
-    cfg = IdentifyConfig(suds=SudsConfig(regressors=grid[-1]), regressor_grid=grid, window=args.window)
+    if args.regressors is None:  # the shipped choice by cross-validation
+        cfg = IdentifyConfig(window=args.window)
+    else:  # a fixed Fourier set (orders and ridge still chosen), no random shape features
+        cfg = IdentifyConfig(suds=SudsConfig(regressors=args.regressors), regressor_grid=(args.regressors,),
+                             kernel_grid=(), window=args.window)
     if args.torque and rec.effort is None:
         raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
     ident = SudsIdentifier(cfg, torque=bool(args.torque)).fit(train)
@@ -94,6 +97,7 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
         "regressors": ident.regressor_.config.regressors,
         "ridge": ident.regressor_.config.ridge,
         "state": ident.regressor_.config.state,
+        "kernel_features": ident.regressor_.config.kernel_features,
         "parameters_per_output": ident.n_parameters,
         "fourier_orders": {
             "intercept": ident.regressor_.config.intercept_order,
