@@ -84,8 +84,8 @@ def main() -> None:
         "the script's docstring; the first ⌊(N−1)/2⌋ joints driven by a travelling wave plus OU",
         "perturbations, the rest springs). Γ body / passive on the held-out cycles, mean over seeds.",
         "",
-        "| N links | joints (driven) | passive ṙ RMS, rad/s | ours Γ | kernel ridge Γ | ours fit, s | kernel ridge fit, s "
-        "| ours: chosen model, parameters per output |",
+        "| N links | joints (driven) | passive ṙ RMS, rad/s | ours Γ | kernel ridge Γ | ours fit, s "
+        "| kernel ridge fit, s | ours: chosen model, parameters per output |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for n in args.links:

@@ -34,7 +34,8 @@ def main() -> None:
         for n in TRAIN:
             train = rec.slice(3000 - n * 100, 3000)
             for k in (1, 2, 3):
-                ident = SudsIdentifier(IdentifyConfig(suds=SudsConfig(regressors=k), regressor_grid=(k,), kernel_grid=())).fit(train)
+                cfg = IdentifyConfig(suds=SudsConfig(regressors=k), regressor_grid=(k,), kernel_grid=())
+                ident = SudsIdentifier(cfg).fit(train)
                 sc = ident.score(test)
                 res.setdefault((k, n), []).append((sc.gamma_body, sc.gamma_passive, ident.n_parameters))
                 print(f"seed {seed} train {n:2d} set {k}: Γb {sc.gamma_body:.3f} Γp {sc.gamma_passive:.3f} "
