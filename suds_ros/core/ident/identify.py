@@ -118,7 +118,7 @@ class IdentifyConfig:
     ridge_grid: tuple[float, ...] = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
     kernel_grid: tuple[int, ...] = (0, 300)
     kernel_max_rows: int = 1500
-    max_parameters: int = 2500
+    max_parameters: int = 1600
     cv_folds: int = 3
     regrid: bool = True
 
