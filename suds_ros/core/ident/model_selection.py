@@ -95,10 +95,15 @@ def candidates(base: SudsConfig, regressor_sets: tuple[int, ...], orders: tuple[
 
 
 def families(cands: list[SudsConfig]) -> list[list[SudsConfig]]:
-    """Candidates grouped by their random features (designs nest only within a group)."""
-    out: dict[tuple[int, float, int], list[SudsConfig]] = {}
+    """Candidates grouped by regressor set and random features.
+
+    Within a group the designs nest (only the orders differ), so the group's largest design is
+    no bigger than its largest candidate: one set's high orders never combine with another
+    set's extra groups into a design nobody asked for.
+    """
+    out: dict[tuple[int, int, float, int], list[SudsConfig]] = {}
     for c in cands:
-        out.setdefault((c.kernel_features, c.kernel_gamma, c.kernel_seed), []).append(c)
+        out.setdefault((c.regressors, c.kernel_features, c.kernel_gamma, c.kernel_seed), []).append(c)
     return list(out.values())
 
 
