@@ -70,7 +70,7 @@ except ImportError:  # environment variables alone
 
 METHODS = ("ours2", "ours1", "krr", "krr_start", "mlp", "sindy", "edmdc", "physics", "physics_iv")
 LABELS = {
-    "ours2": "ours (default: start state; set, orders, ridge by CV)",
+    "ours2": "ours (shipped: start state; set, orders, ridge, random features by CV)",
     "ours1": "ours, previous default (set 2 at midpoints)",
     "krr_start": "KernelRidge RBF on the start sample r_k",
     "krr": "KernelRidge RBF (scikit-learn)",
