@@ -15,7 +15,14 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
 from suds_ros.core.fourier import fourier_basis
-from suds_ros.core.ident.intervals import Intervals, PoseIntervals, make_intervals, pose_intervals, segment_states
+from suds_ros.core.ident.intervals import (
+    Intervals,
+    PoseIntervals,
+    interval_features,
+    make_intervals,
+    pose_intervals,
+    segment_states,
+)
 from suds_ros.core.recording import Recording
 from suds_ros.core.ident.scoring import (
     BODY_CHANNELS,
@@ -31,7 +38,6 @@ from suds_ros.core.ident.sysid import (
     SudsRegressor,
     feature_layout,
     interval_state,
-    regressor_input,
 )
 
 _BODY = list(range(len(BODY_CHANNELS)))  # the body channels lead every output vector
@@ -224,10 +230,7 @@ class SudsIdentifier:
         return self._features(rec, r, iv.rdot, phase_mid)
 
     def _features(self, rec: Recording, r: FloatArray, rdot: FloatArray, phase_mid: FloatArray) -> FloatArray:
-        theta = self.template_.predict(phase_mid)
-        dtheta = self.template_.derivative(phase_mid)
-        act = rec.actuated_index
-        return regressor_input(phase_mid, r - theta, (rdot - dtheta * self.omega_)[:, act], r, rdot[:, act])
+        return interval_features(self.template_, self.omega_, rec.actuated_index, phase_mid, r, rdot)
 
     # -------------------------------------------------------------- API
     def fit(self, rec: Recording) -> "SudsIdentifier":

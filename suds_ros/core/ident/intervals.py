@@ -18,6 +18,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
+from suds_ros.core.ident.sysid import SudsConfig, interval_state, regressor_input
 from suds_ros.core.recording import POSE_SPAN_TOL, Recording
 
 
@@ -236,3 +237,37 @@ def segment_states(rec: Recording, pv: PoseIntervals, phase: FloatArray, window:
     r0, r1 = rec.r[k], rec.r[k + window]
     ph = phase[k] + (phase[k + window] - phase[k]) * frac
     return ph, r0 + (r1 - r0) * frac[:, None], (r1 - r0) / (t1 - t0)[:, None]
+
+
+def interval_row(
+    suds: SudsConfig,
+    template: object,
+    omega: float,
+    act: FloatArray,
+    pas: FloatArray,
+    a: tuple[float, FloatArray, FloatArray, float],
+    b: tuple[float, FloatArray, FloatArray, float],
+) -> tuple[FloatArray, FloatArray]:
+    """One regression row from consecutive samples a, b = (t, r, pose, phase).
+
+    Returns X = [φ̄, δ, δ̇_a] (midpoint phase, δ at the state ``suds.state`` names) and
+    Y = [ξ, ṙ_p] over the interval.
+    """
+    ta, ra, pa, fa = a
+    tb, rb, pb, fb = b
+    dt = tb - ta
+    ph = np.array([0.5 * (fa + fb)])
+    rm = interval_state(suds, ra, rb)
+    rdot = (rb - ra) / dt
+    xi = se2.log(se2.relative(pa, pb)) / dt
+    X = interval_features(template, omega, act, ph, rm[None, :], rdot[None, :])[0]
+    Y = np.concatenate([xi, rdot[pas]])
+    return X, Y
+
+
+def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,
+                      rdot: FloatArray) -> FloatArray:
+    """Regressor rows X = [φ, δ, δ̇_a, r, ṙ_a] for phases (k,), joint values and rates (k, nj)."""
+    theta = template.predict(phase)  # type: ignore[attr-defined]
+    dtheta = template.derivative(phase)  # type: ignore[attr-defined]
+    return regressor_input(phase, r - theta, (rdot - dtheta * omega)[:, act], r, rdot[:, act])

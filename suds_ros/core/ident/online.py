@@ -42,22 +42,17 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError, SudsPhaseError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
-from suds_ros.core.ident.intervals import overlap_segments
+from suds_ros.core.ident.intervals import interval_features, interval_row, overlap_segments
 from suds_ros.core.ident.scoring import BODY_CHANNELS
+from suds_ros.core.ident.prequential import PrequentialSelector
 from suds_ros.core.ident.shape_kernel import gait_kernel_scale
-from suds_ros.core.ident.sysid import (
-    AveragedTargets,
-    SudsConfig,
-    SudsRegressor,
-    interval_state,
-    regressor_input,
-)
+from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.core.recording import Recording
 
-CHECKPOINT_VERSION = 4
+CHECKPOINT_VERSION = 5
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
 
@@ -69,7 +64,14 @@ class OnlineConfig:
     Parameters
     ----------
     suds : SudsConfig
-        Regression hyperparameters (fixed online: no order selection).
+        Regression hyperparameters of the first candidate model (current at the start).
+    alternatives : tuple of SudsConfig
+        Further candidates fitted side by side; the one published is the candidate with the
+        lowest discounted prequential loss (:mod:`~suds_ros.core.ident.prequential`).  The
+        default pair: set 2, which wins the first cycles, and set 3 with a smaller ridge, which
+        wins once some 15–20 cycles support it (``docs/results/peers.md``).
+    selection_memory : float
+        Chunks after which a chunk's prequential loss counts half in that choice.
     init_cycles : float
         Gait cycles buffered before the batch phaser initialises phase and template.
     gait_hz : float
@@ -86,6 +88,8 @@ class OnlineConfig:
     """
 
     suds: SudsConfig = field(default_factory=lambda: SudsConfig(linear_order=6, bilinear_order=3))
+    alternatives: tuple[SudsConfig, ...] = (SudsConfig(regressors=3, linear_order=6, bilinear_order=3, ridge=1e-7),)
+    selection_memory: float = 20.0
     init_cycles: float = 5.0
     gait_hz: float = 1.0
     template_order: int = 8
@@ -102,6 +106,13 @@ class OnlineConfig:
             raise SudsConfigError(f"`chunk`: expected ≥ 1, got {self.chunk!r}")
         if not self.max_pose_wait > 0:
             raise SudsConfigError(f"`max_pose_wait`: expected > 0, got {self.max_pose_wait!r}")
+        if not self.selection_memory > 0:
+            raise SudsConfigError(f"`selection_memory`: expected > 0, got {self.selection_memory!r}")
+
+    @property
+    def candidates(self) -> tuple[SudsConfig, ...]:
+        """Every candidate configuration, ``suds`` first."""
+        return (self.suds,) + tuple(self.alternatives)
 
 
 def _mean_sq(e: FloatArray) -> FloatArray:
@@ -177,7 +188,7 @@ class OnlineSudsEstimator:
         self._shape_hist: deque[tuple[float, FloatArray, float]] = deque()  # t, r, phase
         self._first_shape = float("nan")
         self._rows_avg: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # segment X, weights, ξ
-        self.regressor = SudsRegressor(len(self.joint_names), len(self.actuated), config.suds)
+        self.selector = self._selector(None)
         nb = len(BODY_CHANNELS)
         self._out_normal = NormalEquations(2 * config.template_order + 1, len(self.channels) - nb)
         self._out_normal_body = NormalEquations(2 * config.template_order + 1, nb)
@@ -190,6 +201,16 @@ class OnlineSudsEstimator:
         self.sum_err_model = np.zeros(len(self.channels))
         self.sum_err_template = np.zeros(len(self.channels))
         self.last_residual = np.full(len(self.channels), np.nan)
+
+    def _selector(self, scale: object) -> PrequentialSelector:
+        nj, na = len(self.joint_names), len(self.actuated)
+        regs = [SudsRegressor(nj, na, c, scale) for c in self.config.candidates]  # type: ignore[arg-type]
+        return PrequentialSelector(regs, self.config.selection_memory)
+
+    @property
+    def regressor(self) -> SudsRegressor:
+        """The candidate regression published now (the lowest prequential loss)."""
+        return self.selector.current
 
     # ------------------------------------------------------------------ input
     def add_pose(self, t: float, x: float, y: float, yaw: float) -> int:
@@ -305,8 +326,7 @@ class OnlineSudsEstimator:
         tmpl = FourierTemplate(FourierTemplateConfig(order=self.config.template_order)).fit(phase, R)
         self.template_ = tmpl
         self.omega_ = omega
-        self.regressor = SudsRegressor(len(self.joint_names), len(self.actuated), self.config.suds,
-                                       gait_kernel_scale(tmpl, omega, self._act))
+        self.selector = self._selector(gait_kernel_scale(tmpl, omega, self._act))
         self._tracker = PhaseTracker(tmpl, omega, float(phase[-1]), float(T[-1]))
         self.initialised = True
         self._phase0 = float(phase[0])
@@ -381,7 +401,9 @@ class OnlineSudsEstimator:
             self.sum_err_model += np.concatenate([err_m.sum(axis=0), err_mp.sum(axis=0)])
             self.sum_err_template += np.concatenate([err_t.sum(axis=0), err_tp.sum(axis=0)])
             self.last_residual = np.sqrt(np.concatenate([_mean_sq(err_m), _mean_sq(err_mp)]))
-        self.regressor.partial_fit(X, Y, avg)
+            self.selector.score_then_fit(X, Y, avg, err_t, err_tp)
+        else:
+            self.selector.score_then_fit(X, Y, avg, np.zeros(0), np.zeros(0))
         self._out_normal.add(Bt, Y)
         self._out_normal_body.add(Bb, avg.y)
         self.n_rows += X.shape[0]
@@ -502,40 +524,6 @@ class OnlineSudsEstimator:
             raise SudsDataError(
                 f"checkpoint {str(path)!r} is not a suds_ros estimator state (version {CHECKPOINT_VERSION})")
         return obj
-
-
-def interval_row(
-    suds: SudsConfig,
-    template: object,
-    omega: float,
-    act: FloatArray,
-    pas: FloatArray,
-    a: tuple[float, FloatArray, FloatArray, float],
-    b: tuple[float, FloatArray, FloatArray, float],
-) -> tuple[FloatArray, FloatArray]:
-    """One regression row from consecutive samples a, b = (t, r, pose, phase).
-
-    Returns X = [φ̄, δ, δ̇_a] (midpoint phase, δ at the state ``suds.state`` names) and
-    Y = [ξ, ṙ_p] over the interval.
-    """
-    ta, ra, pa, fa = a
-    tb, rb, pb, fb = b
-    dt = tb - ta
-    ph = np.array([0.5 * (fa + fb)])
-    rm = interval_state(suds, ra, rb)
-    rdot = (rb - ra) / dt
-    xi = se2.log(se2.relative(pa, pb)) / dt
-    X = interval_features(template, omega, act, ph, rm[None, :], rdot[None, :])[0]
-    Y = np.concatenate([xi, rdot[pas]])
-    return X, Y
-
-
-def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,
-                      rdot: FloatArray) -> FloatArray:
-    """Regressor rows X = [φ, δ, δ̇_a, r, ṙ_a] for phases (k,), joint values and rates (k, nj)."""
-    theta = template.predict(phase)  # type: ignore[attr-defined]
-    dtheta = template.derivative(phase)  # type: ignore[attr-defined]
-    return regressor_input(phase, r - theta, (rdot - dtheta * omega)[:, act], r, rdot[:, act])
 
 
 def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> OnlineSudsEstimator:

@@ -1,0 +1,72 @@
+"""Choosing among fixed model candidates online, by their prequential error.
+
+The batch identifier picks its model by cross-validation; a live estimator cannot (it keeps
+sufficient statistics, not rows).  Instead it fits several candidate configurations side by
+side — each an exact incremental least-squares fit of its own — and scores every chunk with
+each candidate *before* the candidate learns from it (prequential evaluation, Dawid 1984).  The
+candidate with the lowest recent prequential loss is the one published.  Which candidate is
+current is learned from the data; no candidate's hyperparameters ever change.
+
+Loss of a chunk: per output group (body velocity, passive rates), Σ|prediction error| over
+Σ|phase-only template error| (the Γ ratio), averaged over the groups.  Losses are discounted
+by ``memory`` chunks (weight ½ after that many), so a larger model takes over once the data
+support it — small models win the first cycles, the richer ones later.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.ident.sysid import AveragedTargets, SudsRegressor
+
+
+class PrequentialSelector:
+    """Candidate regressors fitted on one stream; the current one has the lowest discounted loss.
+
+    Parameters
+    ----------
+    candidates : list of SudsRegressor
+        Unfitted regressors (same joints, any configurations); the first is current at the start.
+    memory : float
+        Chunks after which a chunk's loss counts half.
+
+    Attributes
+    ----------
+    loss_ : (k,) discounted prequential loss of each candidate (summed ratios).
+    weight_ : float, the discounted number of chunks scored.
+    current_ : int, index of the candidate with the lowest loss.
+    """
+
+    def __init__(self, candidates: list[SudsRegressor], memory: float = 20.0) -> None:
+        self.candidates = candidates
+        self.memory = memory
+        self.loss_ = np.zeros(len(candidates))
+        self.weight_ = 0.0
+        self.current_ = 0
+
+    @property
+    def current(self) -> SudsRegressor:
+        """The candidate published now."""
+        return self.candidates[self.current_]
+
+    def score_then_fit(self, X: FloatArray, Y: FloatArray, avg: AveragedTargets,
+                       ref_body: FloatArray, ref_rest: FloatArray) -> None:
+        """Score the chunk with every fitted candidate, then add it to all of them.
+
+        ``ref_body`` (q, nb) and ``ref_rest`` (m, c) are the template's absolute errors on the
+        chunk's averaged (body) and row outputs, the loss's denominators.
+        """
+        nb = len(avg.columns)
+        fitted = [hasattr(c, "coef_") for c in self.candidates]
+        if all(fitted) and ref_body.sum() > 0 and ref_rest.sum() > 0:
+            decay = 0.5 ** (1.0 / self.memory)
+            for i, c in enumerate(self.candidates):
+                pred_body = np.asarray(avg.weights @ c.predict(avg.X)[:, :nb])  # type: ignore[operator]
+                e_body = np.abs(pred_body - avg.y).sum()
+                e_rest = np.abs(c.predict(X)[:, nb:] - Y).sum()
+                self.loss_[i] = decay * self.loss_[i] + 0.5 * (e_body / ref_body.sum() + e_rest / ref_rest.sum())
+            self.weight_ = decay * self.weight_ + 1.0
+            self.current_ = int(np.argmin(self.loss_))
+        for c in self.candidates:
+            c.partial_fit(X, Y, avg)
