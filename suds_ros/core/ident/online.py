@@ -71,7 +71,8 @@ class OnlineConfig:
         default pair: set 2, which wins the first cycles, and set 3 with a smaller ridge, which
         wins once some 15–20 cycles support it (``docs/results/peers.md``).
     selection_memory : float
-        Chunks after which a chunk's prequential loss counts half in that choice.
+        Chunks after which a chunk's prequential loss counts half in that choice (5: a candidate
+        that starts badly can take over within a few cycles once it fits better).
     init_cycles : float
         Gait cycles buffered before the batch phaser initialises phase and template.
     gait_hz : float
@@ -89,7 +90,7 @@ class OnlineConfig:
 
     suds: SudsConfig = field(default_factory=lambda: SudsConfig(linear_order=6, bilinear_order=3))
     alternatives: tuple[SudsConfig, ...] = (SudsConfig(regressors=3, linear_order=6, bilinear_order=3, ridge=1e-7),)
-    selection_memory: float = 20.0
+    selection_memory: float = 5.0
     init_cycles: float = 5.0
     gait_hz: float = 1.0
     template_order: int = 8
