@@ -41,7 +41,8 @@ class DiagnoseConfig:
         effect's gain.
     model_suspects : bool
         Also suspect the robot model's own parameters (``link_length_error``, ``link_drag_error``,
-        ``pose_frame_offset``; ``docs/effects.md``) alongside the catalogue effects.
+        ``pose_frame_offset``; ``docs/effects.md``) alongside the catalogue effects (default: every
+        parameter of the robot model is a suspect; False restricts the search to the catalogue).
     confound_margin : float
         Held-out log-likelihood margin (nats) within which candidates are called confounded;
         the margin grows as ``confound_rel`` × the winner's gain.
@@ -77,7 +78,7 @@ class DiagnoseConfig:
     step_candidates: int = 5
     max_effects: int = 3
     evidence_threshold: float = 29.0
-    model_suspects: bool = False
+    model_suspects: bool = True
     confound_margin: float = 3.0
     confound_rel: float = 0.01
     unexplained_fraction: float = 0.25
