@@ -166,7 +166,7 @@ def diagnose(
     clock = _Clock()
     data = prepare(rec, model)
     say("replaying the nominal simulator")
-    nom = _replay_nominal(data, model, config, reference)
+    nom = replay_nominal(data, model, config, reference)
     clock.mark("replay")
     say("locating")
     located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
@@ -187,7 +187,21 @@ def diagnose(
     return _show(nom, naming, fit, coeffs, clock)
 
 
-def _replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
+def rank_effects(
+    rec: Recording, model: ChainModel, config: DiagnoseConfig = DiagnoseConfig()
+) -> tuple[Naming, tuple[Located, ...]]:
+    """The locate and naming stages alone (no refinement in the simulator), for calibrations.
+
+    Returns the stepwise selection (:func:`~suds_ros.core.diagnosis.selection.name_mismatch`, run
+    whether or not a channel is located) and the located channels of the nominal replay.
+    """
+    data = prepare(rec, model)
+    nom = replay_nominal(data, model, config, None)
+    located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
+    return name_mismatch(data, model, config, nom.floors[0]), tuple(located)
+
+
+def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
     """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F."""
     w = max(1, int(round(config.window / data.dt)))
     substeps = config.substeps or min(auto_substeps(RFTChain(model), data.dt, accuracy=0.4), 8)
