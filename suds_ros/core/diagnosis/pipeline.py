@@ -71,6 +71,7 @@ Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording),
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -201,6 +202,24 @@ def rank_effects(
     return name_mismatch(data, model, config, nom.floors[0]), tuple(located)
 
 
+def discover_formulas(
+    rec: Recording, model: ChainModel, effects: tuple[FittedEffect, ...] = (),
+    config: DiagnoseConfig = DiagnoseConfig(),
+) -> tuple[Discovered, ...]:
+    """Discovery (:mod:`.discovery`) on the residual left by ``effects``, re-simulated.
+
+    The stage :func:`diagnose` runs when the mismatch stays unexplained, callable on its own (e.g.
+    to ask what formula a residual needs beyond a catalogue fit the report accepted).  Each formula
+    carries the held-out improvement of the replay with every formula found added to the simulator
+    (over the channels located against the nominal replay; 0 when none is located).
+    """
+    data = prepare(rec, model)
+    nom = replay_nominal(data, model, config, None)
+    located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
+    notes: list[str] = []
+    return _discover(nom, list(effects), nom.F0, nom.floor, [loc.channel for loc in located], notes)
+
+
 def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
     """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F."""
     w = max(1, int(round(config.window / data.dt)))
@@ -293,7 +312,7 @@ def _show(
     if unexplained and not effects:
         rms1 = dict(nom.rms0)
         improvement = 0.0
-    discovered = _discover(nom, naming, fit, notes) if unexplained else ()
+    discovered = _discover(nom, effects, F0, floor, affected, notes) if unexplained else ()
     clock.mark("total")
     return _report(
         nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),
@@ -304,14 +323,36 @@ def _show(
     )
 
 
-def _discover(nom: _Nominal, naming: Naming, fit: _Fit, notes: list[str]) -> tuple[Discovered, ...]:
-    """Discovery on the torque residual left by the named effects (nominal if none); notes the formulas."""
-    cand = Candidate(tuple((e.name, e.target) for e in fit.effects))
-    x = np.array([v for e in fit.effects for v in e.parameters.values()])
+def _discover(
+    nom: _Nominal, effects: list[FittedEffect], F0: dict[str, float], floor: dict[str, float],
+    affected: list[str], notes: list[str],
+) -> tuple[Discovered, ...]:
+    """Discovery on the torque residual left by the reported effects (nominal if none).
+
+    The formulas found are re-simulated together (:mod:`.resimulate`, on top of the reported
+    effects) and each gets the held-out improvement of that replay, measured as for the catalogue
+    effects (:func:`~suds_ros.core.diagnosis.locate.excess_improvement` over the located channels).
+    """
+    cand = Candidate(tuple((e.name, e.target) for e in effects))
+    x = np.array([v for e in effects for v in e.parameters.values()])
     found = discover(nom.data, nom.model, nom.config, nom.floors[0], cand, x)
+    if found:
+        model, delay = apply_effects(nom.model, cand.effects(x))
+        torques = {d.joint: d.terms for d in found if d.joint is not None}
+        try:
+            rep = replay_recording(nom.data, model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm,
+                                   torques=torques)
+            F2 = nom.table.fstats(nom.table.residuals(rep.rp, rep.xi), floor)
+            imp = float(excess_improvement(F0, F2, affected))
+        except (SudsConfigError, FloatingPointError, np.linalg.LinAlgError) as err:
+            notes.append(f"discovered formulas not re-simulated: {err}")
+            imp = None
+        found = tuple(dataclasses.replace(d, resimulated_improvement=imp) for d in found)
     for d in found:
+        resim = ("" if d.resimulated_improvement is None
+                 else f"; re-simulated held-out improvement {d.resimulated_improvement:.3f}")
         notes.append(f"discovered {formula(d)} ({', '.join(d.physics) or 'no recognised physics'}; "
-                     f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %)")
+                     f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %{resim})")
     return found
 
 

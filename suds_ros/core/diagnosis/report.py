@@ -158,7 +158,10 @@ class Discovered:
 
     ``terms``: library term → coefficient (N·m per unit of the term); ``stderr`` likewise;
     ``physics``: words for the recognisable terms; ``heldout_reduction``: fraction of the joint's
-    held-out equation-error residual power the formula removes.
+    held-out equation-error residual power the formula removes; ``resimulated_improvement``: the
+    held-out improvement (fraction of the located mismatch removed, the measure of the catalogue
+    fits) of the replay with every discovered formula added to the simulator (None: not
+    re-simulated).
     """
 
     joint: str | None
@@ -166,6 +169,7 @@ class Discovered:
     stderr: Mapping[str, float]
     physics: tuple[str, ...]
     heldout_reduction: float
+    resimulated_improvement: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -174,6 +178,8 @@ class Discovered:
             "stderr": {k: float(v) for k, v in self.stderr.items()},
             "physics": list(self.physics),
             "heldout_reduction": float(self.heldout_reduction),
+            "resimulated_improvement": (None if self.resimulated_improvement is None
+                                        else float(self.resimulated_improvement)),
         }
 
 
