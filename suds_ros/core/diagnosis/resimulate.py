@@ -98,7 +98,9 @@ class DiscoveredTorqueChain:
                 dtau[:, jp] += coef * der
         return tau, dtau
 
-    def velocities(self, r: FloatArray, rdot_a: FloatArray, yaw: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+    def velocities(
+        self, r: FloatArray, rdot_a: FloatArray, yaw: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Body velocity ξ (B, 3) of the pose frame and passive velocities ṙ_p (B, np)."""
         r = np.atleast_2d(np.asarray(r, dtype=float))
         rdot_a = np.atleast_2d(np.asarray(rdot_a, dtype=float))

@@ -79,7 +79,8 @@ def test_the_report_carries_the_discovery_when_unexplained(quadratic_run) -> Non
     if d["unexplained"]:
         (found,) = d["discovered"]  # type: ignore[misc]
         assert found["joint"] == "joint_2" and "|rdot|rdot" in found["terms"]
-        assert set(found) == {"joint", "terms", "stderr", "physics", "heldout_reduction", "resimulated_improvement"}
+        assert set(found) == {"joint", "terms", "stderr", "physics", "heldout_reduction",
+                              "resimulated_improvement"}
         # re-simulated with the formula, the held-out mismatch (same measure as the catalogue
         # fits) drops by at least half
         assert found["resimulated_improvement"] >= 0.5, found
@@ -100,7 +101,9 @@ def test_the_discovered_torque_chain_matches_the_true_physics(quadratic_run) -> 
     np.testing.assert_allclose(xi_m, xi_t, atol=1e-9)
 
 
-def test_the_discovered_formula_re_simulated_removes_most_of_the_mismatch(quadratic_run) -> None:  # type: ignore[no-untyped-def]
+def test_the_discovered_formula_re_simulated_removes_most_of_the_mismatch(  # type: ignore[no-untyped-def]
+    quadratic_run,
+) -> None:
     """Issue 10: quadratic drag −c·|ṙ|ṙ discovered as a |ṙ|ṙ term on joint_2 and, added to the
     simulator, the held-out mismatch (the catalogue fits' measure) drops by at least half."""
     from suds_ros.core.diagnosis import discover_formulas
