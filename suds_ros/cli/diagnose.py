@@ -21,7 +21,7 @@ reported number is on the held-out second half.
 
   1. locate: channels (passive angles, ξx, ξy, ξθ) whose residual power exceeds the
      noise floor estimated from the data (F statistic), phase intervals, conditions
-  2. name:   catalogue effects and pairs ranked by held-out evidence (equation error)
+  2. name:   catalogue effects and robot-model parameters, stepwise on held-out evidence (≤ 3 at once)
   3. fit:    the chosen effect(s) refined inside the simulator, with standard errors
   4. show:   held-out RMS before/after per channel, improvement, figures in -o DIR
 
