@@ -41,11 +41,14 @@ number in the report is computed on the held-out half.
    effect on each passive joint, and the global ones — is a parametric modification of these
    residuals evaluated with the physics (Coulomb's set-valued stick/slip as a dead zone; the drag
    ratio by re-evaluating the metric; the time offset by re-sampling the pose stream; the flow by
-   R(−yaw)U).  Each candidate and each pair of the leading candidates is fitted on the training
-   half (weighted least squares, weights re-estimated once) and scored on the held-out half by the
-   Gaussian profile log-likelihood gain Σ_c (n_eff/2)·log(RSS0_c/RSS_c) over channels, minus a BIC
-   penalty (p/2)·log n_eff.  Candidates within ``confound_margin`` of the winner are reported as
-   confounded; a pair is preferred to the best single only if it adds a clear gain.
+   R(−yaw)U).  Candidates are the catalogue effects and, by default, the robot model's own
+   parameters (``model_suspects``).  Sets of up to ``max_effects`` of them are chosen by stepwise
+   selection (:mod:`.selection`): each is fitted on the training half (weighted least squares,
+   weights re-estimated once) and scored on the held-out half by the Gaussian profile
+   log-likelihood gain Σ_c (n_eff/2)·log(RSS0_c/RSS_c) over channels, minus a BIC penalty
+   (p/2)·log n_eff; an effect joins (and stays) only if it adds more than ``evidence_threshold``
+   nats on its own.  Candidates within ``confound_margin`` of a step's winner are reported as
+   confounded.
 
 4. Fit and show (output error).  The chosen effect(s) are refined inside the simulator:
    least squares of the noise-floor-weighted replay residuals over short training segments
@@ -65,8 +68,14 @@ number in the report is computed on the held-out half.
    improves the held-out residual by less than half, no effect is reported (the attempt is in
    ``notes``).
 
+5. Discover.  When the mismatch stays unexplained, a sparse regression of the torque residual
+   over a library of physical terms proposes a formula per passive joint (:mod:`.discovery`); the
+   formulas are added to the simulator (:mod:`.resimulate`) and the held-out improvement of that
+   replay is reported with them, measured as for the catalogue fits.  ``unexplained`` is kept.
+
 Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording), :mod:`.replay`,
-:mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.refine`; this module runs the stages.
+:mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.selection`, :mod:`.refine`,
+:mod:`.discovery`, :mod:`.resimulate`; this module runs the stages.
 """
 
 from __future__ import annotations
