@@ -152,11 +152,13 @@ def search(system: str, name: str, seeds: int, cycles: int, cfg: DiagnoseConfig,
     return [tried[k] for k in sorted(tried)]
 
 
-def limit(rungs: list[Rung]) -> str:
+def limit(rungs: list[Rung], ladder: list[float] | None = None) -> str:
+    """The smallest passing rung; "≤ x" when it is the ladder's lowest, "> x" when none passes."""
     ok = [r.magnitude for r in rungs if r.passed]
     if not ok:
         return f"> {max(r.magnitude for r in rungs):g}"
-    return f"{min(ok):g}"
+    low = min(ladder) if ladder else None
+    return f"≤ {min(ok):g}" if low is not None and min(ok) <= low else f"{min(ok):g}"
 
 
 def reference(rungs: list[Rung], threshold: float) -> str:
@@ -195,7 +197,7 @@ def table(results: list[tuple[str, str, list[Rung]]], threshold: float) -> list[
         tried = "; ".join(f"{r.magnitude:g}: {r.named}/{r.runs}{' stopped' if r.stopped else ''} "
                           f"({r.evidence:.0f})" for r in rungs)
         lines.append(f"| {system} | `{name}`{' ' + tgt if tgt else ''} | {UNITS[name]} | {tried} "
-                     f"| **{limit(rungs)}** | {reference(rungs, threshold)} |")
+                     f"| **{limit(rungs, LADDERS[name][1])}** | {reference(rungs, threshold)} |")
     return lines
 
 

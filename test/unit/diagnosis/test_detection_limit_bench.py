@@ -33,5 +33,5 @@ def test_a_large_offset_passes_and_the_reference_is_interpolated() -> None:
     assert (system, name) == ("purcell3", "spring_rest_offset")
     (r,) = rungs
     assert r.passed and r.named == 2 and r.evidence > 60.0
-    assert mod.limit(rungs) == "0.1"
+    assert mod.limit(rungs) == "0.1" and mod.limit(rungs, [0.1, 0.3]) == "≤ 0.1"
     assert mod.reference([mod.Rung(0.01, 0, 2, 10.0), mod.Rung(0.1, 2, 2, 1000.0)], 100.0) == "0.0316"
