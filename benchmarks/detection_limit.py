@@ -69,8 +69,8 @@ LADDERS: dict[str, tuple[dict[str, str | None], list[float], Any]] = {
                            lambda m: {"dt": m}),
 }
 UNITS = {"joint_coulomb_friction": "N·m", "joint_viscous_damping": "N·m·s/rad", "spring_rest_offset": "rad",
-         "spring_nonlinearity": "N·m/rad³", "stiffness_to_drag_error": "|1 − scale|",
-         "drag_anisotropy_error": "ratio − 2", "background_flow": "|U| m/s", "sensor_time_offset": "s"}
+         "spring_nonlinearity": "N·m/rad³", "stiffness_to_drag_error": "abs(1 − scale)",
+         "drag_anisotropy_error": "ratio − 2", "background_flow": "speed m/s", "sensor_time_offset": "s"}
 
 
 @dataclasses.dataclass
