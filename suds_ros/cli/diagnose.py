@@ -21,7 +21,7 @@ reported number is on the held-out second half.
 
   1. locate: channels (passive angles, ξx, ξy, ξθ) whose residual power exceeds the
      noise floor estimated from the data (F statistic), phase intervals, conditions
-  2. name:   catalogue effects and pairs ranked by held-out evidence (equation error)
+  2. name:   catalogue effects and robot-model parameters, stepwise on held-out evidence (≤ 3 at once)
   3. fit:    the chosen effect(s) refined inside the simulator, with standard errors
   4. show:   held-out RMS before/after per channel, improvement, figures in -o DIR
 
@@ -48,6 +48,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--sim", metavar="SIM.mcap",
                    help="reference recording driven by the same actuated trajectory")
     p.add_argument("--json", action="store_true", help="print the machine-readable report only")
+    p.add_argument("--catalogue-only", action="store_true",
+                   help="suspect only the catalogue effects, not the robot model's own parameters "
+                        "(link lengths, link drag, pose frame; all suspected by default)")
     p.add_argument("-o", "--output", metavar="REPORT_DIR",
                    help="write figures, report.json and summary.txt here")
     add_recording_options(p)
@@ -56,7 +59,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds diagnose``; returns the exit code."""
-    from suds_ros.core.diagnosis import diagnose_recording
+    from suds_ros.core.diagnosis import DiagnoseConfig, diagnose_recording
     from suds_ros.report.diagnosis import summary_text, write_figures
 
     if args.output:
@@ -68,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     quiet = args.json or not sys.stderr.isatty()
     progress = None if quiet else (lambda s: print(f"  … {s}", file=sys.stderr, flush=True))
     system = None if model is not None else args.system
-    rep = diagnose_recording(rec, system=system, reference=ref, progress=progress, model=model)
+    config = DiagnoseConfig(model_suspects=not args.catalogue_only)
+    rep = diagnose_recording(rec, system=system, config=config, reference=ref, progress=progress, model=model)
     paths = write_figures(rep, args.output) if args.output else []
     if args.json:
         print(rep.to_json())

@@ -7,7 +7,7 @@ The stages live in their own modules (:mod:`.data`, :mod:`.replay`, :mod:`.floor
 
 from suds_ros.core.diagnosis.locate import excess_improvement
 from suds_ros.core.diagnosis.naming import catalogue_candidates
-from suds_ros.core.diagnosis.pipeline import diagnose, diagnose_recording
+from suds_ros.core.diagnosis.pipeline import diagnose, diagnose_recording, discover_formulas, rank_effects
 from suds_ros.core.diagnosis.report import (
     CandidateScore,
     Channels,
@@ -27,5 +27,7 @@ __all__ = [
     "catalogue_candidates",
     "diagnose",
     "diagnose_recording",
+    "discover_formulas",
     "excess_improvement",
+    "rank_effects",
 ]

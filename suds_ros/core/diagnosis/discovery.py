@@ -14,9 +14,10 @@ non-overlapping blocks of ``config.eq_window`` intervals first (the same evidenc
 Coefficients and their standard errors come from ordinary least squares on the training half
 (units: N·m per unit of the term).  The terms are built from the samples next to each interval,
 not from its own two, so their noise is independent of the residual's (:func:`_library`).
-Recognisable terms get physics words.  The formula is a candidate, not re-simulated: the report
-keeps ``unexplained`` and gives the held-out fraction of the joint's residual power the formula
-removes.
+Recognisable terms get physics words.  Each formula carries the held-out fraction of the joint's
+residual power it removes; the pipeline then re-simulates the formulas inside the simulator
+(:mod:`.resimulate`) and reports the held-out improvement of that replay.  The report keeps
+``unexplained`` (the physics is outside the catalogue and the model).
 """
 
 from __future__ import annotations

@@ -6,6 +6,7 @@ among them is :mod:`.selection`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,7 @@ class _EqError:
         self.resampled = data.resampled
         self.yaw_mid = 0.5 * (data.pose[lo:hi - 1, 2] + data.pose[lo + 1:hi, 2])
         self._metric_cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = {}
+        self._link_cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = {}
         self._xi_rec_cache: dict[float, FloatArray] = {}
         self.nint = self.rbar.shape[0]
         self.nwin = self.nint - w + 1
@@ -61,18 +63,30 @@ class _EqError:
         """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ of the pose frame (nwin, 3).
 
         The geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) are applied.
+        The drag metric does not depend on the pose frame, so the metric's products are cached
+        without it and a pose-frame change costs only the frame change and the composition.
         """
         key = p.geometry_key()
         hit = self._metric_cache.get(key)
         if hit is not None:
             return hit
+        p0 = dataclasses.replace(p, pose=(0.0, 0.0, 0.0))
+        key0 = p0.geometry_key()
+        base = self._link_cache.get(key0)
+        if base is None:
+            chain = RFTChain(p0.chain_model(self.model))
+            D = chain.drag_metric(self.rbar)  # (m, 3+nj, 3+nj)
+            rdot = self.rdot
+            rhs = -np.einsum("bij,bj->bi", D[:, :3, 3:], rdot)
+            xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
+            qdot = np.concatenate([xi, rdot], axis=1)
+            tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
+            base = (tau, xi)
+            if len(self._link_cache) > 64:
+                self._link_cache.clear()
+            self._link_cache[key0] = base
+        tau, xi = base
         chain = RFTChain(p.chain_model(self.model))
-        D = chain.drag_metric(self.rbar)  # (m, 3+nj, 3+nj)
-        rdot = self.rdot
-        rhs = -np.einsum("bij,bj->bi", D[:, :3, 3:], rdot)
-        xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
-        qdot = np.concatenate([xi, rdot], axis=1)
-        tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
         xi_w = self._compose(chain.to_pose_frame(xi))  # the recorded ξ is the pose frame's
         if len(self._metric_cache) > 64:
             self._metric_cache.clear()
@@ -221,6 +235,7 @@ class Scorer:
     """Fits candidates by equation error on the training half and scores them on the held-out half."""
 
     DELAY_MAX = 0.2
+    QUICK_NFEV = 8  # least-squares evaluations of a screening fit
 
     def __init__(self, data: Data, model: ChainModel, w: int, sig_r: FloatArray) -> None:
         self.data = data
@@ -270,12 +285,15 @@ class Scorer:
         return np.concatenate([a, b])
 
     def fit(
-        self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None
+        self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None,
+        quick: bool = False,
     ) -> tuple[FloatArray, float, float]:
         """Fit on the training half; returns (parameters, training gain, held-out gain).
 
         ``fixed`` holds the values of the candidate's first parameters, kept fixed (the forward
         selection's screening step fits only the added effect); ``x0`` starts the free ones.
+        ``quick`` (a screen; needs ``x0``): one short least-squares run from ``x0`` alone, no
+        multi-start and no weight re-estimation.
         """
         xf = np.zeros(0) if fixed is None else np.asarray(fixed, dtype=float)
         nf = xf.size
@@ -284,10 +302,12 @@ class Scorer:
         scales = cand.scales()[nf:]
         base = cand.neutral()[nf:]
         starts = [] if x0 is None else [np.asarray(x0, dtype=float)]
-        starts.append(base + 0.0)
-        # a few starts per parameter on both sides (nonconvex: Coulomb dead zone, drag ratio)
-        for k, sgn in ((1.0, 1), (1.0, -1), (3.0, 1), (3.0, -1)):
-            starts.append(base + sgn * k * scales)
+        quick = quick and x0 is not None
+        if not quick:
+            starts.append(base + 0.0)
+            # a few starts per parameter on both sides (nonconvex: Coulomb dead zone, drag ratio)
+            for k, sgn in ((1.0, 1), (1.0, -1), (3.0, 1), (3.0, -1)):
+                starts.append(base + sgn * k * scales)
         weights = 1.0 / np.sqrt(self.rss0_train)
         ok = self.ok_train
 
@@ -311,13 +331,14 @@ class Scorer:
             return full(base), -np.inf, -np.inf
         sols = []
         # refine from the best start and from the given one
-        for s in [best_x] + ([starts[0]] if x0 is not None else []):
+        for s in [best_x] + ([starts[0]] if x0 is not None and not quick else []):
             x = np.clip(s, lo + 1e-9, hi - 1e-9)
             wts = weights
-            for _ in range(2):  # re-estimate channel weights once
+            for _ in range(1 if quick else 2):  # re-estimate channel weights once
                 try:
                     sol = scipy.optimize.least_squares(
-                        fun, x, args=(wts,), bounds=(lo, hi), x_scale=scales, diff_step=1e-3, max_nfev=60
+                        fun, x, args=(wts,), bounds=(lo, hi), x_scale=scales, diff_step=1e-3,
+                        max_nfev=self.QUICK_NFEV if quick else 60,
                     )
                 except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, ValueError):
                     break

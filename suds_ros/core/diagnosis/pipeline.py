@@ -41,11 +41,14 @@ number in the report is computed on the held-out half.
    effect on each passive joint, and the global ones — is a parametric modification of these
    residuals evaluated with the physics (Coulomb's set-valued stick/slip as a dead zone; the drag
    ratio by re-evaluating the metric; the time offset by re-sampling the pose stream; the flow by
-   R(−yaw)U).  Each candidate and each pair of the leading candidates is fitted on the training
-   half (weighted least squares, weights re-estimated once) and scored on the held-out half by the
-   Gaussian profile log-likelihood gain Σ_c (n_eff/2)·log(RSS0_c/RSS_c) over channels, minus a BIC
-   penalty (p/2)·log n_eff.  Candidates within ``confound_margin`` of the winner are reported as
-   confounded; a pair is preferred to the best single only if it adds a clear gain.
+   R(−yaw)U).  Candidates are the catalogue effects and, by default, the robot model's own
+   parameters (``model_suspects``).  Sets of up to ``max_effects`` of them are chosen by stepwise
+   selection (:mod:`.selection`): each is fitted on the training half (weighted least squares,
+   weights re-estimated once) and scored on the held-out half by the Gaussian profile
+   log-likelihood gain Σ_c (n_eff/2)·log(RSS0_c/RSS_c) over channels, minus a BIC penalty
+   (p/2)·log n_eff; an effect joins (and stays) only if it adds more than ``evidence_threshold``
+   nats on its own.  Candidates within ``confound_margin`` of a step's winner are reported as
+   confounded.
 
 4. Fit and show (output error).  The chosen effect(s) are refined inside the simulator:
    least squares of the noise-floor-weighted replay residuals over short training segments
@@ -65,12 +68,19 @@ number in the report is computed on the held-out half.
    improves the held-out residual by less than half, no effect is reported (the attempt is in
    ``notes``).
 
+5. Discover.  When the mismatch stays unexplained, a sparse regression of the torque residual
+   over a library of physical terms proposes a formula per passive joint (:mod:`.discovery`); the
+   formulas are added to the simulator (:mod:`.resimulate`) and the held-out improvement of that
+   replay is reported with them, measured as for the catalogue fits.  ``unexplained`` is kept.
+
 Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording), :mod:`.replay`,
-:mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.refine`; this module runs the stages.
+:mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.selection`, :mod:`.refine`,
+:mod:`.discovery`, :mod:`.resimulate`; this module runs the stages.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -166,7 +176,7 @@ def diagnose(
     clock = _Clock()
     data = prepare(rec, model)
     say("replaying the nominal simulator")
-    nom = _replay_nominal(data, model, config, reference)
+    nom = replay_nominal(data, model, config, reference)
     clock.mark("replay")
     say("locating")
     located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
@@ -187,7 +197,39 @@ def diagnose(
     return _show(nom, naming, fit, coeffs, clock)
 
 
-def _replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
+def rank_effects(
+    rec: Recording, model: ChainModel, config: DiagnoseConfig = DiagnoseConfig()
+) -> tuple[Naming, tuple[Located, ...]]:
+    """The locate and naming stages alone (no refinement in the simulator), for calibrations.
+
+    Returns the stepwise selection (:func:`~suds_ros.core.diagnosis.selection.name_mismatch`, run
+    whether or not a channel is located) and the located channels of the nominal replay.
+    """
+    data = prepare(rec, model)
+    nom = replay_nominal(data, model, config, None)
+    located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
+    return name_mismatch(data, model, config, nom.floors[0]), tuple(located)
+
+
+def discover_formulas(
+    rec: Recording, model: ChainModel, effects: tuple[FittedEffect, ...] = (),
+    config: DiagnoseConfig = DiagnoseConfig(),
+) -> tuple[Discovered, ...]:
+    """Discovery (:mod:`.discovery`) on the residual left by ``effects``, re-simulated.
+
+    The stage :func:`diagnose` runs when the mismatch stays unexplained, callable on its own (e.g.
+    to ask what formula a residual needs beyond a catalogue fit the report accepted).  Each formula
+    carries the held-out improvement of the replay with every formula found added to the simulator
+    (over the channels located against the nominal replay; 0 when none is located).
+    """
+    data = prepare(rec, model)
+    nom = replay_nominal(data, model, config, None)
+    located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
+    notes: list[str] = []
+    return _discover(nom, list(effects), nom.F0, nom.floor, [loc.channel for loc in located], notes)
+
+
+def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
     """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F."""
     w = max(1, int(round(config.window / data.dt)))
     substeps = config.substeps or min(auto_substeps(RFTChain(model), data.dt, accuracy=0.4), 8)
@@ -279,7 +321,7 @@ def _show(
     if unexplained and not effects:
         rms1 = dict(nom.rms0)
         improvement = 0.0
-    discovered = _discover(nom, naming, fit, notes) if unexplained else ()
+    discovered = _discover(nom, effects, F0, floor, affected, notes) if unexplained else ()
     clock.mark("total")
     return _report(
         nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),
@@ -290,14 +332,36 @@ def _show(
     )
 
 
-def _discover(nom: _Nominal, naming: Naming, fit: _Fit, notes: list[str]) -> tuple[Discovered, ...]:
-    """Discovery on the torque residual left by the named effects (nominal if none); notes the formulas."""
-    cand = Candidate(tuple((e.name, e.target) for e in fit.effects))
-    x = np.array([v for e in fit.effects for v in e.parameters.values()])
+def _discover(
+    nom: _Nominal, effects: list[FittedEffect], F0: dict[str, float], floor: dict[str, float],
+    affected: list[str], notes: list[str],
+) -> tuple[Discovered, ...]:
+    """Discovery on the torque residual left by the reported effects (nominal if none).
+
+    The formulas found are re-simulated together (:mod:`.resimulate`, on top of the reported
+    effects) and each gets the held-out improvement of that replay, measured as for the catalogue
+    effects (:func:`~suds_ros.core.diagnosis.locate.excess_improvement` over the located channels).
+    """
+    cand = Candidate(tuple((e.name, e.target) for e in effects))
+    x = np.array([v for e in effects for v in e.parameters.values()])
     found = discover(nom.data, nom.model, nom.config, nom.floors[0], cand, x)
+    if found:
+        model, delay = apply_effects(nom.model, cand.effects(x))
+        torques = {d.joint: d.terms for d in found if d.joint is not None}
+        try:
+            rep = replay_recording(nom.data, model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm,
+                                   torques=torques)
+            F2 = nom.table.fstats(nom.table.residuals(rep.rp, rep.xi), floor)
+            imp = float(excess_improvement(F0, F2, affected))
+        except (SudsConfigError, FloatingPointError, np.linalg.LinAlgError) as err:
+            notes.append(f"discovered formulas not re-simulated: {err}")
+            imp = None
+        found = tuple(dataclasses.replace(d, resimulated_improvement=imp) for d in found)
     for d in found:
+        resim = ("" if d.resimulated_improvement is None
+                 else f"; re-simulated held-out improvement {d.resimulated_improvement:.3f}")
         notes.append(f"discovered {formula(d)} ({', '.join(d.physics) or 'no recognised physics'}; "
-                     f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %)")
+                     f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %{resim})")
     return found
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,6 +12,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.diagnosis.data import Data, prepare
 from suds_ros.core.diagnosis.floor import FloorArrays, floor_arrays
+from suds_ros.core.diagnosis.resimulate import DiscoveredTorqueChain
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.recording import Recording
@@ -75,15 +76,19 @@ def replay(
     length: int,
     w: int,
     substeps: int,
+    torques: Mapping[str, Mapping[str, float]] | None = None,
 ) -> Replay:
     """Replay equal-length segments [s, s + length) of the recording through ``model``.
 
     Each segment starts from the recorded passive angles and pose at its first sample and is
     driven by the recorded actuated angles (:func:`~suds_ros.core.physics.integrate.integrate_batch`,
     all segments in one batch); ``delay`` (s) is the pose-stamp delay of ``sensor_time_offset``.
+    ``torques``: discovered torques added to passive joints
+    (:class:`~suds_ros.core.diagnosis.resimulate.DiscoveredTorqueChain`).
     """
     idx = np.asarray(starts)[:, None] + np.arange(length)[None, :]
-    chain = RFTChain(model.with_(flow=(0.0, 0.0)))
+    still = model.with_(flow=(0.0, 0.0))
+    chain = DiscoveredTorqueChain(still, torques) if torques else RFTChain(still)
     ra = data.r[idx][:, :, data.act]
     rp0 = data.r[idx[:, 0]][:, data.pas]
     pose0 = data.pose[idx[:, 0]]
@@ -114,6 +119,7 @@ class RecordingReplay:
 def replay_recording(
     data: Data, model: ChainModel, delay: float, w: int, substeps: int,
     reference: Recording | None = None, chunk: int = 0, warm: int = 0,
+    torques: Mapping[str, Mapping[str, float]] | None = None,
 ) -> RecordingReplay:
     """Whole-recording replay (train half and held-out half from their recorded initial states).
 
@@ -126,7 +132,7 @@ def replay_recording(
     to ~1e-6 rad in the tests); the body velocity depends only on the pose *increments* over a
     window, so restarting the pose from the recorded one changes nothing but the (unused)
     absolute pose, except that heading-dependent terms (flow) use a heading that has not drifted
-    over a whole half.
+    over a whole half.  ``torques``: discovered torques on passive joints (as :func:`replay`).
     """
     if reference is not None:
         return _reference_replay(data, model, reference, w)
@@ -139,7 +145,7 @@ def replay_recording(
     seg_pose: list[FloatArray] = []
     for length, group in _pieces(data, w, chunk, warm).items():
         starts = [g[0] for g in group]
-        rep = replay(model, delay, data, starts, length, w, substeps)
+        rep = replay(model, delay, data, starts, length, w, substeps, torques)
         for b, (s0, c, e) in enumerate(group):
             rp[c:e] = rep.rp[b, c - s0: e - s0]
             pose[c:e] = rep.pose[b, c - s0: e - s0]

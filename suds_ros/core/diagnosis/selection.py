@@ -3,7 +3,8 @@
 Evidence of a set S of effects is its held-out log-likelihood gain over the nominal model minus
 the BIC penalty (p/2)·log n_eff (:class:`~suds_ros.core.diagnosis.naming.Scorer`).  Forward
 step: every candidate compatible with S is fitted added to S (first with S's parameters held,
-as a screen; the leading ``config.step_candidates`` are then refitted jointly); the best is kept
+as a screen: a short least-squares run from the candidate's own single fit; the leading
+``config.step_candidates`` are then refitted jointly); the best is kept
 if its evidence gain over S exceeds ``config.evidence_threshold`` (the first effect needs only a
 positive gain: the located mismatch already passed the noise-floor test).  Backward check after
 each step: a member whose removal costs less than the threshold no longer earns its place and is
@@ -84,7 +85,7 @@ class _Selector:
             if not _compatible(cur.cand, s.cand.parts[0]):
                 continue
             cand = Candidate(cur.cand.parts + s.cand.parts)
-            x, _, g_te = self.scorer.fit(cand, s.x, fixed=cur.x)
+            x, _, g_te = self.scorer.fit(cand, s.x, fixed=cur.x, quick=True)
             screened.append((g_te - self.pen_unit * x.size, cand, x))
         screened.sort(key=lambda t: -t[0])
         out = [self.fit(cand, x) for _, cand, x in screened[: self.config.step_candidates]]

@@ -30,7 +30,7 @@ Model parameters as suspects
 ----------------------------
 ``link_length_error(link, scale)``, ``link_drag_error(link, scale)`` and
 ``pose_frame_offset(x, y, yaw)`` change a parameter of the robot model itself (``kind="model"``):
-the diagnosis suspects them alongside the catalogue when asked (``DiagnoseConfig.model_suspects``).
+the diagnosis suspects them alongside the catalogue by default (``DiagnoseConfig.model_suspects``).
 Link effects name their link ``link_k`` (1-based, head to tail).  Units and meanings: ``docs/effects.md``.
 
 Joint effects act only on passive joints (actuated joints follow their set-points whatever

@@ -161,18 +161,32 @@ OUTSIDE = {
 
 
 @pytest.mark.parametrize(
-    "case",
+    ("case", "link", "scale"),
     [
-        "purcell3-link_length",
-        "purcell3-actuator_lag",
-        pytest.param("swimmer9-link_length", marks=pytest.mark.slow),
-        pytest.param("swimmer9-actuator_lag", marks=pytest.mark.slow),
+        ("purcell3-link_length", "link_3", 1.6),
+        pytest.param("swimmer9-link_length", "link_8", 1.5, marks=pytest.mark.slow),
     ],
 )
+def test_a_wrong_link_length_is_named_by_default(case: str, link: str, scale: float) -> None:
+    """A link longer than the model says is a model-parameter suspect by default: named as
+    ``link_length_error`` on the right link within 25 % (or confounded with it)."""
+    base, rec = _outside(case)
+    d = diagnose(rec, base).to_dict()
+    assert d["mismatch"] is True and d["unexplained"] is False, d
+    got = {(e["name"], e["target"]): e for e in d["effects"]}  # type: ignore[index,union-attr]
+    if ("link_length_error", link) in got:
+        assert got[("link_length_error", link)]["parameters"]["scale"] == pytest.approx(scale, rel=0.25)
+    else:
+        assert any(f"link_length_error:{link}" in g for g in d["confounded_with"]), d  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(
+    "case", ["purcell3-actuator_lag", pytest.param("swimmer9-actuator_lag", marks=pytest.mark.slow)]
+)
 def test_mismatch_outside_the_catalogue_is_unexplained(case: str) -> None:
-    """Physics outside the catalogue (a wrong link length; a 40 ms actuator lag with the commanded
-    angles recorded) must be located and reported as unexplained — never forced onto an entry:
-    either no effect is reported, or the fit after still leaves a significant, flagged residual."""
+    """Physics outside the catalogue and the model's parameters (a 40 ms actuator lag with the
+    commanded angles recorded) must be located and reported as unexplained — never forced onto an
+    entry: either no effect is reported, or the fit after still leaves a significant, flagged residual."""
     base, rec = _outside(case)
     rep = diagnose(rec, base)
     d = rep.to_dict()
