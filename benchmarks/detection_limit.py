@@ -51,15 +51,15 @@ PASS = 0.9
 
 # effect id → (target per system, magnitude ladder, magnitude → parameters)
 LADDERS: dict[str, tuple[dict[str, str | None], list[float], Any]] = {
-    "joint_coulomb_friction": ({"purcell3": "joint_2", "swimmer9": "joint_7"}, [0.01, 0.03, 0.1, 0.3],
+    "joint_coulomb_friction": ({"purcell3": "joint_2", "swimmer9": "joint_7"}, [0.001, 0.003, 0.01, 0.03, 0.1, 0.3],
                                lambda m: {"mu": m}),
-    "joint_viscous_damping": ({"purcell3": "joint_2", "swimmer9": "joint_7"}, [0.003, 0.01, 0.03, 0.1],
+    "joint_viscous_damping": ({"purcell3": "joint_2", "swimmer9": "joint_7"}, [0.0003, 0.001, 0.003, 0.01, 0.03, 0.1],
                               lambda m: {"d": m}),
-    "spring_rest_offset": ({"purcell3": "joint_2", "swimmer9": "joint_6"}, [0.002, 0.005, 0.02, 0.05],
+    "spring_rest_offset": ({"purcell3": "joint_2", "swimmer9": "joint_6"}, [0.0005, 0.001, 0.002, 0.005, 0.02, 0.05],
                            lambda m: {"offset": m}),
     "spring_nonlinearity": ({"purcell3": "joint_2", "swimmer9": "joint_7"}, [0.03, 0.1, 0.3, 1.0],
                             lambda m: {"k3": m}),
-    "stiffness_to_drag_error": ({"purcell3": None, "swimmer9": None}, [0.005, 0.02, 0.05, 0.15],
+    "stiffness_to_drag_error": ({"purcell3": None, "swimmer9": None}, [0.001, 0.002, 0.005, 0.02, 0.05, 0.15],
                                 lambda m: {"scale": 1.0 - m}),
     "drag_anisotropy_error": ({"purcell3": None, "swimmer9": None}, [0.01, 0.03, 0.1, 0.3],
                               lambda m: {"ratio": 2.0 + m}),
@@ -227,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"Each rung: {a.seeds} seeded {a.cycles}-cycle recordings with the effect injected, diagnosed with every "
         "suspect on; *named* = the effect on its target is reported (or is in a confounded group with the "
-        "reported one).  Bisection over a 4-rung ladder (the rungs tried are listed); a rung stops as soon "
+        "reported one).  Bisection over each effect's ladder (the rungs tried are listed); a rung stops as soon "
         "as 90 % is out of reach (*stopped*: failed).  Nulls stay clean: "
         "`docs/results/evidence_threshold.md`.",
         f"Reference: the magnitude at which the true effect's held-out evidence with *known* parameters "
