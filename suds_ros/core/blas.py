@@ -79,7 +79,10 @@ def _loaded_openblas() -> list[str]:
 def _call(path: str, names: tuple[str, ...], *args: int) -> int | None:
     """Call the first of ``names`` that the loaded library ``path`` exports; None if none does."""
     try:
-        lib = ctypes.CDLL(path, mode=getattr(os, "RTLD_NOLOAD", 0) | ctypes.RTLD_GLOBAL)
+        # RTLD_NOLOAD: only a library already mapped; RTLD_LOCAL: never promote its symbols to the
+        # global scope (libraries loaded later, e.g. scipy's LAPACK wrappers, would bind to them,
+        # across OpenBLAS builds with different integer sizes, and compute wrong numbers)
+        lib = ctypes.CDLL(path, mode=getattr(os, "RTLD_NOLOAD", 0) | ctypes.RTLD_LOCAL)
     except OSError:
         return None
     for name in names:

@@ -82,3 +82,28 @@ def test_threads_from_env_refuses(raw: str) -> None:
     with pytest.raises(SudsConfigError, match=f"got '{raw}'") as exc:
         threads_from_env({ENV_VAR: raw})
     assert exc.value.code == "bad_config"
+
+
+#: pin first, then let scipy load its LAPACK wrappers and solve with them (SVD-based least squares)
+LAPACK_AFTER_PIN = """
+import numpy as np
+from suds_ros.core.blas import pin_blas_threads
+pin_blas_threads(1)
+import scipy.linalg, scipy.optimize
+rng = np.random.default_rng(0)
+A, b = rng.normal(size=(200, 30)), rng.normal(size=200)
+x = scipy.optimize.least_squares(lambda p: A @ p - b, np.zeros(30)).x
+print(repr(float(np.abs(x - np.linalg.lstsq(A, b, rcond=None)[0]).max())))
+"""
+
+
+def test_pinning_never_rebinds_lapack_for_libraries_loaded_later() -> None:
+    """A library set through its loaded handle must not have its symbols made global.
+
+    Promoted, numpy's 64-bit-integer OpenBLAS would capture the LAPACK calls of scipy modules
+    loaded afterwards (32-bit integers): wrong results or "Too large work array" errors.
+    """
+    proc = subprocess.run([sys.executable, "-c", LAPACK_AFTER_PIN], capture_output=True, text=True,
+                          timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert float(proc.stdout.strip()) < 1e-6
