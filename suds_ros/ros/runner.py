@@ -53,6 +53,11 @@ def run_node(
     except SudsError as exc:
         print(f"ERROR: {name}: {exc}", file=sys.stderr)
         return 1
+    except Exception:
+        # SIGINT/SIGTERM shut the context down while a callback was publishing ("publisher's
+        # context is invalid"): that is the requested shutdown, not a failure
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             if close is not None:
