@@ -102,7 +102,11 @@ def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
         assert time.monotonic() < deadline, proc.output()
         time.sleep(0.1)
     proc.send_signal(signal.SIGINT)
-    assert proc.wait(30) == 0, proc.output()
+    try:  # generous: the recorder syncs its last chunk to disk, slow under heavy I/O
+        code = proc.wait(120)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the pipeline did not exit 120 s after SIGINT:\n{proc.output()}")
+    assert code == 0, proc.output()
     info = bag_info(out)
     assert info.has_summary and info.metadata["suds"]["actuated"] == "joint_1"
 
