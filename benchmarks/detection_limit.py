@@ -165,7 +165,9 @@ def reference(rungs: list[Rung], threshold: float) -> str:
     """Magnitude where the known-parameter evidence crosses the threshold (log–log interpolation)."""
     pts = sorted((r.magnitude, r.evidence) for r in rungs)
     for (m0, e0), (m1, e1) in zip(pts, pts[1:]):
-        if e0 <= threshold < e1 and e0 > 0:
+        if e0 <= threshold < e1:
+            if e0 <= 0:  # no log–log line through a non-positive evidence: give the bracket
+                return f"{m0:g}–{m1:g}"
             f = (np.log(threshold) - np.log(e0)) / (np.log(e1) - np.log(e0))
             return f"{np.exp(np.log(m0) + f * (np.log(m1) - np.log(m0))):.3g}"
     if pts and pts[0][1] > threshold:
