@@ -96,6 +96,9 @@ def supervise(commands: Mapping[str, Sequence[str]], *, main: str | None = "simu
     interrupted = False
     drain_until: float | None = None
     previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # Ctrl-C must reach us even when we were started with SIGINT ignored (a background job of a
+    # non-interactive shell inherits SIG_IGN, and Python then installs no handler of its own)
+    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         for name, cmd in commands.items():
             procs[name] = subprocess.Popen(
@@ -120,6 +123,7 @@ def supervise(commands: Mapping[str, Sequence[str]], *, main: str | None = "simu
             print("[pipeline] interrupted: stopping the nodes", file=out, flush=True)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)
         ended_alone = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
         killed = stop_children(procs, timeouts)
         for t in pumps:
