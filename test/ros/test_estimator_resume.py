@@ -24,6 +24,8 @@ pytestmark = pytest.mark.ros
 
 CYCLES = 40
 SEED = 5
+#: slow enough that the restarted estimator subscribes before the simulator ends, even under load
+RTF = 2.0
 
 
 def published_samples(cycles: int, seed: int):
@@ -34,7 +36,7 @@ def published_samples(cycles: int, seed: int):
     from suds_ros.io.stamps import float_to_ns, ns_to_float
     from suds_ros.ros.simulator_node import SimulatorConfig
 
-    cfg = SimulatorConfig(seed=seed, real_time_factor=4.0, cycles=cycles).resolved(1.0)  # purcell3: 1 Hz
+    cfg = SimulatorConfig(seed=seed, real_time_factor=RTF, cycles=cycles).resolved(1.0)  # purcell3: 1 Hz
     system = make_system(cfg.system)
     sim = StreamingSimulator(system, cfg.sim_config(cfg.first_stamp()))
     chunks = [sim.step(cfg.samples_per_cycle) for _ in range(cycles)]  # one cycle per chunk, as the node
@@ -66,7 +68,7 @@ def test_killed_estimator_resumes_from_checkpoint(start_process, node_command, t
     est = start_process(est_cmd, "estimator")
     wait_for(lambda: "recording [" in rec.output(), 60, "the recorder")
     wait_for(lambda: "ready: waiting for publishers" in est.output(), 60, "the estimator")
-    sim = start_process(node_command("simulator_node", "real_time_factor:=4.0", f"seed:={SEED}",
+    sim = start_process(node_command("simulator_node", f"real_time_factor:={RTF}", f"seed:={SEED}",
                                      f"cycles:={CYCLES}"), "simulator")
     wait_for(lambda: _checkpoint_rows(ckpt) > 0, 60, "a checkpoint with fitted rows")
     est.send_signal(signal.SIGKILL)
