@@ -79,6 +79,20 @@ def fourier_basis_and_derivative(phase: FloatArray | float, order: int) -> tuple
     return B, dB
 
 
+def ridge_solve(G: FloatArray, b: FloatArray, ridge: float, scale: float | None = None) -> FloatArray:
+    """Solve (G + ridge·scale·I) x = b for a symmetric G; ``scale`` defaults to mean(diag G).
+
+    Cholesky factorisation; least squares when the matrix is not positive definite.
+    """
+    if scale is None:
+        scale = float(np.mean(np.diag(G)))
+    reg = G + (ridge * (scale or 1.0)) * np.eye(G.shape[0])
+    try:
+        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(reg, check_finite=False), b, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(reg, b, rcond=None)[0]
+
+
 class NormalEquations:
     """Weighted least-squares sufficient statistics XᵀWX, XᵀWY, YᵀWY, Σw and n.
 
@@ -166,14 +180,7 @@ class NormalEquations:
         Cholesky factorisation of the regularised normal matrix; least squares when it is
         not positive definite.
         """
-        G = self.xtx
-        scale = float(np.mean(np.diag(G))) or 1.0
-        reg = G + (ridge * scale) * np.eye(G.shape[0])
-        try:
-            c, low = scipy.linalg.cho_factor(reg, check_finite=False)
-            return scipy.linalg.cho_solve((c, low), self.xty, check_finite=False)
-        except np.linalg.LinAlgError:
-            return np.linalg.lstsq(reg, self.xty, rcond=None)[0]
+        return ridge_solve(self.xtx, self.xty, ridge)
 
     def residual_ss(self, coef: FloatArray) -> FloatArray:
         """Weighted residual sum of squares (d,) of ``coef`` (p, d), from the statistics alone."""

@@ -25,9 +25,9 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
-import scipy.linalg
 
 from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core.fourier import ridge_solve
 from suds_ros.core.ident.sysid import FeatureLayout, SudsConfig, feature_layout
 
 
@@ -132,34 +132,17 @@ def subset_columns(big: FeatureLayout, small: FeatureLayout) -> IntArray:
     return np.concatenate(cols)
 
 
-def _solve(G: FloatArray, b: FloatArray, ridge: float) -> FloatArray:
-    scale = float(np.mean(np.diag(G))) or 1.0
-    reg = G + (ridge * scale) * np.eye(G.shape[0])
-    try:
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(reg, check_finite=False), b, check_finite=False)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(reg, b, rcond=None)[0]
-
-
 def _primal_path(G: FloatArray, b: FloatArray) -> Callable[[float], FloatArray]:
     """Ridge solutions from the normal equations G c = b."""
-    return lambda ridge: _solve(G, b, ridge)
+    return lambda ridge: ridge_solve(G, b, ridge)
 
 
 def _dual_path(A: FloatArray, y: FloatArray) -> Callable[[float], FloatArray]:
     """The same ridge solutions from the rows: c = Aᵀ(AAᵀ + λ·s·I)⁻¹y, s = mean diag AᵀA = tr(AAᵀ)/p."""
     K = A @ A.T
-    scale = float(np.trace(K)) / A.shape[1] or 1.0
+    scale = float(np.trace(K)) / A.shape[1]
 
-    def path(ridge: float) -> FloatArray:
-        reg = K + (ridge * scale) * np.eye(K.shape[0])
-        try:
-            alpha = scipy.linalg.cho_solve(scipy.linalg.cho_factor(reg, check_finite=False), y, check_finite=False)
-        except np.linalg.LinAlgError:
-            alpha = np.linalg.lstsq(reg, y, rcond=None)[0]
-        return A.T @ alpha
-
-    return path
+    return lambda ridge: A.T @ ridge_solve(K, y, ridge, scale)
 
 
 def _gram_blocks(A: FloatArray, y: FloatArray, masks: list[FloatArray]) -> tuple[list[FloatArray], list[FloatArray]]:
