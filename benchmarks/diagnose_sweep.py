@@ -128,10 +128,13 @@ def judge(effects: list[dict], rep) -> tuple[bool, str]:  # type: ignore[no-unty
     text += f"; improvement {rep.improvement:.2f}"
     if rep.confounded_with:
         text += " (confounded: " + " / ".join(", ".join(g) for g in rep.confounded_with) + ")"
+    if rep.discovered:  # every injected effect is in the lists: a formula is a false discovery
+        text += "; discovered " + "; ".join(
+            f"{d.joint}: " + " + ".join(f"{v:.3g}·{k}" for k, v in d.terms.items()) for d in rep.discovered)
     if rep.unexplained:
         return False, text + " — unexplained"
     got = {(e.name, e.target): e for e in rep.effects}
-    ok = len(got) == len(effects) and rep.improvement >= 0.5
+    ok = len(got) == len(effects) and rep.improvement >= 0.5 and not rep.discovered
     for eff in effects:
         key = (eff["name"], _target(eff))
         label = eff["name"] if key[1] is None else f"{eff['name']}:{key[1]}"
@@ -184,7 +187,8 @@ def main() -> None:
         "(link length, link drag, one joint's spring constant, pose-frame offset), random targets and "
         "magnitudes (ranges in the script).  *Fully correct*: exactly the injected effects reported, each "
         "on its target (or reported confounded with the named one), parameters within 25 % (vector "
-        "parameters: ‖x̂ − x‖ ≤ 0.25‖x‖), held-out improvement ≥ 0.5; null: no mismatch reported.",
+        "parameters: ‖x̂ − x‖ ≤ 0.25‖x‖), held-out improvement ≥ 0.5, no formula discovered (every "
+        "injected effect is in the lists); null: no mismatch reported.",
         "",
         f"**{passed} of {args.cases} cases fully correct** ({per_k}).",
         "",

@@ -68,10 +68,14 @@ number in the report is computed on the held-out half.
    improves the held-out residual by less than half, no effect is reported (the attempt is in
    ``notes``).
 
-5. Discover.  When the mismatch stays unexplained, a sparse regression of the torque residual
-   over a library of physical terms proposes a formula per passive joint (:mod:`.discovery`); the
-   formulas are added to the simulator (:mod:`.resimulate`) and the held-out improvement of that
-   replay is reported with them, measured as for the catalogue fits.  ``unexplained`` is kept.
+5. Discover.  A sparse regression of the torque residual left by the reported effects (the
+   nominal model's if none) over a library of physical terms proposes a formula per passive joint
+   (:mod:`.discovery`); the formulas are added to the simulator (:mod:`.resimulate`) and the
+   held-out improvement of that replay is reported with them, measured as for the catalogue fits.
+   When the mismatch stays unexplained ``unexplained`` is kept.  When named effects explain it,
+   a formula is still reported if its terms earn their held-out evidence on top of them: a
+   catalogue effect can stand in for physics it is not (viscous damping removes most of a
+   quadratic drag's mismatch), and the formula (e.g. −c·|ṙ|ṙ + d·ṙ on top of a damping d) says so.
 
 Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording), :mod:`.replay`,
 :mod:`.floor`, :mod:`.locate`, :mod:`.naming`, :mod:`.selection`, :mod:`.refine`,
@@ -321,7 +325,9 @@ def _show(
     if unexplained and not effects:
         rms1 = dict(nom.rms0)
         improvement = 0.0
-    discovered = _discover(nom, effects, F0, floor, affected, notes) if unexplained else ()
+    # beyond named effects too: a catalogue entry may stand in for physics outside the catalogue
+    discovered = (_discover(nom, effects, F0, floor, affected, notes) if unexplained
+                  else _discover(nom, effects, F0, floor, affected, notes, float(improvement)) if effects else ())
     clock.mark("total")
     return _report(
         nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),
@@ -334,13 +340,18 @@ def _show(
 
 def _discover(
     nom: _Nominal, effects: list[FittedEffect], F0: dict[str, float], floor: dict[str, float],
-    affected: list[str], notes: list[str],
+    affected: list[str], notes: list[str], explained: float | None = None,
 ) -> tuple[Discovered, ...]:
     """Discovery on the torque residual left by the reported effects (nominal if none).
 
     The formulas found are re-simulated together (:mod:`.resimulate`, on top of the reported
     effects) and each gets the held-out improvement of that replay, measured as for the catalogue
     effects (:func:`~suds_ros.core.diagnosis.locate.excess_improvement` over the located channels).
+    ``explained``: the held-out improvement of the reported effects when they explain the
+    mismatch.  Formulas on top of them are then kept only if their replay removes at least half of
+    the excess the effects leave (1 − improvement halves): the equation error can hold structure
+    the simulator does not (stick-slip transitions inside an interval), and a formula that cannot
+    be re-simulated (on a joint with Coulomb friction) is not checked, so not reported.
     """
     cand = Candidate(tuple((e.name, e.target) for e in effects))
     x = np.array([v for e in effects for v in e.parameters.values()])
@@ -357,10 +368,16 @@ def _discover(
             notes.append(f"discovered formulas not re-simulated: {err}")
             imp = None
         found = tuple(dataclasses.replace(d, resimulated_improvement=imp) for d in found)
+        if explained is not None and (imp is None or 1.0 - imp > 0.5 * (1.0 - explained)):
+            kept = "not re-simulated" if imp is None else f"re-simulated held-out improvement {imp:.3f}"
+            notes.append(f"formulas on top of {cand.label} not reported ({kept} against {explained:.3f} "
+                         f"without them): " + "; ".join(formula(d) for d in found))
+            return ()
+    beyond = f" on top of {cand.label}" if effects else ""
     for d in found:
         resim = ("" if d.resimulated_improvement is None
                  else f"; re-simulated held-out improvement {d.resimulated_improvement:.3f}")
-        notes.append(f"discovered {formula(d)} ({', '.join(d.physics) or 'no recognised physics'}; "
+        notes.append(f"discovered{beyond} {formula(d)} ({', '.join(d.physics) or 'no recognised physics'}; "
                      f"held-out torque residual power −{100 * d.heldout_reduction:.0f} %{resim})")
     return found
 

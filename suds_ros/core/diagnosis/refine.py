@@ -124,7 +124,7 @@ def _refine(
         except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
             return np.full(n_res, 1e6)
 
-    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    x0 = np.clip(x0, lo + 1e-3 * scales, hi - 1e-3 * scales)  # off the bounds (see Scorer.fit)
     r0 = sim(x0)
     n_res = r0.size
     c0 = float(np.sum(r0**2))

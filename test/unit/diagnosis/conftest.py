@@ -38,6 +38,8 @@ def _check_recovered(rep: DiagnosisReport, effects: list[dict[str, Any]]) -> Non
             assert got[key]["parameters"][p] == pytest.approx(v, rel=0.25, abs=0.01 * abs(v) + 1e-3), (p, got[key])
             assert got[key]["stderr"][p] >= 0
     assert d["fit"]["improvement"] >= 0.5  # type: ignore[index]
+    # every injected effect is in the lists: no formula may be reported on top of them
+    assert d["discovered"] == [], d["discovered"]
     for loc in d["located"]:  # type: ignore[union-attr]
         c = loc["channel"]
         after, before = d["fit"]["heldout_rms_after"][c], d["fit"]["heldout_rms_before"][c]  # type: ignore[index]

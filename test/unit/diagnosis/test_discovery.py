@@ -57,11 +57,8 @@ def test_quadratic_drag_is_discovered_on_the_right_joint(quadratic_run) -> None:
     (d,) = found
     assert d.joint == "joint_2"
     assert "|rdot|rdot" in d.terms, formula(d)
-    # torque on r_j: −c·|ṙ|ṙ, c = 0.3 (ṙ from noisy differences biases it a little)
-    # the issue asks for the term on the right joint and the held-out reduction; the coefficient
-    # of a sparse fit on noisy, block-averaged rates carries some bias (≈ +25 % here), so its
-    # check is looser than the catalogue effects' 25 %
-    assert d.terms["|rdot|rdot"] == pytest.approx(-0.3, rel=0.4), formula(d)
+    # torque on r_j: −c·|ṙ|ṙ, c = 0.3; the rates' noise shared with the residual biases it by ~1 %
+    assert d.terms == {"|rdot|rdot": pytest.approx(-0.3, rel=0.05)}, formula(d)
     assert d.stderr["|rdot|rdot"] > 0
     assert "quadratic (form) drag" in d.physics
     assert d.heldout_reduction >= 0.5
@@ -72,18 +69,34 @@ def test_nothing_is_discovered_in_a_nominal_recording(purcell3_run) -> None:  # 
     assert discover(prepare(purcell3_run, base), base, DiagnoseConfig(), np.array([1e-3])) == ()
 
 
-def test_the_report_carries_the_discovery_when_unexplained(quadratic_run) -> None:  # type: ignore[no-untyped-def]
-    d = diagnose(quadratic_run, purcell3_model()).to_dict()
+@pytest.fixture(scope="module")
+def quadratic_run_60():  # type: ignore[no-untyped-def]
+    return simulate(_QuadraticDragChain(purcell3_model(), 0.3), SimConfig(cycles=60, seed=9))
+
+
+@pytest.mark.slow
+def test_the_report_discovers_quadratic_drag_beyond_the_catalogue(quadratic_run_60) -> None:  # type: ignore[no-untyped-def]
+    """Issue 10, through the whole pipeline on a 60-cycle recording: viscous damping stands in
+    for the quadratic drag (it removes most of the mismatch), and the formula on top of it names
+    the |ṙ|ṙ term on joint_2 with the damping cancelled; re-simulated, the mismatch is gone."""
+    rep = diagnose(quadratic_run_60, purcell3_model())
+    d = rep.to_dict()
     assert d["mismatch"] is True
-    assert "discovered" in d
-    if d["unexplained"]:
-        (found,) = d["discovered"]  # type: ignore[misc]
-        assert found["joint"] == "joint_2" and "|rdot|rdot" in found["terms"]
-        assert set(found) == {"joint", "terms", "stderr", "physics", "heldout_reduction",
-                              "resimulated_improvement"}
-        # re-simulated with the formula, the held-out mismatch (same measure as the catalogue
-        # fits) drops by at least half
-        assert found["resimulated_improvement"] >= 0.5, found
+    (found,) = d["discovered"]  # type: ignore[misc]
+    assert set(found) == {"joint", "terms", "stderr", "physics", "heldout_reduction",
+                          "resimulated_improvement"}
+    assert found["joint"] == "joint_2", found
+    # torque on r_j: −c·|ṙ|ṙ with c = 0.3
+    assert found["terms"]["|rdot|rdot"] == pytest.approx(-0.3, rel=0.25), found
+    assert "quadratic (form) drag" in found["physics"]
+    # whatever the catalogue named, catalogue + formula must model damping-free quadratic drag:
+    # the formula's linear term (if any) cancels the named damping to within 25 % of it
+    named_d = sum(e["parameters"]["d"] for e in d["effects"] if e["name"] == "joint_viscous_damping")
+    assert found["terms"].get("rdot", 0.0) == pytest.approx(named_d, rel=0.25, abs=0.02), (found, d["effects"])
+    # re-simulated with the formula, the held-out mismatch (the catalogue fits' measure) drops
+    # by at least half
+    assert found["resimulated_improvement"] >= 0.5, found
+    assert any("discovered" in n and "|rdot|rdot" in n for n in rep.notes), rep.notes
 
 
 def test_the_discovered_torque_chain_matches_the_true_physics(quadratic_run) -> None:  # type: ignore[no-untyped-def]
