@@ -196,11 +196,14 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     phaser = Phaser()
     phase = phaser.fit(rec.r[train_s]).transform(rec.r)
     mid = 0.5 * (phase[k] + phase[k + 1])
-    train = iv.t < cut
+    # intervals with no measured body velocity (no pose around them: motion capture started late
+    # or paused) are neither template rows nor scored
+    measured = np.all(np.isfinite(meas), axis=1)
+    train = (iv.t < cut) & measured
     template = FourierTemplate(FourierTemplateConfig(order=template_order)).fit(mid[train], meas[train])
     tmpl = template.predict(mid)
 
-    test = ~train
+    test = (iv.t >= cut) & measured
     scored = test & np.all(np.isfinite(pred), axis=1)
     if not scored.any():
         raise SudsDataError(f"{bag}: no live prediction after cycle {train_cycles:g}")

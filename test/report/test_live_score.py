@@ -41,8 +41,11 @@ def _header(ns: int) -> dict:
     return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "body"}
 
 
-def write_bag(path, rec, preds, passive_names=None) -> None:
-    """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``."""
+def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf) -> None:
+    """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``.
+
+    ``pose_from``: no pose message before this time (s; motion capture started late).
+    """
     passive_names = rec.passive if passive_names is None else passive_names
     with BagWriter(path) as w:
         for topic, type_name in ((SHAPE_TOPIC, SHAPE_TYPE), (POSE_TOPIC, POSE_TYPE),
@@ -55,7 +58,8 @@ def write_bag(path, rec, preds, passive_names=None) -> None:
             ns = float_to_ns(t)
             w.write_raw(SHAPE_TOPIC, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
             x, y, yaw = rec.pose[k]
-            w.write_raw(POSE_TOPIC, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
+            if t >= pose_from:
+                w.write_raw(POSE_TOPIC, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
             if t in preds:
                 xi, rp = preds[t]
                 twist = {"header": _header(ns), "twist": {
@@ -93,6 +97,19 @@ def test_out_of_sample_predictions_beat_the_template(live, tmp_path):
     assert s.coverage == 1.0
     assert s.gamma_body > 0.8 and s.gamma_passive > 0.9, s
     assert abs(s.first_prediction_s - TRAIN) < 1e-6
+
+
+def test_motion_capture_starting_late(live, tmp_path):
+    """Intervals before the first pose have no measured body velocity: they are neither template
+    rows nor scored, and the rest scores as with the full pose stream."""
+    rec, preds = live
+    write_bag(tmp_path / "full.mcap", rec, preds)
+    write_bag(tmp_path / "late_pose.mcap", rec, preds, pose_from=rec.t[0] + 0.537)
+    full = score_live_predictions(tmp_path / "full.mcap", TRAIN)
+    late = score_live_predictions(tmp_path / "late_pose.mcap", TRAIN)
+    assert np.isfinite([late.gamma_body, late.gamma_passive, late.rms_body, late.rms_passive]).all(), late
+    assert late.gamma_body == pytest.approx(full.gamma_body, abs=0.01), (late, full)
+    assert late.gamma_passive == pytest.approx(full.gamma_passive, abs=0.01), (late, full)
 
 
 def test_worse_predictions_score_worse_and_gaps_lower_coverage(live, tmp_path):
