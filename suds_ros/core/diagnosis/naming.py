@@ -15,6 +15,7 @@ import scipy.optimize
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
+from suds_ros.core.diagnosis.lsq import with_jacobian
 from suds_ros.core.diagnosis.replay import window_xi
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
@@ -108,11 +109,14 @@ class _EqError:
         hit = self._xi_rec_cache.get(key)
         if hit is not None:
             return hit
-        ts = self.t + delay
+        # times from the first pose stamp: a shift of a few µs is lost in absolute stamps (1.7e9 s
+        # resolve 0.24 µs), and the time-offset fit differentiates with respect to it
+        t0 = self.pose_t[0]
+        ts = (self.t - t0) + delay
         if self.resampled:  # a stream of its own: the spline with knots where the drive has its kinks
-            P = knot_fit(self.pose_t, self.pose_raw, ts)
+            P = knot_fit(self.pose_t - t0, self.pose_raw, ts)
         else:
-            P = np.stack([np.interp(ts, self.pose_t, self.pose_raw[:, c]) for c in range(3)], axis=1)
+            P = np.stack([np.interp(ts, self.pose_t - t0, self.pose_raw[:, c]) for c in range(3)], axis=1)
         out = window_xi(P, self.w, self.dt)
         if len(self._xi_rec_cache) > 256:
             self._xi_rec_cache.clear()
@@ -323,6 +327,7 @@ class Scorer:
             e, ex = self._res(self.train, cand, full(x))
             return self._stack(e, ex, ok, wts)
 
+        value, jac = with_jacobian(fun, 1e-3, 1e-3 * scales, hi)  # steps that do not vanish at 0
         best_x, best_c = None, np.inf
         for s in starts:
             s = np.clip(s, lo_in, hi_in)
@@ -342,7 +347,7 @@ class Scorer:
             for _ in range(1 if quick else 2):  # re-estimate channel weights once
                 try:
                     sol = scipy.optimize.least_squares(
-                        fun, x, args=(wts,), bounds=(lo, hi), x_scale=scales, diff_step=1e-3,
+                        value, x, jac=jac, args=(wts,), bounds=(lo, hi), x_scale=scales,
                         max_nfev=self.QUICK_NFEV if quick else 60,
                     )
                 except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, ValueError):

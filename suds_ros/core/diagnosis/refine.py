@@ -11,6 +11,7 @@ import scipy.stats
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.floor import Floors
+from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
 from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect
@@ -128,22 +129,17 @@ def _refine(
     r0 = sim(x0)
     n_res = r0.size
     c0 = float(np.sum(r0**2))
-    step = np.maximum(1e-3 * np.abs(x0), 1e-2 * scales) / np.maximum(np.abs(x0), 1e-12)
+    value, jac = with_jacobian(fun, 1e-3, 1e-2 * scales, hi)
     sol = scipy.optimize.least_squares(
-        fun, x0, bounds=(lo, hi), x_scale=scales, diff_step=step,
+        value, x0, jac=jac, bounds=(lo, hi), x_scale=scales,
         max_nfev=cfg.refine_nfev * (x0.size + 1), method="trf",
     )
     if sol.cost * 2 <= c0 and sol.jac is not None and np.all(np.isfinite(sol.jac)):
-        # least_squares leaves the forward-difference Jacobian and the residuals at its solution
+        # least_squares leaves the (forward-difference) Jacobian and the residuals at its solution
         x, R, J = sol.x, np.asarray(sol.fun).reshape(r0.shape), np.asarray(sol.jac)
     else:
         x, R = x0, r0
-        J = np.empty((R.size, x.size))
-        for i in range(x.size):
-            h = max(1e-3 * abs(x[i]), 1e-2 * scales[i])
-            xp = x.copy()
-            xp[i] = x[i] + h if x[i] + h <= hi[i] else x[i] - h
-            J[:, i] = (fun(xp) - R.ravel()) / (xp[i] - x[i])
+        J = fd_jacobian(fun, x, R, np.maximum(1e-3 * np.abs(x), 1e-2 * scales), hi)
     return x, _sandwich_stderr(J, R, x.size)
 
 
