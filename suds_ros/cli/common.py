@@ -33,7 +33,8 @@ def add_bag_argument(p: argparse.ArgumentParser, **kwargs: str) -> None:
 
 
 def add_recording_options(p: argparse.ArgumentParser) -> None:
-    """``--system``, ``--model``, ``--actuated``, ``--passive``, ``--gait-hz``: overrides of the bag's metadata."""
+    """``--system``, ``--model``, ``--actuated``, ``--passive``, ``--gait-hz``: overrides of the bag's
+    metadata; ``--namespace``: which robot's topics to read."""
     p.add_argument("--system", help="system id (overrides the bag's metadata); a path means --model")
     p.add_argument("--model", metavar="FILE",
                    help="robot model file (suds-robot/1): its name is the system id; the recording's "
@@ -41,6 +42,9 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--actuated", help="comma-separated actuated joint names (overrides metadata)")
     p.add_argument("--passive", help="comma-separated passive joint names (overrides metadata)")
     p.add_argument("--gait-hz", type=float, help="nominal gait frequency, Hz (overrides metadata)")
+    p.add_argument("--namespace", default="", metavar="NS",
+                   help="the robot's ROS namespace in a bag of several robots (e.g. /robot1: topics "
+                        "/robot1/suds/shape, ...; its system from /robot1/suds/system if recorded)")
 
 
 def split_names(text: str | None) -> list[str] | None:
@@ -110,12 +114,13 @@ def load_recording_and_model(path_text: str, args: argparse.Namespace
     path = existing_bag(path_text)
     system = model.name if model is not None else args.system
     actuated, passive = split_names(args.actuated), split_names(args.passive)
+    ns = getattr(args, "namespace", "")
     try:
-        rec = _read(path, system=system, actuated=actuated, passive=passive)
+        rec = _read(path, system=system, actuated=actuated, passive=passive, namespace=ns)
     except SudsBagError as exc:
         if model is None or exc.code != MISSING_JOINT_ROLES:
             raise
-        rec = _with_model_roles(_read(path, system=system, passive=()), model, model_path(args))
+        rec = _with_model_roles(_read(path, system=system, passive=(), namespace=ns), model, model_path(args))
     gait_hz = args.gait_hz or rec.gait_hz or (model.gait_hz if model is not None else None)
     if gait_hz != rec.gait_hz:
         rec = replace(rec, gait_hz=gait_hz)

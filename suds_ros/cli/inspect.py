@@ -70,7 +70,7 @@ def run_score(args: argparse.Namespace) -> int:
     from suds_ros.report.live_score import score_live_predictions
 
     rec = load_recording(args.bag, args)
-    score = score_live_predictions(args.bag, args.train_cycles, recording=rec)
+    score = score_live_predictions(args.bag, args.train_cycles, recording=rec, namespace=args.namespace)
     if args.json:
         print(json.dumps(score.as_dict(), indent=2))
     else:

@@ -9,6 +9,7 @@ reverse, without rclpy (generic MCAP in :mod:`suds_ros.io.mcap`, CDR in
 
 from __future__ import annotations
 
+import json
 import math
 import struct
 from collections.abc import Sequence
@@ -28,6 +29,7 @@ from suds_ros.core.errors import (
     WRONG_JOINT_COUNT,
     WRONG_JOINT_NAMES,
     SudsBagError,
+    SudsConfigError,
     SudsDataError,
 )
 from suds_ros.core.recording import Recording
@@ -65,13 +67,40 @@ META_GAIT_HZ = "gait_hz"
 WORLD_FRAME = "world"
 
 
+def valid_namespace(ns: str) -> bool:
+    """True for an absolute namespace of ROS name tokens (``/robot1``, ``/fleet/eel_2``)."""
+    parts = ns.split("/")
+    return (ns.startswith("/") and len(ns) > 1 and not ns.endswith("/")
+            and all(t and (t[0].isalpha() or t[0] == "_") and all(c.isalnum() or c == "_" for c in t)
+                    for t in parts[1:]))
+
+
+def namespaced(namespace: str, topic: str) -> str:
+    """The contract ``topic`` (e.g. ``/suds/shape``) of the robot in ``namespace`` ('' for the root).
+
+    Nodes started in a namespace (``pipeline --namespace /robot1``) publish ``/robot1/suds/shape``
+    etc., and one recorder can hold several robots' topics in one bag.
+
+    Raises
+    ------
+    SudsConfigError
+        ``namespace`` is neither '' nor an absolute ROS namespace.
+    """
+    if namespace and not valid_namespace(namespace):
+        raise SudsConfigError(f"`namespace`: expected '' or an absolute ROS namespace such as /robot1, "
+                              f"got {namespace!r}")
+    return namespace + topic
+
+
 def _select(res: ScanResult, topic: str, type_name: str) -> list[tuple[int, bytes, bytes]]:
     """``(sample index, data, schema)`` list of ``topic``'s messages of ``type_name``."""
     present = sorted({ch.topic for ch in res.channels.values()})
     chans = {cid: ch for cid, ch in res.channels.items() if ch.topic == topic}
     if not chans:
+        under = sorted({t[:-len(topic)] for t in present if t.endswith(topic) and len(t) > len(topic)})
+        hint = f" (namespaced: read it with namespace {', '.join(under)})" if under else ""
         raise SudsBagError(f"{res.path}: topic {topic!r} is not in the bag; topics present: "
-                           f"{', '.join(present) or 'none'}", code=MISSING_TOPIC)
+                           f"{', '.join(present) or 'none'}{hint}", code=MISSING_TOPIC)
     good = {cid: ch for cid, ch in chans.items() if ch.schema_name == type_name}
     if not good:
         types = sorted({ch.schema_name or "unknown (its schema record is lost)"
@@ -249,7 +278,7 @@ def damage_warning(path: str | Path, damage: Sequence[Damage]) -> str | None:
 
 def read_recording(path: str | Path, *, system: str | None = None,
                    actuated: Sequence[str] | None = None, passive: Sequence[str] | None = None,
-                   shape_topic: str = SHAPE_TOPIC, pose_topic: str = POSE_TOPIC
+                   shape_topic: str = SHAPE_TOPIC, pose_topic: str = POSE_TOPIC, namespace: str = ""
                    ) -> Recording:
     """Read a bag that follows the recording contract into a :class:`Recording`.
 
@@ -267,6 +296,12 @@ def read_recording(path: str | Path, *, system: str | None = None,
         is the complement), otherwise from the ``suds`` metadata.
     shape_topic, pose_topic : str
         Topics of the JointState and PoseStamped streams.
+    namespace : str
+        The robot's ROS namespace in a bag of namespaced topics (``/robot1``: the topics
+        ``/robot1/suds/shape`` …).  Its system and joint roles then come from its
+        ``<namespace>/suds/system`` messages when the bag has them (the bag's ``suds`` metadata
+        may describe another robot); without a namespace they come from the metadata, else from
+        ``/suds/system``.
 
     Returns
     -------
@@ -283,23 +318,28 @@ def read_recording(path: str | Path, *, system: str | None = None,
         Joint names changing mid-stream, NaN values, duplicate or unsorted stamps.
     """
     return read_recording_report(path, system=system, actuated=actuated, passive=passive,
-                                 shape_topic=shape_topic, pose_topic=pose_topic).recording
+                                 shape_topic=shape_topic, pose_topic=pose_topic,
+                                 namespace=namespace).recording
 
 
 def read_recording_report(path: str | Path, *, system: str | None = None,
                           actuated: Sequence[str] | None = None,
                           passive: Sequence[str] | None = None, shape_topic: str = SHAPE_TOPIC,
-                          pose_topic: str = POSE_TOPIC) -> RecordingRead:
+                          pose_topic: str = POSE_TOPIC, namespace: str = "") -> RecordingRead:
     """:func:`read_recording`, returning the recording with the bag's damage report.
 
     Raises
     ------
     SudsBagError, SudsDataError
         As :func:`read_recording`; when the bag is damaged, the message says so.
+    SudsConfigError
+        ``namespace`` is not a ROS namespace.
     """
-    res = scan(path, frozenset({shape_topic, pose_topic}))
+    shape_topic, pose_topic, system_topic = (namespaced(namespace, t) for t in (shape_topic, pose_topic, SYSTEM_TOPIC))
+    res = scan(path, frozenset({shape_topic, pose_topic, system_topic}))
     try:
-        rec = _to_recording(res, system, actuated, passive, shape_topic, pose_topic)
+        meta = _description(res, system_topic, prefer_topic=bool(namespace))
+        rec = _to_recording(res, meta, system, actuated, passive, shape_topic, pose_topic)
     except (SudsBagError, SudsDataError) as exc:
         if not res.damage:
             raise
@@ -308,16 +348,40 @@ def read_recording_report(path: str | Path, *, system: str | None = None,
     return RecordingRead(rec, tuple(res.damage), res.truncated, str(res.path))
 
 
-def _to_recording(res: ScanResult, system: str | None, actuated: Sequence[str] | None,
-                  passive: Sequence[str] | None, shape_topic: str, pose_topic: str
-                  ) -> Recording:
-    """The body of :func:`read_recording` on a scanned file."""
+def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict[str, str] | None:
+    """The robot's description as ``suds`` metadata keys: the metadata record or ``system_topic``.
+
+    ``system_topic`` (std_msgs/String, the JSON the simulator node publishes: system,
+    joint_names, actuated, passive, gait_hz) is used when ``prefer_topic`` and the bag has it, or
+    when the bag has no metadata record; its last message counts.
+    """
+    meta = res.metadata.get(METADATA_NAME)
+    if not (prefer_topic or meta is None) or not any(ch.topic == system_topic for ch in res.channels.values()):
+        return meta
+    k, data, schema = _select(res, system_topic, STRING_TYPE)[-1]
+    where = f"{res.path}: {system_topic}: message {k}"
+    try:
+        info = json.loads(_decode(STRING_TYPE, schema, data, where).data)
+        out = {META_SYSTEM: str(info["system"]), META_ACTUATED: ",".join(str(j) for j in info["actuated"])}
+        if "passive" in info:
+            out[META_PASSIVE] = ",".join(str(j) for j in info["passive"])
+        if isinstance(info.get("gait_hz"), (int, float)) and info["gait_hz"] > 0:
+            out[META_GAIT_HZ] = repr(float(info["gait_hz"]))
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise SudsBagError(f"{where}: expected JSON with system and actuated ({type(exc).__name__}: {exc})",
+                           code=MISSING_SYSTEM) from None
+    return out
+
+
+def _to_recording(res: ScanResult, meta: dict[str, str] | None, system: str | None,
+                  actuated: Sequence[str] | None, passive: Sequence[str] | None, shape_topic: str,
+                  pose_topic: str) -> Recording:
+    """The body of :func:`read_recording` on a scanned file (``meta``: :func:`_description`)."""
     t_ns, names, r, effort = _read_shape(res, shape_topic)
     pose_ns, pose = _read_pose(res, pose_topic)
     _check_series(res.path, shape_topic, t_ns, r)
     _check_series(res.path, pose_topic, pose_ns, pose)
     t, pose_t = ns_to_float(t_ns), ns_to_float(pose_ns)
-    meta = res.metadata.get(METADATA_NAME)
     if system is None:
         system = (meta or {}).get(META_SYSTEM)
     if not system:

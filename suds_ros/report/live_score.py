@@ -31,7 +31,7 @@ from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 from suds_ros.core.recording import Recording
 from suds_ros.io.mcap import decode_message, iter_raw_messages
-from suds_ros.io.recording_bag import PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, read_recording
+from suds_ros.io.recording_bag import PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC, namespaced, read_recording
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float
 
 
@@ -86,9 +86,9 @@ def _stamp_ns(msg: object) -> int:
     return join_ns(st.sec, st.nanosec)
 
 
-def read_predictions(bag: str | Path, passive: tuple[str, ...]
+def read_predictions(bag: str | Path, passive: tuple[str, ...], namespace: str = ""
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Recorded predictions of a bag.
+    """Recorded predictions of a bag (of the robot in ``namespace``, '' for the root).
 
     Returns
     -------
@@ -100,22 +100,22 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...]
     SudsDataError
         No predictions, or predicted passive joints other than ``passive``.
     """
+    body_topic, passive_topic = namespaced(namespace, PREDICTED_BODY_TOPIC), namespaced(namespace, PREDICTED_PASSIVE_TOPIC)
     body_ns, body, pas_ns, pas = [], [], [], []
-    for m in iter_raw_messages(bag, topics=[PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC]):
+    for m in iter_raw_messages(bag, topics=[body_topic, passive_topic]):
         msg = decode_message(m.type_name, m.data)
-        if m.topic == PREDICTED_BODY_TOPIC:
+        if m.topic == body_topic:
             body_ns.append(_stamp_ns(msg))
             body.append((msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z))
         else:
             if tuple(msg.name) != passive:
-                raise SudsDataError(f"{bag}: {PREDICTED_PASSIVE_TOPIC} names joints "
+                raise SudsDataError(f"{bag}: {passive_topic} names joints "
                                     f"{list(msg.name)}; the recording's passive joints are "
                                     f"{list(passive)}", code=WRONG_JOINT_NAMES)
             pas_ns.append(_stamp_ns(msg))
             pas.append(tuple(msg.velocity))
     if not body_ns or not pas_ns:
-        missing = [t for t, v in ((PREDICTED_BODY_TOPIC, body_ns),
-                                  (PREDICTED_PASSIVE_TOPIC, pas_ns)) if not v]
+        missing = [t for t, v in ((body_topic, body_ns), (passive_topic, pas_ns)) if not v]
         raise SudsDataError(f"{bag}: no live predictions recorded on {missing}", code=MISSING_TOPIC)
     return (np.asarray(body_ns, dtype=np.int64), np.asarray(body, dtype=float).reshape(-1, 3),
             np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), -1))
@@ -160,13 +160,15 @@ def _body_over_pose_intervals(rec: Recording, mid: np.ndarray, pred: np.ndarray,
 
 
 def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
-                           template_order: int = 8, *, recording: Recording | None = None
-                           ) -> LiveScore:
+                           template_order: int = 8, *, recording: Recording | None = None,
+                           namespace: str = "") -> LiveScore:
     """Γ of the live predictions recorded in ``bag`` on the cycles after ``train_cycles``.
 
     ``train_cycles`` defaults to half of the recorded cycles (cycle length from the bag's
     ``gait_hz`` metadata, else 1 Hz).  ``recording`` is the bag's recording when the caller
     has already read it (e.g. with metadata overrides); by default it is read from ``bag``.
+    ``namespace``: the robot's ROS namespace in a bag of several robots (``/robot1``: its
+    topics ``/robot1/suds/...``; see :func:`~suds_ros.io.recording_bag.read_recording`).
 
     Raises
     ------
@@ -175,7 +177,7 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     SudsBagError
         The bag cannot be read (see :func:`~suds_ros.io.recording_bag.read_recording`).
     """
-    rec = read_recording(bag) if recording is None else recording
+    rec = read_recording(bag, namespace=namespace) if recording is None else recording
     hz = rec.gait_hz or 1.0
     cycles = (rec.t[-1] - rec.t[0] + float(np.median(np.diff(rec.t)))) * hz  # n samples span n periods
     if train_cycles is None:
@@ -183,7 +185,7 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     if not 2 <= train_cycles <= cycles - 1:
         raise SudsDataError(f"{bag}: {cycles:.1f} cycles recorded; cannot keep {train_cycles:g} for "
                             "the template and at least 1 to score (need ≥ 2 for the template)")
-    body_ns, body, pas_ns, pas = read_predictions(bag, rec.passive)
+    body_ns, body, pas_ns, pas = read_predictions(bag, rec.passive, namespace)
 
     iv = make_intervals(rec)
     k = iv.k.astype(np.int64)

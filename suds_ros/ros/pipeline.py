@@ -9,7 +9,8 @@ SIGKILL, each after a timeout).  The exit code is 0 only if every child ended
 cleanly; a child that fails stops the others.
 
 When the recorder ran, the recorded live predictions are scored at the end
-(:func:`suds_ros.report.live_score.score_live_predictions`, as ``suds score BAG``).
+(:func:`suds_ros.report.live_score.score_live_predictions`, as ``suds score BAG``; in a namespace
+as ``suds score BAG --namespace NS``).
 
 ``--namespace /robot1`` starts every node in that namespace (``-r __ns:=``), so
 its topics are ``/robot1/suds/...`` and several robots can run side by side.
@@ -43,6 +44,7 @@ from typing import IO
 
 from suds_ros.core.errors import SudsError
 from suds_ros.executables import EXECUTABLES
+from suds_ros.io.recording_bag import valid_namespace
 
 #: the nodes the pipeline can start: name → module (``python -m <module>``)
 NODES = {name: EXECUTABLES[name]
@@ -245,14 +247,6 @@ def missing_modules(commands: Mapping[str, Sequence[str]]) -> list[str]:
     return [n for n in commands if importlib.util.find_spec(NODES[n]) is None]
 
 
-def _valid_namespace(ns: str) -> bool:
-    """True for an absolute namespace of ROS name tokens (``/robot1``, ``/fleet/eel_2``)."""
-    parts = ns.split("/")
-    return (ns.startswith("/") and len(ns) > 1 and not ns.endswith("/")
-            and all(t and (t[0].isalpha() or t[0] == "_") and all(c.isalnum() or c == "_" for c in t)
-                    for t in parts[1:]))
-
-
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="pipeline", description=__doc__.splitlines()[0],
                                 allow_abbrev=False)
@@ -284,7 +278,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
                    help="extra ROS arguments for every node (e.g. -p use_sim_time:=true)")
     args = p.parse_args(argv)
-    if args.namespace and not _valid_namespace(args.namespace):
+    if args.namespace and not valid_namespace(args.namespace):
         p.error(f"--namespace: expected an absolute ROS namespace such as /robot1, got {args.namespace!r}")
     if not 0 <= args.foxglove <= 65535:
         p.error(f"--foxglove: expected a port in 1..65535 (0: off), got {args.foxglove}")
@@ -324,19 +318,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     rc = supervise(commands, main="simulator" if "simulator" in commands else None,
                    timeouts=(args.stop_timeout, args.stop_timeout), drain=args.drain)
     if rc == 0 and args.score and {"recorder", "predictor"} <= set(commands):
-        if args.namespace:  # the bag holds <namespace>/suds/...; `suds score` reads /suds/...
-            print(f"[pipeline] recorded {args.output} (topics under {args.namespace}: not scored)", flush=True)
-        else:
-            rc = report_score(args.output)
+        rc = report_score(args.output, args.namespace)
     return rc
 
 
-def report_score(bag: str) -> int:
-    """Print the recorded live predictions' Γ (``suds score``); 1 if they cannot be scored."""
+def report_score(bag: str, namespace: str = "") -> int:
+    """Print the recorded live predictions' Γ (``suds score [--namespace NS]``); 1 if they cannot be scored."""
     from suds_ros.report.live_score import score_live_predictions
 
     try:
-        score = score_live_predictions(bag)
+        score = score_live_predictions(bag, namespace=namespace)
     except SudsError as exc:
         print(f"[pipeline] ERROR: cannot score the live predictions in {bag}: {exc}", flush=True)
         return 1

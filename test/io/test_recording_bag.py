@@ -265,3 +265,69 @@ def test_io_does_not_import_rclpy() -> None:
             "suds_ros.io.cdr, suds_ros.io.msgdefs; sys.exit('rclpy' in sys.modules)")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     assert subprocess.run([sys.executable, "-c", code], env=env, check=False).returncode == 0
+
+
+# ------------------------------------------------------------------ several robots in one bag
+def write_fleet(path: Path, robots: dict[str, object], meta: dict[str, str] | None = None) -> None:
+    """One bag with each robot's contract topics under its namespace, and its <ns>/suds/system."""
+    import json
+
+    from suds_ros.io.mcap import BagWriter
+    from suds_ros.io.recording_bag import (
+        POSE_TOPIC, POSE_TYPE, SHAPE_TOPIC, SHAPE_TYPE, STRING_TYPE, SYSTEM_TOPIC, namespaced,
+    )
+    from suds_ros.io.stamps import float_to_ns, yaw_quaternion
+
+    with BagWriter(path) as w:
+        if meta is not None:
+            w.write_metadata("suds", meta)
+        for ns, rec in robots.items():
+            topics = {k: namespaced(ns, t) for k, t in (("s", SHAPE_TOPIC), ("p", POSE_TOPIC), ("y", SYSTEM_TOPIC))}
+            w.add_topic(topics["s"], SHAPE_TYPE)
+            w.add_topic(topics["p"], POSE_TYPE)
+            w.add_topic(topics["y"], STRING_TYPE)
+            info = {"system": rec.system, "joint_names": list(rec.joint_names), "actuated": list(rec.actuated),
+                    "passive": list(rec.passive), "gait_hz": rec.gait_hz}
+            t0 = int(float_to_ns(rec.t[0]))
+            w.write_raw(topics["y"], cdr.serialize(STRING_TYPE, {"data": json.dumps(info)}), t0, t0)
+            for k, t in enumerate(rec.t):
+                n = int(float_to_ns(t))
+                w.write_raw(topics["s"], cdr.joint_state(n, rec.joint_names, rec.r[k], (), ()), n, n)
+                x, y, yaw = rec.pose[k]
+                w.write_raw(topics["p"], cdr.pose_stamped(n, (x, y, 0.0), yaw_quaternion(yaw), "world"), n, n)
+
+
+def test_robots_in_namespaces(tmp_path: Path) -> None:
+    from suds_ros.core.errors import SudsConfigError
+
+    a = make_rec()
+    b = make_rec(system="eel4", actuated=("joint_1", "joint_3"), passive=("joint_2",), gait_hz=0.5,
+                 r=make_rec().r[::-1].copy())
+    path = tmp_path / "fleet.mcap"
+    # the bag's metadata record (e.g. the recorder's parameters) describes one robot only
+    write_fleet(path, {"/robot1": a, "/fleet/eel_2": b}, meta={"system": "other", "actuated": "joint_3"})
+    got_a = read_recording(path, namespace="/robot1")
+    got_b = read_recording(path, namespace="/fleet/eel_2")
+    assert_rec_equal(got_a, a)
+    assert_rec_equal(got_b, b)
+    with pytest.raises(SudsBagError, match=r"topic '/suds/shape' is not in the bag.*namespace "
+                                           r"/fleet/eel_2, /robot1") as err:
+        read_recording(path)
+    assert err.value.code == MISSING_TOPIC
+    with pytest.raises(SudsBagError, match="'/robot9/suds/shape' is not in the bag"):
+        read_recording(path, namespace="/robot9")
+    for bad in ("robot1", "/robot1/", "/1robot", "/ro-bot"):
+        with pytest.raises(SudsConfigError, match="`namespace`: expected"):
+            read_recording(path, namespace=bad)
+
+
+def test_system_topic_when_the_bag_has_no_metadata(tmp_path: Path) -> None:
+    a = make_rec()
+    path = tmp_path / "root.mcap"
+    write_fleet(path, {"": a})  # root topics, no metadata record, but /suds/system recorded
+    assert_rec_equal(read_recording(path), a)
+    # the metadata record wins at the root (the recording contract's own record)
+    path = tmp_path / "root_meta.mcap"
+    write_fleet(path, {"": a}, meta={"system": "other", "actuated": "joint_1,joint_2"})
+    rec = read_recording(path)
+    assert rec.system == "other" and rec.actuated == ("joint_1", "joint_2") and rec.gait_hz is None

@@ -28,7 +28,10 @@ from suds_ros.io.recording_bag import (
     PREDICTED_PASSIVE_TOPIC,
     SHAPE_TOPIC,
     SHAPE_TYPE,
+    STRING_TYPE,
+    SYSTEM_TOPIC,
     TWIST_TYPE,
+    namespaced,
 )
 from suds_ros.io.stamps import float_to_ns, split_ns, yaw_quaternion
 from suds_ros.report.live_score import score_live_predictions
@@ -41,33 +44,43 @@ def _header(ns: int) -> dict:
     return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "body"}
 
 
-def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf) -> None:
+def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace="") -> None:
     """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``.
 
     ``pose_from``: no pose message before this time (s; motion capture started late).
+    ``namespace``: every topic under it, and the system on ``<namespace>/suds/system`` (as a
+    namespaced pipeline records it) instead of the metadata record.
     """
     passive_names = rec.passive if passive_names is None else passive_names
+    shape, pose, body, passive = (namespaced(namespace, t) for t in (
+        SHAPE_TOPIC, POSE_TOPIC, PREDICTED_BODY_TOPIC, PREDICTED_PASSIVE_TOPIC))
     with BagWriter(path) as w:
-        for topic, type_name in ((SHAPE_TOPIC, SHAPE_TYPE), (POSE_TOPIC, POSE_TYPE),
-                                 (PREDICTED_BODY_TOPIC, TWIST_TYPE),
-                                 (PREDICTED_PASSIVE_TOPIC, SHAPE_TYPE)):
+        for topic, type_name in ((shape, SHAPE_TYPE), (pose, POSE_TYPE), (body, TWIST_TYPE),
+                                 (passive, SHAPE_TYPE)):
             w.add_topic(topic, type_name)
-        w.write_metadata(METADATA_NAME, {"system": rec.system, "actuated": ",".join(rec.actuated),
-                                         "passive": ",".join(rec.passive), "gait_hz": "1.0"})
+        info = {"system": rec.system, "actuated": ",".join(rec.actuated),
+                "passive": ",".join(rec.passive), "gait_hz": "1.0"}
+        if namespace:
+            w.add_topic(namespaced(namespace, SYSTEM_TOPIC), STRING_TYPE)
+            text = json.dumps({"system": rec.system, "joint_names": list(rec.joint_names),
+                               "actuated": list(rec.actuated), "passive": list(rec.passive), "gait_hz": 1.0})
+            t0 = float_to_ns(rec.t[0])
+            w.write_raw(namespaced(namespace, SYSTEM_TOPIC), cdr.serialize(STRING_TYPE, {"data": text}), t0, t0)
+        else:
+            w.write_metadata(METADATA_NAME, info)
         for k, t in enumerate(rec.t):
             ns = float_to_ns(t)
-            w.write_raw(SHAPE_TOPIC, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
+            w.write_raw(shape, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
             x, y, yaw = rec.pose[k]
             if t >= pose_from:
-                w.write_raw(POSE_TOPIC, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
+                w.write_raw(pose, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
             if t in preds:
                 xi, rp = preds[t]
                 twist = {"header": _header(ns), "twist": {
                     "linear": {"x": xi[0], "y": xi[1], "z": 0.0},
                     "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
-                w.write_raw(PREDICTED_BODY_TOPIC, cdr.serialize(TWIST_TYPE, twist), ns, ns)
-                w.write_raw(PREDICTED_PASSIVE_TOPIC, cdr.joint_state(ns, passive_names, (), rp, ()),
-                            ns, ns)
+                w.write_raw(body, cdr.serialize(TWIST_TYPE, twist), ns, ns)
+                w.write_raw(passive, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
 
 
 @pytest.fixture(scope="module")
@@ -110,6 +123,22 @@ def test_motion_capture_starting_late(live, tmp_path):
     assert np.isfinite([late.gamma_body, late.gamma_passive, late.rms_body, late.rms_passive]).all(), late
     assert late.gamma_body == pytest.approx(full.gamma_body, abs=0.01), (late, full)
     assert late.gamma_passive == pytest.approx(full.gamma_passive, abs=0.01), (late, full)
+
+
+def test_a_robot_in_a_namespace(live, tmp_path, capsys):
+    """A namespaced pipeline's bag (topics /robot1/suds/..., system on /robot1/suds/system) is
+    scored with ``--namespace``; without it the error says which namespace holds the topics."""
+    rec, preds = live
+    write_bag(tmp_path / "root.mcap", rec, preds)
+    write_bag(tmp_path / "ns.mcap", rec, preds, namespace="/robot1")
+    ref = score_live_predictions(tmp_path / "root.mcap", TRAIN)
+    got = score_live_predictions(tmp_path / "ns.mcap", TRAIN, namespace="/robot1")
+    assert got == ref
+    assert suds_main(["score", str(tmp_path / "ns.mcap"), "--namespace", "/robot1", "--train-cycles",
+                      str(TRAIN), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["gamma_passive"] == pytest.approx(ref.gamma_passive)
+    assert suds_main(["score", str(tmp_path / "ns.mcap")]) == 2
+    assert "namespace /robot1" in capsys.readouterr().err
 
 
 def test_worse_predictions_score_worse_and_gaps_lower_coverage(live, tmp_path):

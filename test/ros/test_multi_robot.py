@@ -6,8 +6,9 @@ predictor (``--namespace``).  One
 recorder records ``/robot1/suds/*`` and ``/robot2/suds/*`` into one bag.  Each model
 has its own robot's joints and exactly its own robot's samples (nothing crossed over),
 and each robot's live predictions on the cycles after the training cycles reach Γ ≥ 0.8
-(the namespace's topics are taken out of the shared bag into a bag of the contract's
-names, then scored by :func:`suds_ros.report.live_score.score_live_predictions`).
+(scored by :func:`suds_ros.report.live_score.score_live_predictions` on the namespace's
+topics taken out of the shared bag into a bag of the contract's names, and the same read in
+place with ``namespace``).
 """
 
 from __future__ import annotations
@@ -107,6 +108,8 @@ def test_two_robots_in_two_namespaces(start_process, tmp_path, probe):
         joints[ns] = tuple(model.joint_names)
         score = score_live_predictions(out, TRAIN_CYCLES)
         print(ns, system["system"], score.summary())
+        # read in place from the shared bag (`suds score fleet.mcap --namespace /robot1`)
+        assert score_live_predictions(bag, TRAIN_CYCLES, namespace=ns) == score
         assert score.coverage >= 0.95, (ns, score)
         assert score.gamma_body >= 0.8 and score.gamma_passive >= 0.8, (ns, score)
     assert joints["/robot1"] != joints["/robot2"]
