@@ -33,8 +33,11 @@ def add_bag_argument(p: argparse.ArgumentParser, **kwargs: str) -> None:
 
 
 def add_recording_options(p: argparse.ArgumentParser) -> None:
-    """``--system``, ``--model``, ``--actuated``, ``--passive``, ``--gait-hz``: overrides of the bag's
-    metadata; ``--namespace``: which robot's topics to read."""
+    """Add the recording options to ``p``.
+
+    ``--system``, ``--model``, ``--actuated``, ``--passive``, ``--gait-hz``: overrides of the bag's
+    metadata; ``--namespace``: which robot's topics to read.
+    """
     p.add_argument("--system", help="system id (overrides the bag's metadata); a path means --model")
     p.add_argument("--model", metavar="FILE",
                    help="robot model file (suds-robot/1): its name is the system id; the recording's "

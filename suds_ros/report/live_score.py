@@ -100,7 +100,8 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...], namespace: str =
     SudsDataError
         No predictions, or predicted passive joints other than ``passive``.
     """
-    body_topic, passive_topic = namespaced(namespace, PREDICTED_BODY_TOPIC), namespaced(namespace, PREDICTED_PASSIVE_TOPIC)
+    body_topic = namespaced(namespace, PREDICTED_BODY_TOPIC)
+    passive_topic = namespaced(namespace, PREDICTED_PASSIVE_TOPIC)
     body_ns, body, pas_ns, pas = [], [], [], []
     for m in iter_raw_messages(bag, topics=[body_topic, passive_topic]):
         msg = decode_message(m.type_name, m.data)

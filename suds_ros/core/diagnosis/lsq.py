@@ -35,8 +35,11 @@ def fd_jacobian(
 def with_jacobian(
     fun: Callable[..., FloatArray], rel: float, floor: FloatArray, hi: FloatArray,
 ) -> tuple[Callable[..., FloatArray], Callable[..., FloatArray]]:
-    """``(fun, jac)`` for least_squares: ``fun`` remembers its last value, so ``jac`` at the
-    same point costs one evaluation per parameter (steps ``max(rel·|x_i|, floor_i)``)."""
+    """``(fun, jac)`` for least_squares with steps ``max(rel·|x_i|, floor_i)``.
+
+    The returned ``fun`` remembers its last value, so ``jac`` at the same point costs one
+    evaluation per parameter.
+    """
     last: dict[str, Any] = {}
 
     def value(x: FloatArray, *args: Any) -> FloatArray:

@@ -75,7 +75,9 @@ def quadratic_run_60():  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.slow
-def test_the_report_discovers_quadratic_drag_beyond_the_catalogue(quadratic_run_60) -> None:  # type: ignore[no-untyped-def]
+def test_the_report_discovers_quadratic_drag_beyond_the_catalogue(  # type: ignore[no-untyped-def]
+    quadratic_run_60,
+) -> None:
     """Issue 10, through the whole pipeline on a 60-cycle recording: viscous damping stands in
     for the quadratic drag (it removes most of the mismatch), and the formula on top of it names
     the |ṙ|ṙ term on joint_2 with the damping cancelled; re-simulated, the mismatch is gone."""
