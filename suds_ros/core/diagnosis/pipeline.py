@@ -264,6 +264,7 @@ class _Fit:
     conditions: dict[str, tuple[str, ...]]
     confounded: tuple[tuple[str, ...], ...]
     unexplained: bool  # no candidate has positive held-out evidence (nothing refined)
+    notes: tuple[str, ...] = ()  # e.g. the simulator's arbitration between near-tied sets
 
 
 def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock) -> _Fit:
@@ -272,11 +273,26 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     conditions = channel_conditions([loc.channel for loc in located], nom.E0, table, model)
     if naming.chosen.score.score <= 0:
         return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
-    cand, x, se, dropped = refine_choice(naming.chosen.cand, naming.chosen.x, model, data, config,
-                                         nom.w, nom.substeps, nom.floors)
+    # the selection, and those started from the first step's runners-up: the simulator arbitrates
+    options = [(naming.chosen, naming.evidence, naming.confounded)]
+    options += [(a.cur, a.evidence, a.groups) for a in naming.alternatives]
+    tried = []
+    for ranked, member_ev, groups in options:
+        cand, x, se, dropped = refine_choice(ranked.cand, ranked.x, model, data, config,
+                                             nom.w, nom.substeps, nom.floors)
+        fitted_model, delay = apply_effects(model, cand.effects(x))
+        rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
+        tried.append((_train_excess(table, table.residuals(rep1.rp, rep1.xi), nom.floor),
+                      ranked, member_ev, groups, cand, x, se, dropped, rep1))
+    best = min(range(len(tried)), key=lambda i: tried[i][0])
+    excess, ranked, member_ev, groups, cand, x, se, dropped, rep1 = tried[best]
+    notes = []
+    if best:
+        diff = naming.chosen.score.score - ranked.score.score
+        notes.append(f"the simulator preferred {ranked.cand.label} (training excess over the floor "
+                     f"{excess:.3g}) to the forward selection's {naming.chosen.cand.label} ({tried[0][0]:.3g}; "
+                     f"equation-error evidence {abs(diff):.0f} nats {'higher' if diff > 0 else 'lower'})")
     clock.mark("refine")
-    fitted_model, delay = apply_effects(model, cand.effects(x))
-    rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
     # floor with the better model (effects can leak into the fourth differences)
     better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt, xi_noise_gain(data, nom.w)))
     floor = {c: float(min(nom.floor[c], v)) for c, v in better.items()}
@@ -284,10 +300,18 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
     new = [loc.channel for loc in located if loc.channel not in conditions]
     conditions.update(channel_conditions(new, nom.E0, table, model))
-    evidence = {Candidate((p,)).label: e for p, e in zip(naming.chosen.cand.parts, naming.evidence)}
-    confounded = tuple(g for g in naming.confounded if g[0] not in dropped)
+    evidence = {Candidate((p,)).label: e for p, e in zip(ranked.cand.parts, member_ev)}
+    kept = {Candidate((p,)).label for p in cand.parts}
+    confounded = tuple(g for g in groups if g[0] not in dropped and g[0] in kept)
     return _Fit(fitted_effects(cand, x, se, evidence), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0,
-                located, conditions, confounded, False)
+                located, conditions, confounded, False, tuple(notes))
+
+
+def _train_excess(table: ChannelTable, E: FloatArray, floor: dict[str, float]) -> float:
+    """Σ over channels of max(F − 1, 0) on the training half: the output error arbitration uses."""
+    train = ~table.held
+    return float(sum(max(np.nanmean(E[train, i] ** 2) / floor[c] ** 2 - 1.0, 0.0)
+                     for i, c in enumerate(table.channels)))
 
 
 def _show(
@@ -301,7 +325,7 @@ def _show(
     affected = [loc.channel for loc in fit.located]
     improvement = excess_improvement(F0, F1, affected)
     unexplained, left = _unexplained(F0, F1, affected, config, fit.unexplained)
-    notes: list[str] = [data.phase_note] if data.phase_note else []
+    notes: list[str] = ([data.phase_note] if data.phase_note else []) + list(fit.notes)
     rms1 = table.rms(E1)
     if unexplained and effects and improvement < 0.5:
         # the best catalogue fit does not explain the mismatch: do not force it onto an entry

@@ -50,6 +50,15 @@ class DiagnoseConfig:
         the margin grows as ``confound_rel`` × the winner's gain.
     confound_rel : float
         Relative part of the confounding margin.
+    arbitrate_rel, arbitrate_margin : float
+        Sets of effects (of the chosen set's size) whose equation-error evidence is within
+        max(``arbitrate_margin`` nats, ``arbitrate_rel`` × the chosen set's) of it are refined in
+        the simulator too, and the set with the smallest training-half output error is reported:
+        the equation error carries biases of its own (finite differences, the windowed body
+        velocity), so on purcell3 a stiffness-to-drag error and a drag-anisotropy error can swap
+        places there while the simulator tells them apart at once.
+    arbitrate_max : int
+        Most alternatives refined (0: no arbitration).
     unexplained_fraction : float
         Maximum fraction of the excess residual power (over the floor) that may remain after the
         fit for the mismatch to count as explained.
@@ -83,6 +92,9 @@ class DiagnoseConfig:
     model_suspects: bool = True
     confound_margin: float = 3.0
     confound_rel: float = 0.01
+    arbitrate_rel: float = 0.1
+    arbitrate_margin: float = 20.0
+    arbitrate_max: int = 2
     unexplained_fraction: float = 0.25
     segment_cycles: int = 1
     refine_cycles: int = 30
@@ -104,6 +116,9 @@ class DiagnoseConfig:
             ("evidence_threshold", self.evidence_threshold >= 0),
             ("confound_margin", self.confound_margin >= 0),
             ("confound_rel", self.confound_rel >= 0),
+            ("arbitrate_rel", self.arbitrate_rel >= 0),
+            ("arbitrate_margin", self.arbitrate_margin >= 0),
+            ("arbitrate_max", self.arbitrate_max >= 0),
             ("unexplained_fraction", 0 < self.unexplained_fraction < 1),
             ("segment_cycles", self.segment_cycles >= 1),
             ("refine_nfev", self.refine_nfev >= 1),

@@ -47,7 +47,8 @@ class Naming:
     equally well (the chosen one first); ``evidence``: per member of ``chosen`` (in its order), the
     evidence lost when that member is left out, nats; ``steps``: a log of the selection;
     ``gains``: the best evidence gain found at each forward step tried (the last one may have
-    failed the threshold), nats.
+    failed the threshold), nats; ``alternatives``: the selections started from the first step's
+    runners-up (:func:`_alternatives`), for the simulator to arbitrate.
     """
 
     ranking: tuple[CandidateScore, ...]
@@ -56,6 +57,7 @@ class Naming:
     evidence: tuple[float, ...] = ()
     steps: tuple[str, ...] = ()
     gains: tuple[float, ...] = ()
+    alternatives: tuple["_Path", ...] = ()
 
 
 class _Selector:
@@ -127,13 +129,37 @@ def name_mismatch(
     sel = _Selector(Scorer(data, model, config.eq_window, sig_rp), config)
     pool = list(candidates) if candidates is not None else catalogue_candidates(model, config.model_suspects)
     singles = sorted((sel.fit(c) for c in pool), key=lambda r: -r.score.score)
+    main = _forward(sel, singles, None)
+    alternatives = _alternatives(sel, singles, main) if main.cur.score.score > 0 else ()
+    ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
+    return Naming(ranking, main.cur, main.groups, main.evidence, main.log, main.gains, alternatives)
+
+
+@dataclass(frozen=True)
+class _Path:
+    """One forward selection with backward checks: the set, its confounded groups, members' evidence."""
+
+    cur: Ranked
+    groups: tuple[tuple[str, ...], ...]
+    evidence: tuple[float, ...]
+    log: tuple[str, ...]
+    gains: tuple[float, ...]
+    first_group: tuple[str, ...] = ()  # the first step's confounded group, if any
+
+
+def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) -> _Path:
+    """Forward selection from the best single (or from ``first``), each step checked backward."""
+    config = sel.config
     cur = sel.ranked(Candidate(()), np.zeros(0), 0.0)
     groups: list[tuple[str, ...]] = []
+    first_group: tuple[str, ...] = ()
     log: list[str] = []
     evidence: list[float] = []
     gains: list[float] = []
     for step in range(config.max_effects):
-        options = singles if step == 0 else sel.extend(cur, singles)
+        options = list(singles) if step == 0 else sel.extend(cur, singles)
+        if step == 0 and first is not None:
+            options = [first] + [o for o in options if o.cand != first.cand]
         if not options:
             break
         best = options[0]
@@ -146,21 +172,51 @@ def name_mismatch(
                 cur = best  # nothing has positive evidence; the pipeline reports it unexplained
             break
         margin = max(config.confound_margin, config.confound_rel * gain)
-        close = [o for o in options if best.score.score - o.score.score <= margin and o.cand != best.cand]
+        close = [o for o in options if abs(best.score.score - o.score.score) <= margin and o.cand != best.cand]
         chosen = min([best] + close, key=_preference) if close else best
         if close:
             others = [c for c in [best] + close if c is not chosen]
             groups.append(tuple(_added(o.cand, cur.cand) for o in [chosen] + others))
+            if step == 0:
+                first_group = groups[-1]
         cur = chosen
         cur, evidence, dropped = _backward(sel, cur, config.evidence_threshold)
         log.extend(dropped)
     if not evidence and cur.cand.parts:
         evidence = [ev for ev, _ in sel.member_evidence(cur)]
     kept = {lab for n, t in cur.cand.parts for lab in [_part_label(n, t)]}
-    groups = [g for g in groups if g[0] in kept]
-    ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
-    return Naming(ranking, cur, tuple(groups), tuple(float(e) for e in evidence), tuple(log),
-                  tuple(gains))
+    return _Path(cur, tuple(g for g in groups if g[0] in kept), tuple(float(e) for e in evidence), tuple(log),
+                 tuple(gains), first_group)
+
+
+def _alternatives(sel: _Selector, singles: Sequence[Ranked], main: _Path) -> tuple[_Path, ...]:
+    """Forward selections from the runners-up of the first step, for the simulator to arbitrate.
+
+    Singles within max(``arbitrate_margin``, ``arbitrate_rel`` × the best single's evidence) of
+    the best, other than those reported as confounded with it (equivalent explanations, named as
+    such), each start a forward selection of their own; the distinct sets found (at most
+    ``arbitrate_max``) are returned.  The equation error's own biases can put a wrong first
+    effect narrowly ahead, and every later step builds on it.
+    """
+    cfg = sel.config
+    if not cfg.arbitrate_max or not singles:
+        return ()
+    top = singles[0].score.score
+    margin = max(cfg.arbitrate_margin, cfg.arbitrate_rel * top)
+    seen = [{_part_label(n, t) for n, t in main.cur.cand.parts}]
+    out: list[_Path] = []
+    for s in singles[1:]:
+        if len(out) >= cfg.arbitrate_max or top - s.score.score > margin:
+            break
+        if s.score.score <= 0 or _part_label(*s.cand.parts[0]) in main.first_group:
+            continue
+        path = _forward(sel, singles, s)
+        labels = {_part_label(n, t) for n, t in path.cur.cand.parts}
+        if labels in seen:
+            continue
+        seen.append(labels)
+        out.append(path)
+    return tuple(out)
 
 
 def _backward(sel: _Selector, cur: Ranked, threshold: float) -> tuple[Ranked, list[float], list[str]]:
