@@ -48,12 +48,16 @@ number in the report is computed on the held-out half.
    log-likelihood gain Σ_c (n_eff/2)·log(RSS0_c/RSS_c) over channels, minus a BIC penalty
    (p/2)·log n_eff; an effect joins (and stays) only if it adds more than ``evidence_threshold``
    nats on its own.  Candidates within ``confound_margin`` of a step's winner are reported as
-   confounded.
+   confounded.  Runners-up of the first step within ``arbitrate_rel`` of the winner (other than
+   confounded ones) start selections of their own (:func:`~.selection.name_mismatch`).
 
 4. Fit and show (output error).  The chosen effect(s) are refined inside the simulator:
    least squares of the noise-floor-weighted replay residuals over short training segments
-   (scipy ``least_squares``, finite-difference Jacobian), over one-cycle segments spread over the
-   training half; standard errors from the cluster-robust sandwich (clusters = segments) with CR1
+   (scipy ``least_squares``, forward-difference Jacobian with absolute steps, :mod:`.lsq`), over
+   one-cycle segments spread over the training half.  When the naming left alternative sets,
+   each is refined too and the set whose replay leaves the least training residual over the
+   noise floor is reported (the equation error has biases of its own; a note says so).
+   Standard errors come from the cluster-robust sandwich (clusters = segments) with CR1
    and t(B − p) small-sample factors, floored by the model-based error (calibrated against
    seed-to-seed spread in the tests).  The whole-recording replays run each half as 3-cycle pieces
    in one batch, each after a 3 s warm-up from the recorded state (equal to the sequential replay
