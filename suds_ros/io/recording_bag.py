@@ -67,6 +67,30 @@ META_GAIT_HZ = "gait_hz"
 WORLD_FRAME = "world"
 
 
+def parse_system_info(text: str) -> dict[str, Any]:
+    """The robot description published on ``/suds/system`` (std_msgs/String, JSON).
+
+    Keys: ``system``, ``joint_names``, ``actuated`` (required, among the joints), ``passive`` and
+    ``gait_hz`` (None unless a positive number); other keys are kept as they are.
+
+    Raises
+    ------
+    SudsDataError
+        Not JSON, a required key missing, or actuated joints that are not among the joints.
+    """
+    try:
+        info = json.loads(text)
+        names = tuple(str(j) for j in info["joint_names"])
+        actuated = tuple(str(j) for j in info["actuated"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SudsDataError(f"expected JSON with joint_names and actuated: {type(exc).__name__}: {exc}") from None
+    if not actuated or not set(actuated) <= set(names):
+        raise SudsDataError(f"actuated {list(actuated)} not among joints {list(names)}")
+    gait = info.get("gait_hz")
+    return {**info, "joint_names": names, "actuated": actuated,
+            "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}
+
+
 def valid_namespace(ns: str) -> bool:
     """True for an absolute namespace of ROS name tokens (``/robot1``, ``/fleet/eel_2``)."""
     parts = ns.split("/")
@@ -351,9 +375,9 @@ def read_recording_report(path: str | Path, *, system: str | None = None,
 def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict[str, str] | None:
     """The robot's description as ``suds`` metadata keys: the metadata record or ``system_topic``.
 
-    ``system_topic`` (std_msgs/String, the JSON the simulator node publishes: system,
-    joint_names, actuated, passive, gait_hz) is used when ``prefer_topic`` and the bag has it, or
-    when the bag has no metadata record; its last message counts.
+    ``system_topic`` (:func:`parse_system_info`, as the simulator node publishes it) is used when
+    ``prefer_topic`` and the bag has it, or when the bag has no metadata record; its last message
+    counts.
     """
     meta = res.metadata.get(METADATA_NAME)
     if not (prefer_topic or meta is None) or not any(ch.topic == system_topic for ch in res.channels.values()):
@@ -361,15 +385,16 @@ def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict
     k, data, schema = _select(res, system_topic, STRING_TYPE)[-1]
     where = f"{res.path}: {system_topic}: message {k}"
     try:
-        info = json.loads(_decode(STRING_TYPE, schema, data, where).data)
-        out = {META_SYSTEM: str(info["system"]), META_ACTUATED: ",".join(str(j) for j in info["actuated"])}
-        if "passive" in info:
-            out[META_PASSIVE] = ",".join(str(j) for j in info["passive"])
-        if isinstance(info.get("gait_hz"), (int, float)) and info["gait_hz"] > 0:
-            out[META_GAIT_HZ] = repr(float(info["gait_hz"]))
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise SudsBagError(f"{where}: expected JSON with system and actuated ({type(exc).__name__}: {exc})",
-                           code=MISSING_SYSTEM) from None
+        info = parse_system_info(_decode(STRING_TYPE, schema, data, where).data)
+    except SudsDataError as exc:
+        raise SudsBagError(f"{where}: {exc}", code=MISSING_SYSTEM) from None
+    out = {META_ACTUATED: ",".join(info["actuated"])}
+    if info.get("system"):
+        out[META_SYSTEM] = str(info["system"])
+    if "passive" in info:
+        out[META_PASSIVE] = ",".join(str(j) for j in info["passive"])
+    if info["gait_hz"] is not None:
+        out[META_GAIT_HZ] = repr(info["gait_hz"])
     return out
 
 

@@ -37,7 +37,7 @@ from suds_ros.core.errors import (
     SudsDataError,
 )
 from suds_ros.core.ident.model import SudsModel
-from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME
+from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME, parse_system_info
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float, quaternion_yaw, split_ns, yaw_quaternion
 
 _INT32 = (-(2**31), 2**31 - 1)
@@ -434,13 +434,6 @@ def system_info_to_msg(info: dict[str, Any]) -> Any:
 def system_info_from_msg(msg: Any) -> dict[str, Any]:
     """Parse a ``/suds/system`` message; raises SudsConfigError when it is not a valid description."""
     try:
-        info = json.loads(msg.data)
-        names = tuple(str(j) for j in info["joint_names"])
-        actuated = tuple(str(j) for j in info["actuated"])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SudsConfigError(f"{SYSTEM_TOPIC}: expected JSON with joint_names and actuated: {exc}") from None
-    if not actuated or not set(actuated) <= set(names):
-        raise SudsConfigError(f"{SYSTEM_TOPIC}: actuated {list(actuated)} not among joints {list(names)}")
-    gait = info.get("gait_hz")
-    return {**info, "joint_names": names, "actuated": actuated,
-            "gait_hz": float(gait) if isinstance(gait, (int, float)) and gait > 0 else None}
+        return parse_system_info(msg.data)
+    except SudsDataError as exc:
+        raise SudsConfigError(f"{SYSTEM_TOPIC}: {exc}") from None
