@@ -331,3 +331,16 @@ def test_system_topic_when_the_bag_has_no_metadata(tmp_path: Path) -> None:
     write_fleet(path, {"": a}, meta={"system": "other", "actuated": "joint_1,joint_2"})
     rec = read_recording(path)
     assert rec.system == "other" and rec.actuated == ("joint_1", "joint_2") and rec.gait_hz is None
+
+
+def test_parse_system_info() -> None:
+    from suds_ros.io.recording_bag import parse_system_info
+
+    info = parse_system_info('{"system": "purcell3", "joint_names": ["joint_1", "joint_2"], '
+                             '"actuated": ["joint_1"], "passive": ["joint_2"], "gait_hz": 0, "rate": 100}')
+    assert info["actuated"] == ("joint_1",) and info["joint_names"] == ("joint_1", "joint_2")
+    assert info["gait_hz"] is None and info["rate"] == 100
+    with pytest.raises(SudsDataError, match="expected JSON with joint_names and actuated"):
+        parse_system_info('{"system": "x", "actuated": ["joint_1"]}')
+    with pytest.raises(SudsDataError, match=r"actuated \['joint_9'\] not among joints"):
+        parse_system_info('{"joint_names": ["joint_1"], "actuated": ["joint_9"]}')

@@ -135,15 +135,15 @@ def discover(
     thr = np.where(np.asarray(p.mu) != 0.0, scorer.rdot_thr, 0.0)
     y_tr, _ = scorer.train.residuals(p, thr)
     y_te, _ = scorer.test.residuals(p, thr)
+    # the rows the residuals kept; zeroed rows add 0 = 0·β to a block mean, so the means stay consistent
+    kept_tr, kept_te = np.abs(scorer.train.rdot_p) > thr, np.abs(scorer.test.rdot_p) > thr
     rest = np.asarray(model.rest)[data.pas] + p.offset
     act_names = [data.names[a] for a in data.act]
     out = []
     for j, jp in enumerate(data.pas):
         names, X = _library(scorer.train, j, float(rest[j]), act_names)
         _, Xt = _library(scorer.test, j, float(rest[j]), act_names)
-        # zeroed rows add 0 = 0·β to a block mean, so the block means stay consistent
-        X = X * (np.abs(scorer.train.rdot_p[:, j]) > thr[j])[:, None]
-        Xt = Xt * (np.abs(scorer.test.rdot_p[:, j]) > thr[j])[:, None]
+        X, Xt = X * kept_tr[:, j:j + 1], Xt * kept_te[:, j:j + 1]
         w = config.eq_window
         X, Xt = _blocks(X, w), _blocks(Xt, w)
         y, yt = _blocks(y_tr[:, j], w), _blocks(y_te[:, j], w)

@@ -59,9 +59,10 @@ class ChannelTable:
         """Held-out RMS of each channel's residual."""
         return {c: float(np.sqrt(np.nanmean(E[self.held, i] ** 2))) for i, c in enumerate(self.channels)}
 
-    def fstats(self, E: FloatArray, floor: Mapping[str, float]) -> dict[str, float]:
-        """F = held-out mean(residual²) / floor² per channel."""
-        return {c: float(np.nanmean(E[self.held, i] ** 2) / floor[c] ** 2) for i, c in enumerate(self.channels)}
+    def fstats(self, E: FloatArray, floor: Mapping[str, float], held: bool = True) -> dict[str, float]:
+        """F = mean(residual²) / floor² per channel, on the held-out half (``held``) or the training half."""
+        rows = self.held if held else ~self.held
+        return {c: float(np.nanmean(E[rows, i] ** 2) / floor[c] ** 2) for i, c in enumerate(self.channels)}
 
     def floor(self, floors: Floors) -> dict[str, float]:
         """Noise floor per channel from :func:`~suds_ros.core.diagnosis.floor.noise_floor`'s output."""

@@ -286,10 +286,12 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
                                              nom.w, nom.substeps, nom.floors)
         fitted_model, delay = apply_effects(model, cand.effects(x))
         rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
-        tried.append((_train_excess(table, table.residuals(rep1.rp, rep1.xi), nom.floor),
-                      ranked, member_ev, groups, cand, x, se, dropped, rep1))
+        E1 = table.residuals(rep1.rp, rep1.xi)
+        # the output error arbitration uses: Σ over channels of max(F − 1, 0) on the training half
+        excess = sum(max(f - 1.0, 0.0) for f in table.fstats(E1, nom.floor, held=False).values())
+        tried.append((excess, ranked, member_ev, groups, cand, x, se, dropped, rep1, E1))
     best = min(range(len(tried)), key=lambda i: tried[i][0])
-    excess, ranked, member_ev, groups, cand, x, se, dropped, rep1 = tried[best]
+    excess, ranked, member_ev, groups, cand, x, se, dropped, rep1, E1 = tried[best]
     notes = []
     if best:
         diff = naming.chosen.score.score - ranked.score.score
@@ -307,15 +309,8 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     evidence = {Candidate((p,)).label: e for p, e in zip(ranked.cand.parts, member_ev)}
     kept = {Candidate((p,)).label for p in cand.parts}
     confounded = tuple(g for g in groups if g[0] not in dropped and g[0] in kept)
-    return _Fit(fitted_effects(cand, x, se, evidence), rep1, table.residuals(rep1.rp, rep1.xi), floor, F0,
+    return _Fit(fitted_effects(cand, x, se, evidence), rep1, E1, floor, F0,
                 located, conditions, confounded, False, tuple(notes))
-
-
-def _train_excess(table: ChannelTable, E: FloatArray, floor: dict[str, float]) -> float:
-    """Σ over channels of max(F − 1, 0) on the training half: the output error arbitration uses."""
-    train = ~table.held
-    return float(sum(max(np.nanmean(E[train, i] ** 2) / floor[c] ** 2 - 1.0, 0.0)
-                     for i, c in enumerate(table.channels)))
 
 
 def _show(
@@ -353,9 +348,12 @@ def _show(
     if unexplained and not effects:
         rms1 = dict(nom.rms0)
         improvement = 0.0
-    # beyond named effects too: a catalogue entry may stand in for physics outside the catalogue
-    discovered = (_discover(nom, effects, F0, floor, affected, notes) if unexplained
-                  else _discover(nom, effects, F0, floor, affected, notes, float(improvement)) if effects else ())
+    # beyond named effects too (judged against what they explain): a catalogue entry may stand in
+    # for physics outside the catalogue
+    discovered: tuple[Discovered, ...] = ()
+    if unexplained or effects:
+        discovered = _discover(nom, effects, F0, floor, affected, notes,
+                               None if unexplained else float(improvement))
     clock.mark("total")
     return _report(
         nom, rep1, clock.timings, mismatch=True, located=tuple(fit.located), effects=tuple(effects),

@@ -51,14 +51,15 @@ class DiagnoseConfig:
     confound_rel : float
         Relative part of the confounding margin.
     arbitrate_rel, arbitrate_margin : float
-        Sets of effects (of the chosen set's size) whose equation-error evidence is within
-        max(``arbitrate_margin`` nats, ``arbitrate_rel`` × the chosen set's) of it are refined in
-        the simulator too, and the set with the smallest training-half output error is reported:
-        the equation error carries biases of its own (finite differences, the windowed body
-        velocity), so on purcell3 a stiffness-to-drag error and a drag-anisotropy error can swap
-        places there while the simulator tells them apart at once.
+        First-step runners-up whose equation-error evidence is within max(``arbitrate_margin``
+        nats, ``arbitrate_rel`` × the best single's) of the best start forward selections of their
+        own; each set found is refined in the simulator too, and the one with the smallest
+        training-half output error is reported.  The equation error carries biases of its own
+        (finite differences, the windowed body velocity), so on purcell3 a stiffness-to-drag error
+        and a drag-anisotropy error can swap places there while the simulator tells them apart at
+        once.
     arbitrate_max : int
-        Most alternatives refined (0: no arbitration).
+        Most alternative selections refined (0: no arbitration).
     unexplained_fraction : float
         Maximum fraction of the excess residual power (over the floor) that may remain after the
         fit for the mismatch to count as explained.
