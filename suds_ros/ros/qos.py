@@ -113,7 +113,11 @@ def qos_to_yaml(profiles: Iterable[QoSProfile]) -> str:
 def subscription_qos_for(offered: Iterable[QoSProfile], depth: int = 100) -> QoSProfile:
     """A subscription QoS that matches every offered publisher QoS, as ``ros2 bag record`` adapts it.
 
-    Reliable only if all publishers are reliable; transient local only if all are.
+    Reliable only if all publishers are reliable; transient local only if all are.  History
+    keep last ``depth``, or keep all with ``depth`` 0: then DDS queues whatever arrives while the
+    subscriber is busy instead of dropping the oldest (the recorder: a burst of thousands of
+    messages at once, such as the estimator's measured velocities of its initial cycles, overflows
+    any fixed depth of a subscriber that writes each message to a file).
     """
     offered = list(offered)
     reliable = bool(offered) and all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
@@ -121,7 +125,8 @@ def subscription_qos_for(offered: Iterable[QoSProfile], depth: int = 100) -> QoS
         q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered
     )
     return QoSProfile(
-        depth=depth,
+        history=HistoryPolicy.KEEP_LAST if depth > 0 else HistoryPolicy.KEEP_ALL,
+        depth=max(depth, 1),
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )

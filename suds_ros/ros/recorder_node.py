@@ -17,15 +17,20 @@ and the file flushed (and, with ``fsync``, synced to the disk) every
 so a recorder killed or a machine losing power leaves a file readable up to
 the last flush: with the defaults at most the last 0.5 s of data are lost
 (``docs/recording_safety.md``).  SIGINT/SIGTERM close the bag with its
-summary.  An existing output is never overwritten unless ``overwrite`` is true.
+summary, after writing what the subscriptions still held of the messages received before
+the signal (each topic's history keeps all by default, so a recorder that falls behind under
+load is behind, not lossy; ``drain_timeout`` bounds that last catch-up).  An existing output
+is never overwritten unless ``overwrite`` is true.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from suds_ros.core.errors import SudsConfigError, SudsError
@@ -67,10 +72,15 @@ class RecorderConfig:
     fsync: bool = field(default=True, metadata={
         "description": "fsync the file at each flush, so flushed data survive a power loss "
                        "too (false: only a crash of the recorder process)"})
-    queue_depth: int = field(default=1000, metadata={
-        "description": "subscription history depth per topic (messages buffered while the "
-                       "writer is busy; 100 dropped ~4 % of 1 kHz traffic under load)",
-        "range": (1, 1_000_000)})
+    queue_depth: int = field(default=0, metadata={
+        "description": "subscription history per topic: 0 keeps all (messages wait in DDS while the "
+                       "recorder is busy, none is dropped); N > 0 keeps the last N (a burst of 5000 "
+                       "messages at once lost 70 % of them with 1000)",
+        "range": (0, 1_000_000)})
+    drain_timeout: float = field(default=10.0, metadata={
+        "description": "s at most spent after SIGINT/SIGTERM writing the messages received before "
+                       "the signal that are still queued in the subscriptions (0: none)",
+        "range": (0.0, 3600.0)})
     discovery_period: float = field(default=0.25, metadata={
         "description": "s between looks for new topics", "range": (0.01, 60.0)})
     system: str = field(default="", metadata={"description": "suds metadata: system id"})
@@ -114,8 +124,10 @@ class RecorderNode(Node):
         if cfg.suds_metadata():
             self._writer.write_metadata(METADATA_NAME, cfg.suds_metadata())
         self._subs: dict[str, Any] = {}
+        self._written = 0
+        self._stop_ns = 0  # wall-clock time of the stop request; 0 while recording
         self._finder = TopicFinder(self, self.patterns, "recording")
-        self.create_timer(cfg.discovery_period, self._discover)
+        self._discovery = self.create_timer(cfg.discovery_period, self._discover)
         self.create_timer(cfg.flush_period, self._writer.flush)
         self.get_logger().info(f"recording {list(self.patterns)} to {cfg.output}")
         self._discover()
@@ -137,9 +149,40 @@ class RecorderNode(Node):
 
     def _callback(self, topic: str) -> Any:
         def on_message(data: bytes, info: dict[str, int]) -> None:
+            if self._stop_ns and info.get("received_timestamp", 0) > self._stop_ns:
+                return  # arrived after the stop request
             now = self.get_clock().now().nanoseconds
             self._writer.write_raw(topic, data, now, info.get("source_timestamp") or now)
+            self._written += 1
         return on_message
+
+    def drain(self, quiet: float = 0.2) -> None:
+        """Write the messages received before now that the subscriptions still hold.
+
+        Spins until ``quiet`` s pass without one (messages arriving after now are not written)
+        or ``drain_timeout`` s have passed.
+        """
+        self._stop_ns = time.time_ns()
+        self._discovery.cancel()
+        start = written = self._written
+        now = time.monotonic()
+        deadline, last = now + self.config.drain_timeout, now
+        executor = SingleThreadedExecutor()
+        executor.add_node(self)
+        try:
+            while now < deadline and now - last < quiet:
+                executor.spin_once(timeout_sec=quiet / 4)
+                now = time.monotonic()
+                if self._written != written:
+                    written, last = self._written, now
+        finally:
+            executor.remove_node(self)
+            executor.shutdown()
+        if now >= deadline:
+            self.get_logger().warning(f"stopped writing queued messages after drain_timeout "
+                                      f"{self.config.drain_timeout} s ({written - start} written)")
+        elif written > start:
+            self.get_logger().info(f"wrote {written - start} queued messages after the stop request")
 
     def close(self) -> None:
         """Write the summary and close the bag (idempotent)."""
@@ -149,7 +192,7 @@ class RecorderNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
     return run_node(args, name="recorder", doc=__doc__, config_cls=RecorderConfig,
-                    make=RecorderNode, close=RecorderNode.close)
+                    make=RecorderNode, close=RecorderNode.close, drain=RecorderNode.drain)
 
 
 if __name__ == "__main__":

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 
 from suds_ros.core.blas import pin_blas_threads
 from suds_ros.core.errors import SudsError
@@ -23,8 +26,9 @@ def run_node(
     doc: str,
     config_cls: type | tuple[type, ...],
     make: Callable[[], N],
-    run: Callable[[N], Any] = rclpy.spin,
+    run: Callable[[N], Any] | None = None,
     close: Callable[[N], None] | None = None,
+    drain: Callable[[N], None] | None = None,
 ) -> int:
     """Start the node ``make()`` and ``run`` it until it returns, SIGINT/SIGTERM or shutdown.
 
@@ -33,6 +37,12 @@ def run_node(
     running (a refused parameter, an unreadable checkpoint or bag) prints one
     ``ERROR: <name>: <reason>`` line and returns 1.  ``close`` (then ``destroy_node``)
     always runs on the node once it exists, so bags and checkpoints are finalised.
+    ``run`` defaults to ``rclpy.spin``.  With ``drain`` (and no ``run``) the node is spun
+    until SIGINT/SIGTERM, which only set a flag: rclpy's own signal handlers, which shut the
+    ROS context down at once, are not installed, and no exception interrupts a callback midway.
+    ``drain(node)`` then runs before ``close`` while the context is still alive, so the node can
+    take what its subscriptions still hold; it must bound its own time (further signals are
+    ignored).
     BLAS is first limited to ``SUDS_BLAS_THREADS`` threads (default 1, :mod:`suds_ros.core.blas`).
     """
     try:
@@ -43,7 +53,17 @@ def run_node(
     if wants_help(args):
         print(parameters_help(name, doc.strip().splitlines()[0], config_cls))
         return 0
-    rclpy.init(args=args)
+    if drain is None:
+        rclpy.init(args=args)
+        run = run or rclpy.spin
+    else:
+        if run is not None:
+            raise ValueError("run_node: `drain` comes with its own spin; expected run=None")
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        stop = threading.Event()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: stop.set())
+        run = lambda n: _spin_until(n, stop)  # noqa: E731
     node = None
     try:
         node = make()
@@ -60,11 +80,27 @@ def run_node(
             raise
     finally:
         if node is not None:
-            if close is not None:
-                close(node)
-            node.destroy_node()  # type: ignore[attr-defined]
+            try:
+                if drain is not None and rclpy.ok():
+                    drain(node)
+            finally:
+                if close is not None:
+                    close(node)
+                node.destroy_node()  # type: ignore[attr-defined]
         try:
             rclpy.try_shutdown()
         except Exception:  # noqa: BLE001 - rclpy's SIGINT handler may shut the context down meanwhile
             pass
     return 0
+
+
+def _spin_until(node: Any, stop: threading.Event) -> None:
+    """Spin ``node`` until ``stop`` is set or the context is shut down."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()

@@ -2,7 +2,7 @@
 
 ``python _publisher.py COUNT HZ [--wait]``: publishes COUNT JointState samples
 on /suds/shape (sensor-data QoS) and COUNT PoseStamped on /suds/body_pose
-(reliable) at HZ; stamps are 1.7e9 + i/100 s, joint_1 = sin(i/10),
+(reliable) at HZ (0: all at once, a burst); stamps are 1.7e9 + i/100 s, joint_1 = sin(i/10),
 joint_2 = cos(i/10), pose (i/1000, -i/1000, i/100).  COUNT 0 publishes until
 interrupted.  With ``--wait`` it first waits (≤ 60 s) until both topics have a
 subscriber.  Before exiting it waits (≤ 30 s) until every reliable sample is
@@ -27,8 +27,10 @@ from _ros_helpers import wait_for  # this script's folder is sys.path[0]
 from suds_ros.ros.conversions import joint_state_to_msg, pose_to_msg
 from suds_ros.ros.qos import STATE_QOS
 
-#: reliable, with a history deep enough that no unacknowledged pose is ever dropped
-POSE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+
+def pose_qos(count: int) -> QoSProfile:
+    """Reliable, with a history deep enough that no unacknowledged pose is ever dropped."""
+    return QoSProfile(depth=max(1000, count), reliability=ReliabilityPolicy.RELIABLE)
 
 
 def main() -> int:
@@ -39,7 +41,7 @@ def main() -> int:
     from sensor_msgs.msg import JointState
 
     shape = node.create_publisher(JointState, "/suds/shape", STATE_QOS)
-    pose = node.create_publisher(PoseStamped, "/suds/body_pose", POSE_QOS)
+    pose = node.create_publisher(PoseStamped, "/suds/body_pose", pose_qos(count))
     i = 0
     try:
         if "--wait" in sys.argv:
@@ -52,7 +54,8 @@ def main() -> int:
                                              [math.sin(i / 10), math.cos(i / 10)]))
             pose.publish(pose_to_msg(stamp, i / 1000.0, -i / 1000.0, i / 100.0))
             i += 1
-            time.sleep(1.0 / hz)  # the publishing rate, not a wait for an event
+            if hz > 0:
+                time.sleep(1.0 / hz)  # the publishing rate, not a wait for an event
         if not pose.wait_for_all_acked(Duration(seconds=30.0)):
             print("poses not acknowledged within 30 s", flush=True)
             return 3

@@ -13,9 +13,9 @@ from suds_ros.io.mcap import BagWriter, bag_info, iter_raw_messages
 from suds_ros.io.recording_bag import read_recording
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from ._ros_helpers import recorded_so_far, stop, wait_for
+    from ._ros_helpers import header_stamp, recorded_so_far, stop, wait_for
 except ImportError:
-    from _ros_helpers import recorded_so_far, stop, wait_for
+    from _ros_helpers import header_stamp, recorded_so_far, stop, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -23,11 +23,11 @@ PUBLISHER = Path(__file__).with_name("_publisher.py")
 META = ("system:=purcell3", "actuated:=joint_1", "passive:=joint_2")
 
 
-def record(start_process, node_command, out: Path, count: int, *params: str):
-    """Start a recorder (flushing every 0.2 s) and the test publisher of ``count`` samples."""
+def record(start_process, node_command, out: Path, count: int, *params: str, hz: float = 100.0):
+    """Start a recorder (flushing every 0.2 s) and the test publisher of ``count`` samples at ``hz`` (0: a burst)."""
     rec = start_process(node_command("recorder_node", f"output:={out}", "flush_period:=0.2", *META, *params),
                         "recorder")
-    pub = start_process([sys.executable, PUBLISHER, str(count), "100", "--wait"], "publisher")
+    pub = start_process([sys.executable, PUBLISHER, str(count), str(hz), "--wait"], "publisher")
     return rec, pub
 
 
@@ -85,6 +85,22 @@ def test_record_then_read_with_suds_and_rosbags(start_process, node_command, tmp
     assert len(shapes) == len(poses) == 40
     assert joint_state_from_msg(shapes[5]).names == ("joint_1", "joint_2")
     assert pose_from_msg(poses[7]).yaw == pytest.approx(0.07)
+
+
+def test_recorder_keeps_every_message_of_a_burst(start_process, node_command, tmp_path):
+    """20000 reliable poses published at once (like the estimator's initial measured velocities).
+
+    A subscription keeping the last 1000 lost most of them; the recorder keeps all, and its
+    SIGINT, sent the moment the publisher has them all acknowledged (so they are in the
+    recorder's queues, most not yet written), writes the backlog before closing the bag.
+    """
+    out, n = tmp_path / "burst.mcap", 20000
+    rec, pub = record(start_process, node_command, out, n, hz=0)
+    assert pub.wait(180) == 0, pub.output()  # exits once every pose is acknowledged
+    assert stop(rec, timeout=60) == 0, rec.output()
+    stamps = [header_stamp(m) for m in iter_raw_messages(out, topics=["/suds/body_pose"])]
+    np.testing.assert_allclose(stamps, 1.7e9 + np.arange(n) / 100.0)  # each pose once, none missing
+    assert bag_info(out).has_summary
 
 
 def test_sigkilled_recorder_leaves_readable_file(start_process, node_command, tmp_path):
