@@ -66,6 +66,10 @@ def generate_launch_description() -> LaunchDescription:
             "rate": ParameterValue(arg["rate"], value_type=float),
             "seed": ParameterValue(arg["seed"], value_type=int),
             "real_time_factor": ParameterValue(arg["realtime_factor"], value_type=float),
+            # start the stream once the other nodes listen (estimator, predictor, recorder, bridge)
+            "wait_for_subscribers": ParameterValue(PythonExpression(
+                ["2 + int('", arg["output"], "' != '') + int(int('", arg["foxglove"], "') != 0)"]),
+                value_type=int),
         }),
         node("estimator", {"system": ParameterValue(estimator_system, value_type=str)}),
         node("predictor", {"system": arg["system"]}),

@@ -17,6 +17,11 @@ its topics are ``/robot1/suds/...`` and several robots can run side by side.
 Parameters passed on: simulator ``system``, ``cycles``, ``rate``, ``seed``,
 ``real_time_factor``; estimator/predictor ``system``; recorder ``output``,
 ``system``, ``actuated``, ``passive`` (the recorder runs only with ``--output``).
+The simulator also gets ``wait_for_subscribers`` = the number of the other nodes started
+that listen to ``suds/shape``: its stream starts once they all run (on 2 busy cores
+their imports alone take seconds, and at 5× real time the stream would otherwise be tens of
+cycles ahead of the estimator).  The recorder gets ``drain_timeout`` = 0.6 × ``--stop-timeout``,
+so it writes what is still queued after SIGINT before the supervisor escalates.
 
 ``--foxglove PORT`` (default 0: off) also starts ``foxglove_bridge``
 (:mod:`suds_ros.ros.foxglove_node`, ``-p port:=PORT``): the Foxglove app then shows
@@ -49,6 +54,8 @@ from suds_ros.io.recording_bag import valid_namespace
 #: the nodes the pipeline can start: name → module (``python -m <module>``)
 NODES = {name: EXECUTABLES[name]
          for name in ("simulator", "estimator", "predictor", "recorder", "foxglove_bridge")}
+#: the nodes that subscribe to the simulator's suds/shape (the simulator waits for them)
+SHAPE_LISTENERS = ("estimator", "predictor", "recorder", "foxglove_bridge")
 #: exit codes that count as a clean stop after we asked a child to stop
 _STOPPED_OK = {0, -signal.SIGINT, -signal.SIGTERM, 130, 143}
 
@@ -221,6 +228,13 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
         params["foxglove_bridge"] = _param("port", args.foxglove)
         if "foxglove_bridge" not in nodes:
             nodes.append("foxglove_bridge")
+    listeners = [n for n in nodes if n in SHAPE_LISTENERS and n in params]
+    if "simulator" in params and listeners:
+        # the stream starts once every other node started here listens to suds/shape
+        params["simulator"] += _param("wait_for_subscribers", len(listeners))
+    if "recorder" in params:
+        # the recorder writes its backlog after SIGINT within our stop timeout
+        params["recorder"] += _param("drain_timeout", round(0.6 * args.stop_timeout, 3))
     ns = ["-r", f"__ns:={args.namespace}"] if args.namespace else []
     return {
         n: [sys.executable, "-m", NODES[n], "--ros-args", *ns, *params[n], *args.ros_args]

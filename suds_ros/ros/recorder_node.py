@@ -77,7 +77,7 @@ class RecorderConfig:
                        "recorder is busy, none is dropped); N > 0 keeps the last N (a burst of 5000 "
                        "messages at once lost 70 % of them with 1000)",
         "range": (0, 1_000_000)})
-    drain_timeout: float = field(default=10.0, metadata={
+    drain_timeout: float = field(default=3.0, metadata={
         "description": "s at most spent after SIGINT/SIGTERM writing the messages received before "
                        "the signal that are still queued in the subscriptions (0: none)",
         "range": (0.0, 3600.0)})

@@ -28,6 +28,9 @@ must still be an integer number of samples per cycle).
 
 Time
 ----
+With ``wait_for_subscribers`` N > 0 the first sample goes out only once N subscriptions
+match ``suds/shape`` (or after ``start_timeout`` s): the ``pipeline`` sets N to the nodes it
+starts beside the simulator, so the stream does not run ahead while they are still importing.
 ``t0`` is the stamp of the first sample; when not set, it is the wall-clock
 time at start for ``real_time_factor`` = 1 (stamps then track the wall clock)
 and 1.7e9 s otherwise.  ``cycles`` > 0 stops after that many gait cycles: the
@@ -104,6 +107,13 @@ class SimulatorConfig:
         "range": (0, 2**31 - 1)})
     t0: float | None = field(default=None, metadata={
         "description": "stamp of the first sample, s (unset: now in real time, 1.7e9 otherwise)"})
+    wait_for_subscribers: int = field(default=0, metadata={
+        "description": "subscriptions to suds/shape to wait for before the first sample is published "
+                       "(0: start at once), so nodes started beside the simulator are running, not "
+                       "still importing, when the stream starts", "range": (0, 10_000)})
+    start_timeout: float = field(default=30.0, metadata={
+        "description": "wall-clock s at most to wait for wait_for_subscribers; then start anyway",
+        "range": (0.0, 1e6)})
     history_depth: int = field(default=6000, metadata={
         "description": "samples kept for late-joining/restarted subscribers (transient local)",
         "range": (1, 10_000_000)})
@@ -226,6 +236,7 @@ class SimulatorNode(Node):
         self._chunk_i = 0
         self._anchor: tuple[float, int] | None = None  # (wall monotonic, sample index) of the pacing
         self.finished: Future = Future()
+        self._waiting_since: float | None = time.monotonic() if cfg.wait_for_subscribers else None
         self._timer = self.create_timer(cfg.tick, self._on_tick)
         source = f" (model file {cfg.system_spec})" if self.system.name != cfg.system_spec else ""
         self.get_logger().info(
@@ -280,8 +291,32 @@ class SimulatorNode(Node):
         self._chunk_i += 1
         return float(c.t[i]), c.r[i], c.pose[i]
 
+    def _waiting(self) -> bool:
+        """True while the stream waits for ``wait_for_subscribers`` (at most ``start_timeout`` s)."""
+        if self._waiting_since is None:
+            return False
+        matched = self._shape_pub.get_subscription_count()
+        waited = time.monotonic() - self._waiting_since
+        wanted = self.config.wait_for_subscribers
+        if matched < wanted and waited < self.config.start_timeout:
+            return True
+        self._waiting_since = None
+        if self.config.t0 is None and self.config.real_time_factor == 1.0:
+            self._restart_at(self.config.first_stamp())  # stamps track the wall clock from the start
+        how = "" if matched >= wanted else f" (start_timeout; {wanted} wanted)"
+        self.get_logger().info(f"starting the stream: {matched} subscription(s) on "
+                               f"{self.resolve_topic_name(SHAPE)} after {waited:.1f} s{how}")
+        return False
+
+    def _restart_at(self, t0: float) -> None:
+        """A fresh stream whose first stamp is ``t0`` (nothing has been published yet)."""
+        self.t0 = t0
+        self.sim = StreamingSimulator(self.system, self.config.sim_config(t0))
+        if self._pending_effects:
+            self.sim.set_effects(self._pending_effects)
+
     def _on_tick(self) -> None:
-        if self.finished.done():
+        if self.finished.done() or self._waiting():
             return
         n = self._due()
         if self._total:

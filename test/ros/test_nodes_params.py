@@ -173,3 +173,26 @@ def test_simulator_process_runs_its_cycles_and_exits_0(start_process, node_comma
     proc = start_process(node_command("simulator_node", "cycles:=2", "real_time_factor:=0.0"), "sim")
     assert proc.wait(30) == 0, proc.output()
     assert "published 200 samples" in proc.output()
+
+
+def test_simulator_waits_for_its_subscribers(start_process, node_command, probe):
+    """With ``wait_for_subscribers`` the stream starts only once that many listen to suds/shape."""
+    from sensor_msgs.msg import JointState
+
+    from suds_ros.ros.qos import latched_state_qos
+
+    try:
+        from ._ros_helpers import wait_for
+    except ImportError:
+        from _ros_helpers import wait_for
+
+    proc = start_process(node_command("simulator_node", "cycles:=2", "real_time_factor:=0.0",
+                                      "wait_for_subscribers:=1", "start_timeout:=120.0"), "sim")
+    wait_for(lambda: probe.node.count_publishers("/suds/shape") == 1, 60, lambda: f"the simulator\n{proc.output()}")
+    # at full speed two cycles take a few ticks: without the wait it would have exited by now
+    wait_for(lambda: "simulating purcell3" in proc.output(), 60, proc.output)
+    assert proc.poll() is None and "starting the stream" not in proc.output(), proc.output()
+    inbox = probe.listen("/suds/shape", JointState, latched_state_qos(1000))
+    assert proc.wait(60) == 0, proc.output()
+    assert "starting the stream: 1 subscription(s) on /suds/shape" in proc.output()
+    wait_for(lambda: len(inbox) == 200, 30, lambda: f"200 shapes, got {len(inbox)}")

@@ -90,6 +90,11 @@ def test_recorder_command_gets_joint_roles(tmp_path):
     rec = " ".join(cmds["recorder"])
     assert "actuated:=joint_1" in rec and "passive:=joint_2" in rec
     assert "cycles:=3" in " ".join(cmds["simulator"]) and "seed:=4" in " ".join(cmds["simulator"])
+    # the stream waits for the estimator, predictor and recorder; the recorder drains within the stop timeout
+    assert "wait_for_subscribers:=3" in cmds["simulator"]
+    assert "drain_timeout:=3.0" in cmds["recorder"]
+    cmds = pipeline.build_commands(pipeline.parse_args(["--nodes", "simulator,estimator", "--stop-timeout", "10"]))
+    assert "wait_for_subscribers:=1" in cmds["simulator"]
 
 
 @pytest.mark.ros
@@ -168,11 +173,12 @@ def test_model_file_configures_every_node(tmp_path, how):
     cmds = pipeline.build_commands(args)
     assert set(cmds) == {"simulator", "estimator", "predictor", "recorder"}
     sim = _params(cmds["simulator"])
-    assert sim == [f"model_file:={EEL4}", "rate:=50.0", "cycles:=3"]  # 100 samples per 0.5 Hz cycle
+    # 100 samples per 0.5 Hz cycle; the stream waits for the three other nodes
+    assert sim == [f"model_file:={EEL4}", "rate:=50.0", "cycles:=3", "wait_for_subscribers:=3"]
     assert _params(cmds["estimator"]) == ["actuated:=[neck,waist]", "gait_hz:=0.5"]
     assert _params(cmds["predictor"]) == ["system:=eel4"]
     assert _params(cmds["recorder"]) == [f"output:={tmp_path / 'x.mcap'}", "system:=eel4", "actuated:=neck,waist",
-                                         "passive:=tail", "gait_hz:=0.5", "overwrite:=false"]
+                                         "passive:=tail", "gait_hz:=0.5", "overwrite:=false", "drain_timeout:=3.0"]
 
 
 def test_model_file_with_an_explicit_rate_and_a_relative_path(tmp_path, monkeypatch):

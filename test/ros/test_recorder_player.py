@@ -95,7 +95,7 @@ def test_recorder_keeps_every_message_of_a_burst(start_process, node_command, tm
     recorder's queues, most not yet written), writes the backlog before closing the bag.
     """
     out, n = tmp_path / "burst.mcap", 20000
-    rec, pub = record(start_process, node_command, out, n, hz=0)
+    rec, pub = record(start_process, node_command, out, n, "drain_timeout:=30.0", hz=0)
     assert pub.wait(180) == 0, pub.output()  # exits once every pose is acknowledged
     assert stop(rec, timeout=60) == 0, rec.output()
     stamps = [header_stamp(m) for m in iter_raw_messages(out, topics=["/suds/body_pose"])]
