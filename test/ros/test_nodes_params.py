@@ -132,6 +132,20 @@ def test_real_time_default_t0_is_now(ros_context):
         node.destroy_node()
 
 
+def test_real_time_stream_that_waited_starts_its_stamps_when_it_starts(ros_context):
+    """A real-time stream whose start waited for subscribers stamps its first sample at the start."""
+    node = make("simulator", ros_context, wait_for_subscribers=1, start_timeout=0.5)
+    try:
+        built = node.t0
+        deadline = time.monotonic() + 30.0
+        while node._waiting() and time.monotonic() < deadline:  # nobody subscribes: the timeout starts it
+            time.sleep(0.05)
+        assert node.t0 >= built + 0.5 and abs(node.t0 - time.time()) < 5.0
+        assert node.sim.step(1).t[0] == pytest.approx(node.t0)
+    finally:
+        node.destroy_node()
+
+
 def test_estimator_runtime_parameters_and_status(ros_context):
     from rclpy.parameter import Parameter
 
