@@ -30,7 +30,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from suds_ros.core.errors import SudsConfigError, SudsError
@@ -167,17 +166,12 @@ class RecorderNode(Node):
         start = written = self._written
         now = time.monotonic()
         deadline, last = now + self.config.drain_timeout, now
-        executor = SingleThreadedExecutor()
-        executor.add_node(self)
-        try:
-            while now < deadline and now - last < quiet:
-                executor.spin_once(timeout_sec=quiet / 4)
-                now = time.monotonic()
-                if self._written != written:
-                    written, last = self._written, now
-        finally:
-            executor.remove_node(self)
-            executor.shutdown()
+        executor = self.executor  # the runner's, still alive
+        while now < deadline and now - last < quiet:
+            executor.spin_once(timeout_sec=quiet / 4)
+            now = time.monotonic()
+            if self._written != written:
+                written, last = self._written, now
         if now >= deadline:
             self.get_logger().warning(f"stopped writing queued messages after drain_timeout "
                                       f"{self.config.drain_timeout} s ({written - start} written)")

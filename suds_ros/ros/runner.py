@@ -37,12 +37,17 @@ def run_node(
     running (a refused parameter, an unreadable checkpoint or bag) prints one
     ``ERROR: <name>: <reason>`` line and returns 1.  ``close`` (then ``destroy_node``)
     always runs on the node once it exists, so bags and checkpoints are finalised.
-    ``run`` defaults to ``rclpy.spin``.  With ``drain`` (and no ``run``) the node is spun
-    until SIGINT/SIGTERM, which only set a flag: rclpy's own signal handlers, which shut the
-    ROS context down at once, are not installed, and no exception interrupts a callback midway.
-    ``drain(node)`` then runs before ``close`` while the context is still alive, so the node can
-    take what its subscriptions still hold; it must bound its own time (further signals are
-    ignored).
+    Without ``run`` the node is spun by an executor of its own until SIGINT/SIGTERM, which only
+    set a flag: rclpy's own signal handlers, which shut the ROS context down from another thread
+    at once, are not installed, and no exception interrupts a callback midway.  ``drain(node)``
+    (if given) and ``close`` then run in the main thread while the context is still alive (the
+    estimator publishes its final model, the recorder takes what its subscriptions still hold;
+    each must bound its own time: further signals are ignored), the executor is shut down, and
+    only then is the node destroyed.  (With rclpy's handlers and ``rclpy.spin``, the handler
+    thread's shutdown of the global executor raced ``destroy_node``'s wake-up of it: one
+    pipeline run in about 15 left the estimator hanging in ``destroy_node`` after Ctrl-C.)
+    A ``run`` of the node's own keeps rclpy's signal handlers (it must return once the context
+    is shut down); ``drain`` needs the default.
     BLAS is first limited to ``SUDS_BLAS_THREADS`` threads (default 1, :mod:`suds_ros.core.blas`).
     """
     try:
@@ -53,17 +58,18 @@ def run_node(
     if wants_help(args):
         print(parameters_help(name, doc.strip().splitlines()[0], config_cls))
         return 0
-    if drain is None:
+    executor = None
+    if run is not None:
+        if drain is not None:
+            raise ValueError("run_node: `drain` needs the default spin; expected run=None")
         rclpy.init(args=args)
-        run = run or rclpy.spin
     else:
-        if run is not None:
-            raise ValueError("run_node: `drain` comes with its own spin; expected run=None")
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         stop = threading.Event()
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
-        run = lambda n: _spin_until(n, stop)  # noqa: E731
+        executor = SingleThreadedExecutor()
+        run = lambda n: _spin_until(n, executor, stop)  # noqa: E731
     node = None
     try:
         node = make()
@@ -86,6 +92,8 @@ def run_node(
             finally:
                 if close is not None:
                     close(node)
+                if executor is not None:
+                    executor.shutdown(timeout_sec=1.0)  # destroy_node's wake-up of it is then a no-op
                 node.destroy_node()  # type: ignore[attr-defined]
         try:
             rclpy.try_shutdown()
@@ -94,13 +102,8 @@ def run_node(
     return 0
 
 
-def _spin_until(node: Any, stop: threading.Event) -> None:
-    """Spin ``node`` until ``stop`` is set or the context is shut down."""
-    executor = SingleThreadedExecutor()
+def _spin_until(node: Any, executor: Any, stop: threading.Event) -> None:
+    """Spin ``node`` on ``executor`` until ``stop`` is set or the context is shut down."""
     executor.add_node(node)
-    try:
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    finally:
-        executor.remove_node(node)
-        executor.shutdown()
+    while not stop.is_set() and rclpy.ok():
+        executor.spin_once(timeout_sec=0.1)
