@@ -158,15 +158,18 @@ class RecorderNode(Node):
     def drain(self, quiet: float = 0.2) -> None:
         """Write the messages received before now that the subscriptions still hold.
 
-        Spins until ``quiet`` s pass without one (messages arriving after now are not written)
-        or ``drain_timeout`` s have passed.
+        Spins the node's executor (the runner's, still alive at shutdown) until ``quiet`` s pass
+        without one (messages arriving after now are not written) or ``drain_timeout`` s have
+        passed; does nothing a second time, or without an executor or a live context.
         """
+        executor = self.executor
+        if executor is None or self._stop_ns or not self.context.ok():
+            return
         self._stop_ns = time.time_ns()
         self._discovery.cancel()
         start = written = self._written
         now = time.monotonic()
         deadline, last = now + self.config.drain_timeout, now
-        executor = self.executor  # the runner's, still alive
         while now < deadline and now - last < quiet:
             executor.spin_once(timeout_sec=quiet / 4)
             now = time.monotonic()
@@ -179,14 +182,17 @@ class RecorderNode(Node):
             self.get_logger().info(f"wrote {written - start} queued messages after the stop request")
 
     def close(self) -> None:
-        """Write the summary and close the bag (idempotent)."""
-        self._writer.close()
+        """Write what is still queued (:meth:`drain`), then the summary, and close the bag (idempotent)."""
+        try:
+            self.drain()
+        finally:
+            self._writer.close()
 
 
 def main(args: list[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
     return run_node(args, name="recorder", doc=__doc__, config_cls=RecorderConfig,
-                    make=RecorderNode, close=RecorderNode.close, drain=RecorderNode.drain)
+                    make=RecorderNode, close=RecorderNode.close)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ def run_node(
     make: Callable[[], N],
     run: Callable[[N], Any] | None = None,
     close: Callable[[N], None] | None = None,
-    drain: Callable[[N], None] | None = None,
 ) -> int:
     """Start the node ``make()`` and ``run`` it until it returns, SIGINT/SIGTERM or shutdown.
 
@@ -39,15 +38,15 @@ def run_node(
     always runs on the node once it exists, so bags and checkpoints are finalised.
     Without ``run`` the node is spun by an executor of its own until SIGINT/SIGTERM, which only
     set a flag: rclpy's own signal handlers, which shut the ROS context down from another thread
-    at once, are not installed, and no exception interrupts a callback midway.  ``drain(node)``
-    (if given) and ``close`` then run in the main thread while the context is still alive (the
-    estimator publishes its final model, the recorder takes what its subscriptions still hold;
-    each must bound its own time: further signals are ignored), the executor is shut down, and
-    only then is the node destroyed.  (With rclpy's handlers and ``rclpy.spin``, the handler
+    at once, are not installed, and no exception interrupts a callback midway.  ``close`` then
+    runs in the main thread while the context is still alive and the node still on that executor
+    (the estimator publishes its final model, the recorder spins to take what its subscriptions
+    still hold; it must bound its own time: further signals are ignored), the executor is shut
+    down, and only then is the node destroyed.  (With rclpy's handlers and ``rclpy.spin``, the handler
     thread's shutdown of the global executor raced ``destroy_node``'s wake-up of it: one
     pipeline run in about 15 left the estimator hanging in ``destroy_node`` after Ctrl-C.)
     A ``run`` of the node's own keeps rclpy's signal handlers (it must return once the context
-    is shut down); ``drain`` needs the default.
+    is shut down).
     BLAS is first limited to ``SUDS_BLAS_THREADS`` threads (default 1, :mod:`suds_ros.core.blas`).
     """
     try:
@@ -60,8 +59,6 @@ def run_node(
         return 0
     executor = None
     if run is not None:
-        if drain is not None:
-            raise ValueError("run_node: `drain` needs the default spin; expected run=None")
         rclpy.init(args=args)
     else:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -86,15 +83,11 @@ def run_node(
             raise
     finally:
         if node is not None:
-            try:
-                if drain is not None and rclpy.ok():
-                    drain(node)
-            finally:
-                if close is not None:
-                    close(node)
-                if executor is not None:
-                    executor.shutdown(timeout_sec=1.0)  # destroy_node's wake-up of it is then a no-op
-                node.destroy_node()  # type: ignore[attr-defined]
+            if close is not None:
+                close(node)
+            if executor is not None:
+                executor.shutdown(timeout_sec=1.0)  # destroy_node's wake-up of it is then a no-op
+            node.destroy_node()  # type: ignore[attr-defined]
         try:
             rclpy.try_shutdown()
         except Exception:  # noqa: BLE001 - rclpy's SIGINT handler may shut the context down meanwhile

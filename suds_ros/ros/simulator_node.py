@@ -205,11 +205,8 @@ class SimulatorNode(Node):
         add_validator(self, lambda: self.config, on_valid=self._on_config)
         self.add_on_set_parameters_callback(self._check_effects)  # runs before the validator above
         cfg = self.config
-        self.t0 = cfg.first_stamp()
-        self.sim = StreamingSimulator(self.system, cfg.sim_config(self.t0))
         self._pending_effects: list[dict[str, Any]] | None = parse_effects(cfg.effects) or None
-        if self._pending_effects:
-            self.sim.set_effects(self._pending_effects)  # a bad start value stops the node here
+        self._restart_at(cfg.first_stamp())  # a bad start value of `effects` stops the node here
         names = self.system.joint_names
         self.names = tuple(names)
         from geometry_msgs.msg import PoseStamped
@@ -309,7 +306,7 @@ class SimulatorNode(Node):
         return False
 
     def _restart_at(self, t0: float) -> None:
-        """A fresh stream whose first stamp is ``t0`` (nothing has been published yet)."""
+        """A fresh stream whose first stamp is ``t0``, with the pending effects (nothing published yet)."""
         self.t0 = t0
         self.sim = StreamingSimulator(self.system, self.config.sim_config(t0))
         if self._pending_effects:

@@ -11,6 +11,11 @@ from pathlib import Path
 
 import pytest
 
+try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
+    from ._ros_helpers import wait_for
+except ImportError:
+    from _ros_helpers import wait_for
+
 pytestmark = pytest.mark.ros
 
 EEL4 = Path(__file__).resolve().parents[1] / "data" / "robots" / "eel4.yaml"  # 4 links, gait 0.5 Hz
@@ -194,11 +199,6 @@ def test_simulator_waits_for_its_subscribers(start_process, node_command, probe)
     from sensor_msgs.msg import JointState
 
     from suds_ros.ros.qos import latched_state_qos
-
-    try:
-        from ._ros_helpers import wait_for
-    except ImportError:
-        from _ros_helpers import wait_for
 
     proc = start_process(node_command("simulator_node", "cycles:=2", "real_time_factor:=0.0",
                                       "wait_for_subscribers:=1", "start_timeout:=120.0"), "sim")
