@@ -34,6 +34,8 @@ MISSING_JOINT_ROLES = "missing_joint_roles"
 DAMAGED_BAG = "damaged_bag"
 EXISTS = "exists"
 UNKNOWN_SYSTEM = "unknown_system"
+CHECKPOINT_VERSION = "checkpoint_version"
+CHECKPOINT_DAMAGED = "checkpoint_damaged"
 
 
 class SudsError(Exception):

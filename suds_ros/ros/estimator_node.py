@@ -40,6 +40,7 @@ from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.ident.online import OnlineSudsEstimator
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig, Status
+from suds_ros.io import checkpoint
 from suds_ros.io.stamps import ns_to_float
 from suds_ros.ros.conversions import (
     diagnostics_to_msg,
@@ -86,7 +87,7 @@ class EstimatorNode(Node):
             raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} not all among `joints` "
                                   f"{list(self.node_config.joints)}")
         add_validator(self, lambda: self.config, on_valid=self._set_config)
-        self.session = EstimatorSession(self.config, log=self._log, now=time.monotonic())
+        self.session = EstimatorSession(self.config, log=self._log, now=time.monotonic(), checkpoints=checkpoint)
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import TwistStamped
         from sensor_msgs.msg import JointState

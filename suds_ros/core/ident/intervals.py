@@ -239,30 +239,29 @@ def segment_states(rec: Recording, pv: PoseIntervals, phase: FloatArray, window:
     return ph, r0 + (r1 - r0) * frac[:, None], (r1 - r0) / (t1 - t0)[:, None]
 
 
-def interval_row(
-    suds: SudsConfig,
-    template: object,
-    omega: float,
-    act: FloatArray,
-    pas: FloatArray,
-    a: tuple[float, FloatArray, FloatArray, float],
-    b: tuple[float, FloatArray, FloatArray, float],
-) -> tuple[FloatArray, FloatArray]:
-    """One regression row from consecutive samples a, b = (t, r, pose, phase).
+def segment_features(suds: SudsConfig, template: object, omega: float, act: IntArray, t: FloatArray,
+                     r: FloatArray, phase: FloatArray, k: IntArray, seg_t: FloatArray, window: int = 1
+                     ) -> FloatArray:
+    """Regressor rows of segments lying in the shape intervals k → k + ``window``.
 
-    Returns X = [φ̄, δ, δ̇_a] (midpoint phase, δ at the state ``suds.state`` names) and
-    Y = [ξ, ṙ_p] over the interval.
+    ``t`` (n,), ``r`` (n, nj) and ``phase`` (n,) are the shape samples; ``k`` (s,) the interval
+    of each segment and ``seg_t`` (s,) its midpoint stamp.  A row predicts the mean output over
+    its segment: with ``suds.state == "start"`` a segment takes its shape interval's own row
+    (midpoint phase, state at the interval's first sample), since the mean over a whole shape
+    interval is set by the state it starts from; with ``"midpoint"`` the instantaneous map is
+    evaluated at the segment's midpoint on the interval's straight line.  This is the one place
+    the segment rows are made (batch identifier and live estimator).
     """
-    ta, ra, pa, fa = a
-    tb, rb, pb, fb = b
-    dt = tb - ta
-    ph = np.array([0.5 * (fa + fb)])
-    rm = interval_state(suds, ra, rb)
-    rdot = (rb - ra) / dt
-    xi = se2.log(se2.relative(pa, pb)) / dt
-    X = interval_features(template, omega, act, ph, rm[None, :], rdot[None, :])[0]
-    Y = np.concatenate([xi, rdot[pas]])
-    return X, Y
+    k = np.asarray(k, dtype=int)
+    t0, t1 = t[k], t[k + window]
+    r0, r1 = r[k], r[k + window]
+    rdot = (r1 - r0) / (t1 - t0)[:, None]
+    if suds.state == "start":
+        return interval_features(template, omega, act, 0.5 * (phase[k] + phase[k + window]),
+                                 interval_state(suds, r0, r1), rdot)
+    frac = (np.asarray(seg_t, dtype=float) - t0) / (t1 - t0)
+    ph = phase[k] + (phase[k + window] - phase[k]) * frac
+    return interval_features(template, omega, act, ph, r0 + (r1 - r0) * frac[:, None], rdot)
 
 
 def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,

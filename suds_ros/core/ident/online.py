@@ -1,58 +1,52 @@
 """Streaming SUDS identification: the algorithm behind the live estimator.
 
 Samples arrive one at a time on two streams (shape and body pose).  The
-estimator
+estimator, one job per module:
 
-1. releases each shape sample once a pose at or after its stamp has arrived
-   (pairing by stamps only);
-2. buffers the first ``init_cycles`` gait cycles, then runs the batch phaser
-   on them to obtain the phase, the nominal gait θ(φ) and the mean phase rate
-   ω̄ — all three are frozen from then on, so every later regressor row is
-   final when computed;
+1. checks each sample once and pairs shape with pose by stamps
+   (:mod:`~suds_ros.core.ident.pairing`);
+2. buffers the first ``init_cycles`` gait cycles, then runs the batch phaser on
+   them for the phase, the nominal gait θ(φ) and the mean phase rate ω̄, all
+   frozen from then on (:mod:`~suds_ros.core.ident.phase_init`);
 3. tracks the phase of each new sample with :class:`PhaseTracker`;
-4. turns consecutive shape samples into interval rows (forward differences,
-   states at the interval start by default) for the passive velocities, and each pose interval — once
-   the shape intervals it overlaps have been featurised — into one averaged row
-   for the body velocity (its pose displacement against the duration-weighted
-   mean of the model over its segments, as in the batch identifier), and adds
-   both to the SUDS regression with ``partial_fit`` in chunks;
+4. turns each block of ``chunk`` shape intervals into rows, vectorised
+   (:mod:`~suds_ros.core.ident.featurise`): interval rows for the passive
+   velocities and one averaged row per pose interval for the body velocity, as
+   in the batch identifier;
 5. scores each chunk *before* learning from it (prequential evaluation), giving
-   a running Γ on data the model has not seen.
+   a running Γ on data the model has not seen, then adds it to every candidate
+   regression (:mod:`~suds_ros.core.ident.prequential`).
 
-:func:`fit_streaming` runs the same computation as one batch over a whole
-recording; because the regression's sufficient statistics are additive the two
-agree to round-off.  The estimator pickles completely (:meth:`state_bytes`),
-so a process can checkpoint it and resume after a crash; samples at or before
-the last processed stamp are recognised as already seen and skipped.
+Per sample the work is O(1): checks, pairing, one phase-tracker step and a list
+append; the rows of a chunk are built and fitted together.  :func:`fit_streaming`
+feeds a whole recording through the same path; the regression's sufficient
+statistics are additive, so any chunking gives the same fit to round-off.
+Checkpoints are written and read by :mod:`suds_ros.io.checkpoint` (data only);
+samples at or before the last processed stamp count as already seen.
 """
 
 from __future__ import annotations
 
-import os
-import pickle
-import tempfile
 from collections import deque
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
+import scipy.sparse
 
-from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
-from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
-from suds_ros.core.ident.intervals import interval_features, interval_row, overlap_segments
-from suds_ros.core.ident.scoring import BODY_CHANNELS
+from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
+from suds_ros.core.ident.model import SudsModel, check_shape_sample
+from suds_ros.core.ident.pairing import StampPairer
+from suds_ros.core.ident.phase_init import GaitInitialiser, GaitStart
 from suds_ros.core.ident.prequential import PrequentialSelector
+from suds_ros.core.ident.scoring import BODY_CHANNELS
 from suds_ros.core.ident.shape_kernel import gait_kernel_scale
 from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
 from suds_ros.core.phase.phase_tracker import PhaseTracker
-from suds_ros.core.phase.phaser import Phaser, PhaserConfig
-from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+from suds_ros.core.phase.template import FourierTemplate
 from suds_ros.core.recording import Recording
-
-CHECKPOINT_VERSION = 5
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
 
@@ -84,8 +78,9 @@ class OnlineConfig:
     chunk : int
         Interval rows per ``partial_fit`` call.
     max_pose_wait : float
-        Stamp seconds a shape sample handed to the estimator may wait for a pose covering
-        its stamp (while later shape samples arrive) before it is dropped (``dropped_no_pose``).
+        Stamp seconds a shape sample may wait for a pose covering its stamp while later shape
+        samples arrive, before it is dropped (``dropped_no_pose``): longer than the lag of a
+        history catch-up after a restart or of a pose stream that stalls and resumes.
     """
 
     suds: SudsConfig = field(default_factory=lambda: SudsConfig(linear_order=6, bilinear_order=3))
@@ -96,7 +91,7 @@ class OnlineConfig:
     template_order: int = 8
     phaser_order: int = 10
     chunk: int = 100
-    max_pose_wait: float = 1.0
+    max_pose_wait: float = 60.0
 
     def __post_init__(self) -> None:
         if not self.init_cycles >= 3:
@@ -121,10 +116,6 @@ def _mean_sq(e: FloatArray) -> FloatArray:
     return (e**2).sum(axis=0) / e.shape[0] if e.shape[0] else np.full(e.shape[1], np.nan)
 
 
-def _unwrap_next(prev: float, yaw: float) -> float:
-    return prev + float(np.angle(np.exp(1j * (yaw - prev))))
-
-
 class OnlineSudsEstimator:
     """Streaming phase tracking and incremental SUDS regression (see module docstring).
 
@@ -146,7 +137,7 @@ class OnlineSudsEstimator:
     omega_ : float
         Mean phase rate ω̄ of the initial cycles, rad/s (NaN before initialisation).
     regressor : SudsRegressor
-        The incremental SUDS regression.
+        The incremental SUDS regression published now.
     """
 
     def __init__(
@@ -159,46 +150,29 @@ class OnlineSudsEstimator:
             raise SudsConfigError(f"`actuated`: {unknown} are not among the joints {list(self.joint_names)}")
         self.actuated = tuple(actuated)
         self.passive = tuple(j for j in self.joint_names if j not in self.actuated)
-        self._act = np.array([self.joint_names.index(j) for j in self.actuated])
-        self._pas = np.array([self.joint_names.index(j) for j in self.passive])
+        self._act = np.array([self.joint_names.index(j) for j in self.actuated], dtype=int)
+        self._pas = np.array([self.joint_names.index(j) for j in self.passive], dtype=int)
         self.channels = tuple(BODY_CHANNELS) + tuple(f"rdot_{j}" for j in self.passive)
-        self.version = CHECKPOINT_VERSION
-        # stream state
-        self.last_shape_stamp = -np.inf
-        self.last_pose_stamp = -np.inf
-        self._pose_t: deque[float] = deque()
-        self._pose: deque[FloatArray] = deque()
-        self._pending: deque[tuple[float, FloatArray]] = deque()
-        self._yaw_prev: float | None = None
-        # initialisation buffer
-        self._buf_t: list[float] = []
-        self._buf_r: list[FloatArray] = []
-        self._buf_p: list[FloatArray] = []
-        # after initialisation
-        self.init_cycles_ = float(config.init_cycles)
-        self.initialised = False
+        self.pairer = StampPairer(config.max_pose_wait)
+        self.initialiser: GaitInitialiser | None = GaitInitialiser(
+            config.init_cycles, config.gait_hz, config.template_order, config.phaser_order)
+        self._early_poses: list[tuple[float, tuple[float, float, float]]] = []  # poses before the start
+        self._init_cycles = float(config.init_cycles)
         self.template_: FourierTemplate | None = None
         self.omega_ = float("nan")
         self._phase0 = float("nan")
         self._tracker: PhaseTracker | None = None
-        self._prev: tuple[float, FloatArray, FloatArray, float] | None = None  # t, r, pose, phase
-        self._rows_X: list[FloatArray] = []
-        self._rows_Y: list[FloatArray] = []
-        # pose intervals: poses not yet used as an interval start, featurised shape samples
-        self._pose_q: deque[tuple[float, FloatArray]] = deque()
-        self._shape_hist: deque[tuple[float, FloatArray, float]] = deque()  # t, r, phase
-        self._first_shape = float("nan")
-        self._rows_avg: list[tuple[FloatArray, FloatArray, FloatArray]] = []  # segment X, weights, ξ
+        self._rows: StreamFeaturiser | None = None
         self.selector = self._selector(None)
         nb = len(BODY_CHANNELS)
         self._out_normal = NormalEquations(2 * config.template_order + 1, len(self.channels) - nb)
         self._out_normal_body = NormalEquations(2 * config.template_order + 1, nb)
+        self._measured: deque[tuple[float, FloatArray]] = deque(maxlen=self.MEASURED_KEPT)
         # bookkeeping
         self.phase = float("nan")
         self.n_shape = 0
         self.n_pose = 0
         self.n_rows = 0
-        self.dropped_no_pose = 0
         self.sum_err_model = np.zeros(len(self.channels))
         self.sum_err_template = np.zeros(len(self.channels))
         self.last_residual = np.full(len(self.channels), np.nan)
@@ -213,6 +187,36 @@ class OnlineSudsEstimator:
         """The candidate regression published now (the lowest prequential loss)."""
         return self.selector.current
 
+    @property
+    def initialised(self) -> bool:
+        """True once phase, template and rate are fixed."""
+        return self.initialiser is None
+
+    @property
+    def init_cycles_(self) -> float:
+        """Gait cycles the initialisation needed (or needs now)."""
+        return self._init_cycles if self.initialiser is None else self.initialiser.init_cycles_
+
+    @property
+    def last_shape_stamp(self) -> float:
+        """Newest shape stamp accepted, s."""
+        return self.pairer.last_shape_stamp
+
+    @property
+    def last_pose_stamp(self) -> float:
+        """Newest pose stamp accepted, s."""
+        return self.pairer.last_pose_stamp
+
+    @property
+    def dropped_no_pose(self) -> int:
+        """Shape samples dropped for want of a covering pose."""
+        return self.pairer.dropped_no_pose
+
+    @property
+    def waiting_for_pose(self) -> int:
+        """Shape samples waiting for a covering pose."""
+        return self.pairer.waiting
+
     # ------------------------------------------------------------------ input
     def add_pose(self, t: float, x: float, y: float, yaw: float) -> int:
         """Add a pose sample; returns the number of shape samples it released.
@@ -222,16 +226,13 @@ class OnlineSudsEstimator:
         SudsDataError
             NaN values, or a stamp not after the previous pose stamp.
         """
-        if not np.all(np.isfinite([t, x, y, yaw])):
-            raise SudsDataError(f"pose sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
-        check_stamp("pose", t, self.last_pose_stamp)
-        yaw_u = yaw if self._yaw_prev is None else _unwrap_next(self._yaw_prev, yaw)
-        self._yaw_prev = yaw_u
-        self.last_pose_stamp = t
-        self._pose_t.append(t)
-        self._pose.append(np.array([x, y, yaw_u]))
-        self._pose_q.append((t, self._pose[-1]))
+        self.pairer.add_pose(float(t), float(x), float(y), float(yaw))
         self.n_pose += 1
+        pose = self.pairer.last_pose
+        if self._rows is None:
+            self._early_poses.append((float(t), pose))
+        else:
+            self._rows.add_pose(float(t), pose)
         return self._release()
 
     def add_shape(self, t: float, names: tuple[str, ...], position: FloatArray) -> int:
@@ -242,158 +243,66 @@ class OnlineSudsEstimator:
         SudsDataError
             Wrong joint names/count, NaN, duplicate or out-of-order stamp.
         """
-        position = self.check_shape(t, names, position)
-        check_stamp("shape", t, self.last_shape_stamp)
-        self.last_shape_stamp = t
-        self._pending.append((t, position))
+        r = check_shape_sample(t, names, position, self.joint_names)
+        self.pairer.add_shape(float(t), r)
         self.n_shape += 1
         return self._release()
 
-    def check_shape(self, t: float, names: tuple[str, ...], position: FloatArray) -> FloatArray:
-        """The positions (nj,) of a shape sample with this estimator's joints (stamp order not checked).
-
-        Raises
-        ------
-        SudsDataError
-            Wrong joint names (code ``wrong_joint_names``) or count (``wrong_joint_count``), NaN
-            (``nan_or_inf``).
-        """
-        return check_shape_sample(t, tuple(names), position, self.joint_names)
-
     def already_seen(self, t: float) -> bool:
         """True for a shape stamp at or before the last one accepted (e.g. replayed after a restart)."""
-        return t <= self.last_shape_stamp
+        return t <= self.pairer.last_shape_stamp
 
     def _release(self) -> int:
-        released = 0
-        while self._pending:
-            t, r = self._pending[0]
-            if not self._pose_t or self._pose_t[-1] < t:
-                # wait for the pose stream; drop samples that waited too long (in stamp time)
-                if self.last_shape_stamp - t > self.config.max_pose_wait:
-                    self._pending.popleft()
-                    self.dropped_no_pose += 1
-                    continue
-                break
-            if self._pose_t[0] > t:  # shape sample before the first pose: cannot be paired
-                self._pending.popleft()
-                self.dropped_no_pose += 1
-                continue
-            pose = self._pose_at(t)
-            self._pending.popleft()
+        ts, rs, ps = self.pairer.release()
+        for t, r, pose in zip(ts, rs, ps):
             self._process(t, r, pose)
-            released += 1
-        return released
-
-    def _pose_at(self, t: float) -> FloatArray:
-        pt = np.fromiter(self._pose_t, dtype=float)
-        i = int(np.searchsorted(pt, t))
-        # keep only what later samples can still need
-        while len(self._pose_t) > 2 and self._pose_t[1] <= t:
-            self._pose_t.popleft()
-            self._pose.popleft()
-            i -= 1
-        pt = np.fromiter(self._pose_t, dtype=float)
-        P = np.array(self._pose)
-        return np.array([np.interp(t, pt, P[:, c]) for c in range(3)])
+        return len(ts)
 
     # ------------------------------------------------------------- processing
     def _process(self, t: float, r: FloatArray, pose: FloatArray) -> None:
-        if not self.initialised:
-            self._buf_t.append(t)
-            self._buf_r.append(r)
-            self._buf_p.append(pose)
-            if self._buf_t[-1] - self._buf_t[0] >= self.init_cycles_ / self.config.gait_hz:
-                self._initialise()
+        if self.initialiser is not None:
+            start = self.initialiser.add(t, r, pose)
+            if start is not None:
+                self._start(start)
             return
-        phase = float(self._tracker.update(t, r))  # type: ignore[union-attr]
-        self._add_interval(t, r, pose, phase)
+        phase = self._tracker.update(t, r)  # type: ignore[union-attr]
+        self._add(t, r, pose, phase)
 
-    def _initialise(self) -> None:
-        T = np.asarray(self._buf_t)
-        R = np.asarray(self._buf_r)
-        P = np.asarray(self._buf_p)
-        try:
-            phase = Phaser(PhaserConfig(order=self.config.phaser_order)).fit_transform(R)
-        except SudsPhaseError:
-            if T[-1] - T[0] > 4 * self.config.init_cycles / self.config.gait_hz:
-                raise
-            # not yet enough cycles for the phaser: keep buffering one more cycle
-            self.init_cycles_ += 1
-            return
-        omega = float((phase[-1] - phase[0]) / (T[-1] - T[0]))
-        if not omega > 0:
-            raise SudsPhaseError(f"the initial cycles give a non-advancing phase (rate {omega:.3g} rad/s)")
-        tmpl = FourierTemplate(FourierTemplateConfig(order=self.config.template_order)).fit(phase, R)
-        self.template_ = tmpl
-        self.omega_ = omega
-        self.selector = self._selector(gait_kernel_scale(tmpl, omega, self._act))
-        self._tracker = PhaseTracker(tmpl, omega, float(phase[-1]), float(T[-1]))
-        self.initialised = True
-        self._phase0 = float(phase[0])
-        self._buf_t, self._buf_r, self._buf_p = [], [], []
-        for k in range(T.size):
-            self._add_interval(float(T[k]), R[k], P[k], float(phase[k]))
+    def _start(self, s: GaitStart) -> None:
+        """Fix phase, template and rate; featurise the buffered samples."""
+        self._init_cycles = self.initialiser.init_cycles_  # type: ignore[union-attr]
+        self.initialiser = None
+        self.template_, self.omega_ = s.template, s.omega
+        self.selector = self._selector(gait_kernel_scale(s.template, s.omega, self._act))
+        self._tracker = PhaseTracker(s.template, s.omega, float(s.phase[-1]), float(s.t[-1]))
+        self._phase0 = float(s.phase[0])
+        self._rows = StreamFeaturiser(self.config.suds, s.template, s.omega, self._act, self._pas)
+        for tp, pose in self._early_poses:
+            self._rows.add_pose(tp, pose)
+        self._early_poses = []
+        for k in range(s.t.size):
+            self._add(float(s.t[k]), s.r[k], s.pose[k], float(s.phase[k]))
 
-    def _add_interval(self, t: float, r: FloatArray, pose: FloatArray, phase: float) -> None:
+    def _add(self, t: float, r: FloatArray, pose: FloatArray, phase: float) -> None:
         self.phase = phase
-        prev = self._prev
-        self._prev = (t, r, pose, phase)
-        self._shape_hist.append((t, r, phase))
-        if prev is None:
-            self._first_shape = t
-            return
-        X, Y = interval_row(self.config.suds, self.template_, self.omega_, self._act, self._pas, prev,
-                            (t, r, pose, phase))
-        self._note_measured(t, Y)
-        self._rows_X.append(X)
-        self._rows_Y.append(Y[len(BODY_CHANNELS):])
-        self._pose_rows(t)
-        if len(self._rows_X) >= self.config.chunk:
+        self._rows.add(t, r, pose, phase)  # type: ignore[union-attr]
+        if self._rows.pending >= self.config.chunk:  # type: ignore[union-attr]
             self.flush()
 
-    def _pose_rows(self, t_now: float) -> None:
-        """Turn every pose interval ending by ``t_now`` into an averaged row.
-
-        ``t_now`` is the last featurised shape stamp.  Afterwards, forget what no later pose
-        interval can need.
-        """
-        q, hist = self._pose_q, self._shape_hist
-        while len(q) >= 2 and q[1][0] <= t_now:
-            (t0, g0), (t1, g1) = q[0], q[1]
-            if t0 >= self._first_shape:
-                while len(hist) > 2 and hist[1][0] <= t0:
-                    hist.popleft()
-                T = np.fromiter((h[0] for h in hist), dtype=float)
-                _, k, s0, s1 = overlap_segments(T[:-1], T[1:], np.array([t0]), np.array([t1]))
-                R = np.array([h[1] for h in hist])
-                P = np.fromiter((h[2] for h in hist), dtype=float)
-                rdot = (R[k + 1] - R[k]) / (T[k + 1] - T[k])[:, None]
-                if self.config.suds.state == "start":  # a segment takes its shape interval's row
-                    ph_s, r_s = 0.5 * (P[k] + P[k + 1]), R[k]
-                else:  # the instantaneous map at the segment's midpoint
-                    frac = (0.5 * (s0 + s1) - T[k]) / (T[k + 1] - T[k])
-                    ph_s, r_s = P[k] + (P[k + 1] - P[k]) * frac, R[k] + (R[k + 1] - R[k]) * frac[:, None]
-                Xs = interval_features(self.template_, self.omega_, self._act, ph_s, r_s, rdot)
-                xi = se2.log(se2.relative(g0, g1)) / (t1 - t0)
-                self._rows_avg.append((Xs, (s1 - s0) / (s1 - s0).sum(), xi))
-            q.popleft()
-
     def flush(self) -> None:
-        """Fit the rows waiting in the current chunk (the node calls this before publishing)."""
-        if not self._rows_X and not self._rows_avg:
+        """Turn the pending samples into rows and fit them (the node calls this before publishing)."""
+        if self._rows is None or not self._rows.pending:
             return
-        d = 1 + 2 * (len(self.joint_names) + len(self.actuated))
-        X = np.asarray(self._rows_X).reshape(-1, d)
-        Y = np.asarray(self._rows_Y).reshape(X.shape[0], len(self.passive))
-        avg = self._averaged()
-        self._rows_X, self._rows_Y, self._rows_avg = [], [], []
+        rows = self._rows.rows()
+        self._measured.extend(zip(rows.t.tolist(), rows.Y))
+        nb = len(BODY_CHANNELS)
+        X, Y = rows.X, rows.Y[:, nb:]
+        avg = self._averaged(rows)
         order = self.config.template_order
         Bt = fourier_basis(X[:, 0], order)
         Bb = np.asarray(avg.weights @ fourier_basis(avg.X[:, 0], order))  # type: ignore[operator]
         if hasattr(self.regressor, "coef_"):
             tc = self._output_template_coef()
-            nb = len(BODY_CHANNELS)
             pred = self.regressor.predict(avg.X)[:, :nb]
             err_m = np.abs(np.asarray(avg.weights @ pred) - avg.y)  # type: ignore[operator]
             err_t = np.abs(Bb @ tc[:, :nb] - avg.y)
@@ -409,19 +318,12 @@ class OnlineSudsEstimator:
         self._out_normal_body.add(Bb, avg.y)
         self.n_rows += X.shape[0]
 
-    def _averaged(self) -> AveragedTargets:
-        """The pending pose-interval rows: segment features, block weights, measured ξ."""
-        import scipy.sparse
-
-        d = 1 + 2 * (len(self.joint_names) + len(self.actuated))
-        rows = self._rows_avg
-        n = [len(w) for _, w, _ in rows]
-        Xs = np.concatenate([x for x, _, _ in rows]) if rows else np.zeros((0, d))
-        W = scipy.sparse.csr_matrix(
-            (np.concatenate([w for _, w, _ in rows]) if rows else np.zeros(0),
-             (np.repeat(np.arange(len(rows)), n), np.arange(sum(n)))), shape=(len(rows), sum(n)))
-        ya = np.array([xi for _, _, xi in rows]).reshape(len(rows), len(BODY_CHANNELS))
-        return AveragedTargets(X=Xs, weights=W, y=ya, columns=tuple(range(len(BODY_CHANNELS))))
+    @staticmethod
+    def _averaged(rows: Rows) -> AveragedTargets:
+        """The pose-interval rows of a block: segment features, block weights, measured ξ."""
+        q, s = rows.xi.shape[0], rows.seg_w.size
+        W = scipy.sparse.csr_matrix((rows.seg_w, (rows.seg_row, np.arange(s))), shape=(q, s))
+        return AveragedTargets(X=rows.seg_X, weights=W, y=rows.xi, columns=tuple(range(len(BODY_CHANNELS))))
 
     def _output_template_coef(self) -> FloatArray:
         return np.concatenate([self._out_normal_body.solve(_OUTPUT_TEMPLATE_RIDGE),
@@ -431,11 +333,9 @@ class OnlineSudsEstimator:
     @property
     def cycles_seen(self) -> float:
         """Gait cycles processed (by phase once initialised, by time before)."""
-        if self.initialised:
+        if self.initialiser is None:
             return float((self.phase - self._phase0) / (2 * np.pi))
-        if len(self._buf_t) < 2:
-            return 0.0
-        return (self._buf_t[-1] - self._buf_t[0]) * self.config.gait_hz
+        return self.initialiser.cycles_buffered
 
     def running_gamma(self) -> dict[str, float]:
         """Prequential Γ over body and passive channels (NaN before two chunks)."""
@@ -472,59 +372,17 @@ class OnlineSudsEstimator:
     #: most measured rows kept for :meth:`pop_measured` (older ones are dropped when nobody takes them)
     MEASURED_KEPT = 10_000
 
-    def _note_measured(self, t: float, y: FloatArray) -> None:
-        rows = self.__dict__.get("_measured")
-        if rows is None:  # also for an estimator loaded from an older checkpoint
-            rows = self.__dict__["_measured"] = deque(maxlen=self.MEASURED_KEPT)
-        rows.append((t, y))
-
     def pop_measured(self) -> list[tuple[float, FloatArray]]:
-        """The measured outputs of the intervals added since the last call, oldest first.
+        """The measured outputs of the intervals fitted since the last call, oldest first.
 
         Each is ``(t, y)``: ``t`` the stamp of the interval's end sample (s, the stamp the
         predictor gives its prediction of the same interval) and ``y`` = [ξ (vx, vy m/s,
-        wz rad/s), ṙ_p (rad/s, in ``passive`` order)], the row the regression fits on.
+        wz rad/s), ṙ_p (rad/s, in ``passive`` order)], the row the regression fits on.  Rows
+        come out a chunk at a time, when they are fitted.
         """
-        rows = self.__dict__.get("_measured")
-        if not rows:
-            return []
-        out = list(rows)
-        rows.clear()
+        out = list(self._measured)
+        self._measured.clear()
         return out
-
-    # ------------------------------------------------------------ checkpoints
-    def state_bytes(self) -> bytes:
-        """The complete estimator state (pickle)."""
-        return pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
-
-    def save(self, path: str | Path) -> None:
-        """Atomically write a checkpoint (temp file, fsync, rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(self.state_bytes())
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-
-    @staticmethod
-    def load(path: str | Path) -> "OnlineSudsEstimator":
-        """Read a checkpoint written by :meth:`save`."""
-        path = Path(path)
-        try:
-            with open(path, "rb") as f:
-                obj = pickle.load(f)
-        except (OSError, pickle.UnpicklingError, EOFError, AttributeError) as exc:
-            raise SudsDataError(f"checkpoint {str(path)!r} is unreadable: {exc}") from None
-        if not isinstance(obj, OnlineSudsEstimator) or getattr(obj, "version", None) != CHECKPOINT_VERSION:
-            raise SudsDataError(
-                f"checkpoint {str(path)!r} is not a suds_ros estimator state (version {CHECKPOINT_VERSION})")
-        return obj
 
 
 def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> OnlineSudsEstimator:

@@ -7,20 +7,25 @@ with them and reports what to publish.
   shape sample), else the ``system`` parameter (registry), else the system
   description the node receives (:meth:`EstimatorSession.on_system`), else a
   resumed checkpoint's.  Samples that arrive before the roles are known wait.
-* **Pairing** (by stamps only, never by arrival time): a shape sample waits in
-  a queue until the pose stream has passed its stamp (a pose with stamp ≥ the
-  shape's has been given to the estimator, so the pose at the shape's stamp can
-  be interpolated), or until the pose stream is shown stalled in stamp time:
-  shape stamps have advanced more than ``pose_stall`` seconds past the waiting
-  shape with no pose reaching it.  So a late, slow or bursty delivery of either
-  stream (a restarted node catching up on history) never loses a pairable
-  sample, as long as one stream runs less than ``pose_stall`` stamp seconds
-  ahead of the other.
-* **Resume**: with a ``checkpoint`` file the estimator is restored from it;
+* **Pairing** (by stamps only, never by arrival time) is the estimator's
+  (:mod:`~suds_ros.core.ident.pairing`): a shape sample waits until a pose
+  with a stamp at or after its own arrives, or is dropped once the shape stream
+  has run ``max_pose_wait`` stamp seconds past it.  So a late, slow or bursty
+  delivery of either stream (a restarted node catching up on history) never
+  loses a pairable sample, as long as one stream runs less than
+  ``max_pose_wait`` ahead of the other.  The status warns once the shape
+  stream has run ``pose_stall`` seconds ahead of the pose stream.  Before the
+  joint roles are known, samples wait here (at most ``history_depth``).
+* **Resume**: with a ``checkpoint`` file the estimator is restored from it
+  (through the checkpoint I/O the caller hands in, :mod:`suds_ros.io.checkpoint`);
   samples at or before its last stamps are counted as ``replayed`` and skipped.
+  A checkpoint that cannot be used (damaged, foreign, another version, other
+  joints) is moved aside to ``<checkpoint>.refused-<n>``, the reason logged as
+  an error, and the estimator starts afresh: nothing is overwritten.
 * **Bad samples** (NaN, duplicate or out-of-order stamp, wrong joint names or
-  count, ...) are skipped, logged once per reason and counted per
-  ``<stream>.<error code>``; the session never stops on traffic.
+  count, ...) are checked once, by the estimator, skipped, logged once per
+  reason and counted per ``<stream>.<error code>``; the session never stops on
+  traffic.
 * **Cadence** (wall clock, given as ``now``): the model is published after each
   fitted chunk (``model_period`` = 0) or every ``model_period`` s, and once no
   sample has arrived for ``idle_flush`` s (the partial chunk); the status every
@@ -34,7 +39,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 from suds_ros.core.errors import (
     QUEUE_FULL,
@@ -52,6 +57,16 @@ _ONLINE = OnlineConfig()  # the estimator's defaults: the one source of the defa
 _SUDS = _ONLINE.suds
 
 Log = Callable[[str, str], None]  # (level "info" | "warning" | "error", text)
+
+
+class CheckpointIO(Protocol):
+    """Reads and writes estimator checkpoints (:mod:`suds_ros.io.checkpoint` is one)."""
+
+    def load_estimator(self, path: str) -> OnlineSudsEstimator:
+        """The estimator saved in ``path``; SudsError when it cannot be used."""
+
+    def save_estimator(self, path: str, est: OnlineSudsEstimator) -> None:
+        """Write ``est`` to ``path`` atomically."""
 
 
 def _no_log(level: str, text: str) -> None:
@@ -144,16 +159,21 @@ class EstimatorSession:
     config : SessionConfig
     log : callable (level, text), optional
         Where log lines go (the node's logger).
+    now : float
+        Wall time of the start, s.
+    checkpoints : CheckpointIO, optional
+        Needed with a ``checkpoint`` file.
 
     Raises
     ------
-    SudsDataError
-        The checkpoint exists but cannot be read.
     SudsConfigError
-        ``actuated`` differs from the checkpoint's, or ``system`` is unknown.
+        A ``checkpoint`` without ``checkpoints``, or ``system`` is unknown.
     """
 
-    def __init__(self, config: SessionConfig, log: Log = _no_log, now: float = 0.0) -> None:
+    def __init__(self, config: SessionConfig, log: Log = _no_log, now: float = 0.0,
+                 checkpoints: CheckpointIO | None = None) -> None:
+        if config.checkpoint and checkpoints is None:
+            raise SudsConfigError("`checkpoints`: a `checkpoint` file needs checkpoint I/O, got None")
         self.config = config
         self._log = log
         self.est: OnlineSudsEstimator | None = None
@@ -161,8 +181,10 @@ class EstimatorSession:
         self.replayed = self.replayed_pose = self.model_updates = 0
         self.error = ""
         self.resumed_from = ""
+        self.refused_checkpoint = ""
+        self._io = checkpoints
         self._resume = (-math.inf, -math.inf)  # last shape / pose stamps of a resumed checkpoint
-        self._shapes: deque[Any] = deque()  # waiting shape samples, in stamp order
+        self._shapes: deque[Any] = deque()  # shape samples waiting for the joint roles, in stamp order
         self._poses: deque[Any] = deque(maxlen=config.history_depth)  # before the roles are known
         self._newest_shape = -math.inf  # newest shape stamp accepted in this session
         self._first_shape = math.inf  # first shape stamp accepted in this session
@@ -188,10 +210,14 @@ class EstimatorSession:
         return self.est is None and not self.config.actuated
 
     def _load(self, path: str) -> None:
-        est = OnlineSudsEstimator.load(path)
-        if self.config.actuated and tuple(self.config.actuated) != est.actuated:
-            raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} differs from the checkpoint's "
-                                  f"{list(est.actuated)} ({path}); remove the checkpoint or fix the parameter")
+        try:
+            est = self._io.load_estimator(path)  # type: ignore[union-attr]
+            if self.config.actuated and tuple(self.config.actuated) != est.actuated:
+                raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} differs from the checkpoint's "
+                                      f"{list(est.actuated)}")
+        except SudsError as exc:
+            self._refuse_checkpoint(path, exc)
+            return
         self.est = est
         self._resume = (est.last_shape_stamp, est.last_pose_stamp)
         self._newest_shape = est.last_shape_stamp
@@ -199,6 +225,20 @@ class EstimatorSession:
         self._dirty = True
         self._log("info", f"resumed from checkpoint {path}: {est.n_shape} shape samples, "
                           f"{est.cycles_seen:.2f} cycles, last stamp {est.last_shape_stamp:.6f} s")
+
+    def _refuse_checkpoint(self, path: str, exc: SudsError) -> None:
+        """Move an unusable checkpoint aside (never overwritten) and say so."""
+        n = 1
+        while Path(f"{path}.refused-{n}").exists():
+            n += 1
+        aside = f"{path}.refused-{n}"
+        try:
+            Path(path).rename(aside)
+        except OSError as err:
+            raise SudsConfigError(f"`checkpoint`: {path} cannot be used ({exc}) nor moved aside ({err}); "
+                                  "move or remove it") from None
+        self.refused_checkpoint = aside
+        self._log("error", f"checkpoint {path} refused [{exc.code}]: {exc}; moved to {aside}, starting afresh")
 
     def start(self, names: tuple[str, ...], actuated: tuple[str, ...], gait_hz: float, source: str) -> None:
         """Create the estimator (once) and hand it the samples that waited for the roles."""
@@ -210,14 +250,8 @@ class EstimatorSession:
         for p in poses:
             self._feed_pose(p)
         shapes, self._shapes = list(self._shapes), deque()
-        for s in shapes:  # now checkable against the joints
-            try:
-                self.est.check_shape(s.stamp, s.names, s.position)
-            except SudsError as exc:
-                self.skip("shape", exc)
-                continue
-            self._shapes.append(s)
-        self._drain()
+        for s in shapes:  # checked against the joints now
+            self._feed_shape(s)
 
     def on_system(self, info: Mapping[str, Any]) -> None:
         """A system description (``joint_names``, ``actuated``, ``gait_hz``, ``system``) gives the roles."""
@@ -244,22 +278,22 @@ class EstimatorSession:
         if self.est is None and self.config.actuated and set(self.config.actuated) <= set(sample.names):
             self.start(tuple(sample.names), tuple(self.config.actuated), self.config.gait_hz or 1.0,
                        "`actuated` and the first shape message")
-        try:
+        if self.est is not None:
+            self._feed_shape(sample)
+            return self._model_if_fitted(now)
+        try:  # waits for the joint roles: only the stamp order can be checked yet
             check_stamp("shape", sample.stamp, self._newest_shape)
-            if self.est is not None:
-                self.est.check_shape(sample.stamp, sample.names, sample.position)
         except SudsError as exc:
             self.skip("shape", exc)
             return None
-        self._newest_shape = sample.stamp
-        self._first_shape = min(self._first_shape, sample.stamp)
-        model = self._drain(now)  # first give up what this stamp shows unpairable: room in the queue
         if len(self._shapes) >= self.config.history_depth:
             self.skip("shape", SudsDataError(f"shape queue: {len(self._shapes)} samples already wait for the "
-                                             "joint roles or the pose stream", code=QUEUE_FULL))
-            return model
+                                             "joint roles", code=QUEUE_FULL))
+            return None
+        self._newest_shape = sample.stamp
+        self._first_shape = min(self._first_shape, sample.stamp)
         self._shapes.append(sample)
-        return self._drain(now) or model
+        return None
 
     def on_pose(self, pose: Any, now: float) -> SudsModel | None:
         """A planar pose (``stamp``, ``x``, ``y``, ``yaw``); returns a model to publish, if any."""
@@ -271,38 +305,33 @@ class EstimatorSession:
             self._poses.append(pose)
             return None
         self._feed_pose(pose)
-        return self._drain(now)
+        return self._model_if_fitted(now)
 
     def _feed_pose(self, pose: Any) -> None:
-        assert self.est is not None
-        self._feed("pose", self.est.add_pose, pose.stamp, pose.x, pose.y, pose.yaw)
+        self._feed("pose", self.est.add_pose, pose.stamp, pose.x, pose.y, pose.yaw)  # type: ignore[union-attr]
 
-    def _feed(self, stream: str, add: Any, *args: Any) -> None:
+    def _feed_shape(self, s: Any) -> None:
+        if self._feed("shape", self.est.add_shape, s.stamp, s.names, s.position):  # type: ignore[union-attr]
+            self._newest_shape = s.stamp
+            self._first_shape = min(self._first_shape, s.stamp)
+
+    def _feed(self, stream: str, add: Any, *args: Any) -> bool:
         """Hand one sample to the estimator; a bad sample is skipped (counted by its code), never fatal."""
         try:
             add(*args)
         except SudsPhaseError as exc:
             self._phase_error(exc)
+            return True  # the sample itself was accepted
         except Exception as exc:  # noqa: BLE001 - the session never stops on traffic
             self.skip(stream, exc)
-        else:
-            self._dirty = True
+            return False
+        self._dirty = True
+        return True
 
-    def _drain(self, now: float | None = None) -> SudsModel | None:
-        """Hand the waiting shape samples the pose stream has passed (or given up on) to the estimator."""
+    def _model_if_fitted(self, now: float) -> SudsModel | None:
+        """The model to publish after each fitted chunk (``model_period`` 0)."""
         est = self.est
-        if est is None:
-            return None
-        # the pose stream is shown stalled (in stamp time) when the shapes have run more than
-        # `pose_stall` past its newest pose: then no waiting shape can expect a pose any more
-        stalled = self._newest_shape - max(est.last_pose_stamp, self._first_shape) > self.config.pose_stall
-        while self._shapes:
-            s = self._shapes[0]
-            if est.last_pose_stamp < s.stamp and not stalled:
-                break
-            self._shapes.popleft()
-            self._feed("shape", est.add_shape, s.stamp, s.names, s.position)
-        if self.config.model_period == 0 and est.n_rows != self._rows_published:
+        if est is not None and self.config.model_period == 0 and est.n_rows != self._rows_published:
             return self._take_model(now)
         return None
 
@@ -374,12 +403,15 @@ class EstimatorSession:
             v.update({f"residual.{c}": f"{r:.6g}" for c, r in zip(est.channels, est.last_residual)})
         else:
             v.update({"initialised": "false", "samples": "0", "joint_roles": "unknown"})
+        waiting = len(self._shapes) + (est.waiting_for_pose if est is not None else 0)
         v.update({"replayed": str(self.replayed), "replayed_pose": str(self.replayed_pose),
-                  "waiting_for_pose": str(len(self._shapes)), "model_updates": str(self.model_updates),
+                  "waiting_for_pose": str(waiting), "model_updates": str(self.model_updates),
                   "skipped_total": str(sum(self.skipped.values()))})
         v.update({f"skipped.{k}": str(n) for k, n in sorted(self.skipped.items())})
         if self.resumed_from:
             v["resumed_from"] = self.resumed_from
+        if self.refused_checkpoint:
+            v["refused_checkpoint"] = self.refused_checkpoint
         return v
 
     def status(self, stalled: float | None = None) -> Status:
@@ -404,8 +436,8 @@ class EstimatorSession:
         if mark == self._saved_at:
             return
         try:
-            est.save(self.config.checkpoint)
-        except OSError as exc:
+            self._io.save_estimator(self.config.checkpoint, est)  # type: ignore[union-attr]
+        except (OSError, SudsError) as exc:
             self._log("error", f"cannot write checkpoint {self.config.checkpoint}: {exc}")
             return
         self._saved_at = mark

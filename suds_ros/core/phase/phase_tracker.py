@@ -19,11 +19,12 @@ a time:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
-from suds_ros.core.fourier import fourier_basis_and_derivative
 from suds_ros.core.phase.template import FourierTemplate
 
 #: Forgetting rate of the running residual scale (per accepted sample).
@@ -35,6 +36,16 @@ def _positive(name: str, value: float) -> float:
     if not (np.isfinite(v) and v > 0):
         raise SudsConfigError(f"`{name}`: expected a finite number > 0, got {value!r}")
     return v
+
+
+def _complex_coefficients(coef: FloatArray, order: int) -> FloatArray:
+    """Rows [C; i·m·C] (2·nj, M + 1) of θ and dθ/dφ from real Fourier coefficients (2M + 1, nj)."""
+    coef = np.asarray(coef, dtype=float)
+    C = np.empty((order + 1, coef.shape[1]), dtype=complex)
+    C[0] = coef[0]
+    C[1:] = coef[1::2] - 1j * coef[2::2]
+    m = np.arange(order + 1)[:, None]
+    return np.concatenate([C, 1j * m * C], axis=1).T
 
 
 class PhaseTracker:
@@ -127,21 +138,30 @@ class PhaseTracker:
                 )
             w2 = w**2
         self._w2 = w2
+        self._w2_sum = float(np.sum(w2))
+        self._complex_coef = _complex_coefficients(template.coef_, template.config.order)
+        self._m = np.arange(template.config.order + 1, dtype=float)
         # expected weighted residual per channel at the template's own fit
         self._s2 = max(float(np.mean(w2 * resid)), 1e-12)
         self.n_updates_ = 0
         self.n_outliers_ = 0
 
     def _eval(self, phi: float) -> tuple[FloatArray, FloatArray]:
-        """θ(φ) and dθ/dφ, each shape (nj,), from one evaluation of the harmonics."""
-        B, dB = fourier_basis_and_derivative(phi, self.template.config.order)
-        return B[0] @ self.template.coef_, dB[0] @ self.template.coef_
+        """θ(φ) and dθ/dφ, each shape (nj,), from one evaluation of the harmonics.
+
+        θ(φ) = Re Σ_m C_m e^{imφ} with C_m = a_m − i·b_m (the template's cos and sin
+        coefficients), and dθ/dφ = Re Σ_m i·m·C_m e^{imφ}: one complex exponential and one
+        matrix-vector product per evaluation (the tracker runs once per sample).
+        """
+        v = (self._complex_coef @ np.exp(1j * phi * self._m)).real
+        n = self.n_channels
+        return v[:n], v[n:]
 
     def _check_r(self, r: FloatArray) -> FloatArray:
         r = np.asarray(r, dtype=float)
         if r.shape != (self.n_channels,):
             raise SudsDataError(f"`r`: expected shape ({self.n_channels},), got shape {r.shape}")
-        if not np.all(np.isfinite(r)):
+        if not math.isfinite(float(r.sum())):
             raise SudsDataError(f"`r`: expected finite values, got {r!r}")
         return r
 
@@ -162,20 +182,23 @@ class PhaseTracker:
         """
         t = float(t)
         dt = t - self.t
-        if not (np.isfinite(t) and dt >= 0):
+        if not (math.isfinite(t) and dt >= 0):
             raise SudsDataError(f"`t`: expected a finite time ≥ the previous {self.t!r} s, got {t!r}")
         r = self._check_r(r)
         pred = self.phase + self.omega * dt
         phi = pred
-        eps = 1e-12 * float(np.sum(self._w2))
+        w2 = self._w2
+        eps = 1e-12 * self._w2_sum
+        lo, hi, ms = pred - self.max_step, pred + self.max_step, self.max_step
         for _ in range(self.n_iter):
             theta, J = self._eval(phi)
-            e = r - theta
-            g = float(np.sum(self._w2 * J * e))
-            H = float(np.sum(self._w2 * J * J)) + eps
-            step = float(np.clip(g / H, -self.max_step, self.max_step))
-            phi = float(np.clip(phi + step, pred - self.max_step, pred + self.max_step))
-        res2 = float(np.mean(self._w2 * (r - self._eval(phi)[0]) ** 2))
+            w2J = w2 * J
+            g = float(w2J @ (r - theta))
+            H = float(w2J @ J) + eps
+            step = min(max(g / H, -ms), ms)
+            phi = min(max(phi + step, lo), hi)
+        e = r - self._eval(phi)[0]
+        res2 = float(w2 @ (e * e)) / self.n_channels
         c2 = self.outlier_threshold**2
         z2 = res2 / self._s2
         rho = 1.0 if z2 <= c2 else c2 / z2
@@ -185,7 +208,7 @@ class PhaseTracker:
         # the gait never runs backwards: a correction may at most cancel the predicted advance
         delta = max(delta, -self.omega * dt)
         self.phase = pred + delta
-        self.omega = float(np.clip(self.omega + delta / self.omega_tau, 0.5 * self.omega0, 2.0 * self.omega0))
+        self.omega = min(max(self.omega + delta / self.omega_tau, 0.5 * self.omega0), 2.0 * self.omega0)
         self._s2 += _SCALE_RATE * (min(res2, c2 * self._s2) - self._s2)
         self._s2 = max(self._s2, 1e-12)
         self.t = t

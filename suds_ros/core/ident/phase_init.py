@@ -1,0 +1,91 @@
+"""The live estimator's start: buffer the first gait cycles, then phase, template and rate.
+
+The batch :class:`~suds_ros.core.phase.phaser.Phaser` needs several whole cycles.  The
+paired samples are buffered until they span ``init_cycles`` cycles of the nominal gait
+frequency; then the phaser gives their phase, a :class:`FourierTemplate` θ(φ) is fitted to
+them, and the mean phase rate ω̄ is taken over the buffer.  All three stay fixed from then on
+(every later regressor row is final when computed).  When the phaser finds the buffer too
+short, one more cycle is buffered (``init_cycles_`` grows; the configuration does not), up to
+four times the configured span.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import SudsPhaseError
+from suds_ros.core.phase.phaser import Phaser, PhaserConfig
+from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+
+
+@dataclass(frozen=True)
+class GaitStart:
+    """What the initial cycles give: their samples with phase, the template and the rate."""
+
+    t: FloatArray
+    r: FloatArray
+    pose: FloatArray
+    phase: FloatArray
+    template: FourierTemplate
+    omega: float
+
+
+class GaitInitialiser:
+    """Buffer of the first paired samples until the phaser can run on them.
+
+    Parameters
+    ----------
+    init_cycles, gait_hz, template_order, phaser_order
+        As in :class:`~suds_ros.core.ident.online.OnlineConfig`.
+
+    Attributes
+    ----------
+    init_cycles_ : float
+        Cycles the buffer must span now (grows when the phaser refuses it).
+    """
+
+    def __init__(self, init_cycles: float, gait_hz: float, template_order: int, phaser_order: int) -> None:
+        self.init_cycles = float(init_cycles)
+        self.gait_hz = float(gait_hz)
+        self.template_order = int(template_order)
+        self.phaser_order = int(phaser_order)
+        self.init_cycles_ = float(init_cycles)
+        self._t: list[float] = []
+        self._r: list[FloatArray] = []
+        self._p: list[FloatArray] = []
+
+    @property
+    def cycles_buffered(self) -> float:
+        """Nominal cycles the buffer spans."""
+        return (self._t[-1] - self._t[0]) * self.gait_hz if len(self._t) > 1 else 0.0
+
+    def add(self, t: float, r: FloatArray, pose: FloatArray) -> GaitStart | None:
+        """Buffer one paired sample; the start once the buffer suffices, else None.
+
+        Raises
+        ------
+        SudsPhaseError
+            The phaser still fails on four times the configured span.
+        """
+        self._t.append(t)
+        self._r.append(r)
+        self._p.append(pose)
+        if self._t[-1] - self._t[0] < self.init_cycles_ / self.gait_hz:
+            return None
+        T, R, P = np.asarray(self._t), np.asarray(self._r), np.asarray(self._p)
+        try:
+            phase = Phaser(PhaserConfig(order=self.phaser_order)).fit_transform(R)
+        except SudsPhaseError:
+            if T[-1] - T[0] > 4 * self.init_cycles / self.gait_hz:
+                raise
+            self.init_cycles_ += 1  # not yet enough cycles for the phaser: one more
+            return None
+        omega = float((phase[-1] - phase[0]) / (T[-1] - T[0]))
+        if not omega > 0:
+            raise SudsPhaseError(f"the initial cycles give a non-advancing phase (rate {omega:.3g} rad/s)")
+        tmpl = FourierTemplate(FourierTemplateConfig(order=self.template_order)).fit(phase, R)
+        self._t, self._r, self._p = [], [], []
+        return GaitStart(T, R, P, np.asarray(phase, dtype=float), tmpl, omega)
