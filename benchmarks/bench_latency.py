@@ -1,6 +1,8 @@
 """Shape → prediction latency across processes, and the highest rates the nodes sustain.
 
-Run: ``python benchmarks/bench_latency.py [--quick]`` (writes docs/results/latency.md).
+Run: ``python benchmarks/bench_latency.py [--quick]`` (writes docs/results/latency.md), or
+``python benchmarks/bench_latency.py --rate HZ --seconds S --json`` for one JSON object
+(``predictor_p50_ms``, ``predictor_p99_ms``, ``estimator_lag_s``, ``dropped``, …) at one rate.
 
 Latency: a publisher process sends /suds/shape with the wall-clock publish time
 as header stamp (and the latched model); the predictor node runs in its own
@@ -12,6 +14,12 @@ Sustained rate: the same publisher at increasing rates; the predictor sustains
 a rate when every sample gets a prediction and the p99 latency stays below
 50 ms; the estimator (shape + pose) when it has taken every sample within
 0.5 s of the last one being published (read from /suds/status at 20 Hz).
+``dropped`` counts every sample lost on the way: shape samples the estimator
+never took, took but could not pair, or skipped.
+
+Throughput: the estimator node's per-message work (message → sample conversion,
+checks, pairing, phase tracking, rows, regression) on pre-built messages in one
+process pinned to one core, with a profile of where the time goes.
 """
 
 from __future__ import annotations
@@ -92,7 +100,8 @@ def role_sub(a: argparse.Namespace) -> int:
     if a.status:
         def on_status(m):
             vals = {kv.key: kv.value for kv in m.status[0].values}
-            rows.append((time.time(), float(vals.get("samples", 0))))
+            rows.append((time.time(), float(vals.get("samples", 0)), float(vals.get("dropped_no_pose", 0)),
+                         float(vals.get("skipped_total", 0)), float(vals.get("waiting_for_pose", 0))))
         node.create_subscription(DiagnosticArray, "/suds/status", on_status, STATUS_QOS)
     else:
         node.create_subscription(TwistStamped, "/suds/predicted/body_velocity",
@@ -107,7 +116,7 @@ def role_sub(a: argparse.Namespace) -> int:
                 break
     except KeyboardInterrupt:
         pass
-    np.save(a.out, np.array(rows).reshape(-1, 2))
+    np.save(a.out, np.array(rows).reshape(-1, 5 if a.status else 2))
     node.destroy_node()
     rclpy.try_shutdown()
     return 0
@@ -164,19 +173,22 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
         for p in procs:
             _stop(p)
     rows = np.load(out)
-    print(Path(tmp, f"node-{domain}.log").read_text()[-600:], flush=True)
+    print(Path(tmp, f"node-{domain}.log").read_text()[-600:], file=sys.stderr, flush=True)
     res = {"kind": kind, "rate": rate, "n": n, "executor": executor, "achieved_hz": info["achieved_hz"]}
     if status:
         done = rows[rows[:, 1] >= n]
         res["all_taken"] = bool(done.size)
         res["lag_s"] = float(done[0, 0] - info["end_wall"]) if done.size else float("inf")
         res["taken"] = int(rows[:, 1].max()) if rows.size else 0
+        last = rows[-1] if rows.size else np.zeros(5)
+        # never taken + taken but unpairable + skipped (the last sample may still wait for its pose)
+        res["dropped"] = int(n - res["taken"] + last[2] + last[3])
     else:
         lat = (rows[:, 0] - rows[:, 1]) * 1e3
         res["received"] = int(rows.shape[0])
         res["p50_ms"], res["p99_ms"] = (float(np.percentile(lat, q)) if lat.size else float("nan")
                                         for q in (50, 99))
-    print(res, flush=True)
+    print(res, file=sys.stderr, flush=True)
     return res
 
 
@@ -191,6 +203,79 @@ def _model_file(tmp: str) -> str:
     return path
 
 
+def throughput(seconds: float = 60.0, rate: float = 1000.0) -> dict:
+    """The estimator node's per-message work, in-process on one core: samples/s and a profile."""
+    import cProfile
+    import pstats
+    from collections import defaultdict
+
+    from suds_ros.core.ident.session import EstimatorSession, SessionConfig
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.ros.conversions import joint_state_from_msg, joint_state_to_msg, pose_from_msg, pose_to_msg
+    from suds_ros.ros.conversions import select_joints
+
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    cycles = int(seconds)
+    rec = simulate(make_system("purcell3"), SimConfig(cycles=cycles, samples_per_cycle=int(rate), seed=1))
+    names = rec.joint_names
+    msgs = [(joint_state_to_msg(float(rec.t[k]), names, rec.r[k]), pose_to_msg(float(rec.pose_t[k]), *rec.pose[k]))
+            for k in range(rec.n_samples)]
+
+    def run() -> EstimatorSession:
+        session = EstimatorSession(SessionConfig(actuated=(names[0],), history_depth=100_000))
+        for shape_msg, pose_msg in msgs:  # what the node's two callbacks do
+            session.on_pose(pose_from_msg(pose_msg), 0.0)
+            session.on_shape(select_joints(joint_state_from_msg(shape_msg), names), 0.0)
+        session.close()
+        return session
+
+    best = float("inf")
+    for _ in range(3):  # the best of three runs: the machine is shared
+        t0 = time.perf_counter()
+        session = run()
+        best = min(best, time.perf_counter() - t0)
+    prof = cProfile.Profile()
+    prof.runcall(run)
+    stats = pstats.Stats(prof)
+    by_room: dict[str, float] = defaultdict(float)
+    for (file, _, func), (_, _, tottime, _, _) in stats.stats.items():  # type: ignore[attr-defined]
+        path = file.replace(os.sep, "/")
+        if "/suds_ros/" in path:
+            room = path.split("/suds_ros/")[-1]
+        elif "numpy" in path or "scipy" in path:
+            room = "numpy/scipy (Python side)"
+        elif file == "~":
+            room = "builtins and C functions"
+        else:
+            room = "other"
+        by_room[room] += tottime
+    total = sum(by_room.values())
+    est = session.est
+    return {"samples": rec.n_samples, "seconds": best, "hz": rec.n_samples / best,
+            "rows": est.n_rows if est else 0, "dropped": est.dropped_no_pose if est else rec.n_samples,
+            "profile": sorted(((k, v / total) for k, v in by_room.items()), key=lambda kv: -kv[1])}
+
+
+def run_json(a: argparse.Namespace) -> int:
+    """One rate, one JSON object on stdout."""
+    domain = 150 + os.getpid() % 50
+    with tempfile.TemporaryDirectory() as tmp:
+        model = _model_file(tmp)
+        pred = _run("predictor", a.rate, int(a.rate * a.seconds), "events", model, tmp, domain + 1)
+        est = _run("estimator", a.rate, int(a.rate * a.seconds), "single", model, tmp, domain + 2)
+    thr = throughput(min(a.seconds, 60.0), a.rate)
+    out = {"rate_hz": a.rate, "seconds": a.seconds, "achieved_hz": pred["achieved_hz"],
+           "predictor_p50_ms": pred["p50_ms"], "predictor_p99_ms": pred["p99_ms"],
+           "predictor_received": pred["received"], "predictor_samples": pred["n"] - 1,
+           "estimator_lag_s": est["lag_s"], "estimator_taken": est["taken"], "estimator_samples": est["n"],
+           "dropped": est["dropped"] + (pred["n"] - 1 - pred["received"]),
+           "estimator_throughput_hz": thr["hz"]}
+    print(json.dumps(out), flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--role", choices=("pub", "sub"))
@@ -203,11 +288,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--timeout", type=float, default=60.0)
     p.add_argument("--status", action="store_true")
     p.add_argument("--quick", action="store_true", help="fewer samples and rates")
+    p.add_argument("--seconds", type=float, default=60.0, help="with --json: seconds of stream")
+    p.add_argument("--json", action="store_true", help="one rate (--rate) for --seconds: print one JSON object")
     a = p.parse_args(argv)
     if a.role == "pub":
         return role_pub(a)
     if a.role == "sub":
         return role_sub(a)
+    if a.json:
+        return run_json(a)
 
     dur = 3.0 if a.quick else 8.0
     domain = 150 + os.getpid() % 50
@@ -226,6 +315,12 @@ def main(argv: list[str] | None = None) -> int:
         for rate in ((200.0, 1000.0) if a.quick else (200.0, 500.0, 1000.0, 2000.0)):
             domain += 1
             est.append(_run("estimator", rate, int(rate * dur), "single", model, tmp, domain))
+        long_s = 10.0 if a.quick else 60.0
+        domain += 1
+        long_pred = _run("predictor", 1000.0, int(1000 * long_s), "events", model, tmp, domain)
+        domain += 1
+        long_est = _run("estimator", 1000.0, int(1000 * long_s), "single", model, tmp, domain)
+    thr = throughput(10.0 if a.quick else 60.0, 1000.0)
 
     def ok_pred(r: dict) -> bool:
         return r["received"] >= r["n"] - 1 and r["p99_ms"] < 50
@@ -254,7 +349,27 @@ def main(argv: list[str] | None = None) -> int:
                      f"{r['all_taken']} | {r['lag_s']:.2f} |")
     best_e = max((r["rate"] for r in est if r["all_taken"] and r["lag_s"] < 0.5), default=0)
     lines += ["", f"Highest rate the estimator sustained (every sample taken within 0.5 s of the last "
-              f"publish): **{best_e:g} Hz** of the rates tried.", ""]
+              f"publish): **{best_e:g} Hz** of the rates tried.", "",
+              f"## At 1 kHz for {long_s:g} s", "",
+              "| node | samples | predicted / taken | dropped | p50 (ms) | p99 (ms) | estimator lag (s) |",
+              "|---|---|---|---|---|---|---|",
+              f"| predictor | {long_pred['n'] - 1} | {long_pred['received']} | "
+              f"{long_pred['n'] - 1 - long_pred['received']} | {long_pred['p50_ms']:.2f} | "
+              f"{long_pred['p99_ms']:.2f} | |",
+              f"| estimator | {long_est['n']} | {long_est['taken']} | {long_est['dropped']} | | | "
+              f"{long_est['lag_s']:.2f} |", "",
+              "The estimator's lag is the time from the last publish until /suds/status (20 Hz) "
+              "reports every sample taken.", "",
+              "## Estimator throughput (one core, in-process)", "",
+              f"The estimator node's work per message pair (JointState → sample, PoseStamped → pose, "
+              f"checks, pairing, phase tracking, rows, regression, the final model) on {thr['samples']} "
+              f"pre-built message pairs of a {thr['samples'] / 1000:g} s purcell3 stream at 1 kHz, in one process "
+              f"pinned to one core, best of three: **{thr['hz']:.0f} samples/s** "
+              f"({1e6 / thr['hz']:.0f} µs per pair; {thr['rows']} rows fitted, {thr['dropped']} dropped).", "",
+              "Where the time goes (cProfile, own time by module):", "",
+              "| where | share |", "|---|---|"]
+    lines += [f"| {k} | {v:.0%} |" for k, v in thr["profile"][:12]]
+    lines += [""]
     write("latency.md", "\n".join(lines))
     return 0
 

@@ -52,3 +52,36 @@ def test_the_check_sees_a_forbidden_import(tmp_path: Path) -> None:
     f = tmp_path / "x.py"
     f.write_text("from suds_ros.ros.qos import MODEL_QOS\nimport suds_ros.io.mcap\n")
     assert _imports(f) == ["suds_ros.ros.qos", "suds_ros.io.mcap"]
+
+
+#: rooms inside core → the rooms of core they may import (besides core's top-level modules)
+CORE_ALLOWED = {
+    "diagnosis": ("ident", "phase", "physics"),
+    "ident": ("phase",),
+    "phase": (),
+    "physics": (),
+}
+
+
+def _core_room_violations() -> list[str]:
+    bad = []
+    for room, allowed in CORE_ALLOWED.items():
+        for path in sorted((PKG / "core" / room).rglob("*.py")):
+            for mod in _imports(path):
+                parts = mod.split(".")
+                if parts[:2] != ["suds_ros", "core"] or len(parts) < 3 or parts[2] == room:
+                    continue
+                if (PKG / "core" / parts[2]).is_dir() and parts[2] not in allowed:
+                    bad.append(f"{path.relative_to(PKG.parent)} imports {mod}")
+    return bad
+
+
+def test_rooms_inside_core_import_only_inward() -> None:
+    """diagnosis → ident, phase, physics; ident → phase; phase and physics → core's top level only."""
+    bad = _core_room_violations()
+    assert not bad, "\n".join(bad)
+
+
+def test_the_core_rooms_are_the_ones_the_rule_names() -> None:
+    rooms = {p.name for p in (PKG / "core").iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert rooms == set(CORE_ALLOWED)

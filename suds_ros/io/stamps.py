@@ -13,6 +13,8 @@ correctly rounded division.
 
 from __future__ import annotations
 
+import math
+
 from typing import overload
 
 import numpy as np
@@ -53,7 +55,7 @@ def ns_to_float(ns: np.ndarray) -> FloatArray: ...
 
 def ns_to_float(ns):  # type: ignore[no-untyped-def]
     """Integer nanoseconds (scalar or array) → float seconds."""
-    if np.ndim(ns) == 0:
+    if isinstance(ns, int) or np.ndim(ns) == 0:
         return int(ns) / NS_PER_S
     a = np.asarray(ns, dtype=np.int64)
     sec, rem = np.divmod(a, NS_PER_S)
@@ -74,7 +76,7 @@ def join_ns(sec, nanosec):  # type: ignore[no-untyped-def]
     SudsDataError
         (code ``bad_stamp``) when a ``nanosec`` lies outside [0, 1e9).
     """
-    if np.ndim(sec) == 0:
+    if isinstance(sec, int) or np.ndim(sec) == 0:
         s, n = int(sec), int(nanosec)
         if not 0 <= n < NS_PER_S:
             raise SudsDataError(f"`stamp.nanosec`: expected 0 ≤ nanosec < 1e9, got {n}", code=BAD_STAMP)
@@ -102,6 +104,13 @@ def quaternion_yaw(q):  # type: ignore[no-untyped-def]
     zero quaternion gives NaN (arrays) or raises (a single quaternion, code
     ``bad_quaternion``).
     """
+    if isinstance(q, tuple) and len(q) == 4:  # one quaternion (a message's): plain floats are faster
+        x, y, z, w = (float(v) for v in q)
+        norm2 = x * x + y * y + z * z + w * w
+        if not (norm2 > 0 and math.isfinite(norm2)):
+            raise SudsDataError(f"`orientation`: expected a non-zero finite quaternion, got {(x, y, z, w)}",
+                                code=BAD_QUATERNION)
+        return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
     a = np.asarray(q, dtype=float)
     x, y, z, w = (a[..., i] for i in range(4))
     yaw = np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)

@@ -130,7 +130,8 @@ def _vector(name: str, values: Any, n: int | None) -> FloatArray:
     if n is not None and a.size != n:
         raise SudsDataError(f"`{name}`: expected {n} values (one per joint name), got {a.size}",
                             code=WRONG_JOINT_COUNT)
-    if not np.all(np.isfinite(a)):
+    # a finite sum is the fast test; only a non-finite one (NaN, Inf or an overflow) looks closer
+    if not math.isfinite(float(a.sum())) and not np.all(np.isfinite(a)):
         bad = int(np.flatnonzero(~np.isfinite(a))[0])
         raise SudsDataError(f"`{name}`: value {bad} is not finite ({a[bad]!r})", code=NAN_OR_INF)
     return a
@@ -177,12 +178,19 @@ def _header(stamp: float, frame_id: str, typestore: Any) -> Any:
 # ------------------------------------------------------------------ JointState
 def _names(names: Sequence[str]) -> tuple[str, ...]:
     out = tuple(names)
+    if out == _last_names[0]:  # a stream repeats its joint names: check them once
+        return _last_names[0]
     if not all(isinstance(n, str) for n in out):
         raise SudsDataError(f"`name`: expected joint names as strings, got {list(out)!r}",
                             code=WRONG_JOINT_NAMES)
     if len(set(out)) != len(out):
         raise SudsDataError(f"`name`: joint names are not unique: {list(out)}", code=WRONG_JOINT_NAMES)
+    _last_names[0] = out
     return out
+
+
+#: the last joint names that passed :func:`_names` (one entry; checks are pure, so sharing it is safe)
+_last_names: list[tuple[str, ...]] = [()]
 
 
 def joint_state_to_msg(

@@ -40,6 +40,7 @@ from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.ident.online import OnlineSudsEstimator
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig, Status
+from suds_ros.core.physics.systems import make_system
 from suds_ros.io import checkpoint
 from suds_ros.io.stamps import ns_to_float
 from suds_ros.ros.conversions import (
@@ -88,6 +89,11 @@ class EstimatorNode(Node):
                                   f"{list(self.node_config.joints)}")
         add_validator(self, lambda: self.config, on_valid=self._set_config)
         self.session = EstimatorSession(self.config, log=self._log, now=time.monotonic(), checkpoints=checkpoint)
+        if self.config.system and self.session.est is None:  # roles from the system registry or model file
+            s = make_system(self.config.system)
+            names = tuple(s.joint_names)
+            self.session.start(names, tuple(names[i] for i in s.actuated), self.config.gait_hz or 1.0,
+                               self.config.system)
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import TwistStamped
         from sensor_msgs.msg import JointState

@@ -4,9 +4,10 @@ The node converts messages and hands them here; this module decides what to do
 with them and reports what to publish.
 
 * **Joint roles**: from the ``actuated`` parameter (joint names from the first
-  shape sample), else the ``system`` parameter (registry), else the system
-  description the node receives (:meth:`EstimatorSession.on_system`), else a
-  resumed checkpoint's.  Samples that arrive before the roles are known wait.
+  shape sample), else the ``system`` parameter (the caller looks the system up
+  and calls :meth:`EstimatorSession.start`), else the system description the
+  node receives (:meth:`EstimatorSession.on_system`), else a resumed
+  checkpoint's.  Samples that arrive before the roles are known wait.
 * **Pairing** (by stamps only, never by arrival time) is the estimator's
   (:mod:`~suds_ros.core.ident.pairing`): a shape sample waits until a pose
   with a stamp at or after its own arrives, or is dropped once the shape stream
@@ -196,12 +197,6 @@ class EstimatorSession:
         self._saved_at = (-1, -1)
         if config.checkpoint and Path(config.checkpoint).exists():
             self._load(config.checkpoint)
-        elif config.system:
-            from suds_ros.core.physics.systems import make_system
-
-            s = make_system(config.system)
-            names = tuple(s.joint_names)
-            self.start(names, tuple(names[i] for i in s.actuated), config.gait_hz or 1.0, config.system)
 
     # ------------------------------------------------------------ roles and resume
     @property

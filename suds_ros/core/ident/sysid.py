@@ -197,13 +197,12 @@ def design_matrix(
         feats["K"] = kernel_features(config.kernel_features, config.kernel_gamma, config.kernel_seed,
                                      kernel_scale, r, rdot_a, phase)
     layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
+    # the basis of order m is the first 2m + 1 columns of the basis of any higher order
+    basis = fourier_basis(phase, max(order for _, _, order in layout.groups))
     cols = []
-    bases: dict[int, FloatArray] = {}
     for name, _, order in layout.groups:
-        if order not in bases:
-            bases[order] = fourier_basis(phase, order)
         F = feats[name]
-        cols.append((F[:, :, None] * bases[order][:, None, :]).reshape(n, -1))
+        cols.append((F[:, :, None] * basis[:, None, : 2 * order + 1]).reshape(n, -1))
     return np.concatenate(cols, axis=1)
 
 
