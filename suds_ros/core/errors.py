@@ -34,6 +34,8 @@ MISSING_JOINT_ROLES = "missing_joint_roles"
 DAMAGED_BAG = "damaged_bag"
 EXISTS = "exists"
 UNKNOWN_SYSTEM = "unknown_system"
+OUT_OF_RANGE = "out_of_range"  # a config value outside its range or choices
+WRONG_TYPE = "wrong_type"  # a config value of the wrong kind (not a number, not an integer)
 
 
 class SudsError(Exception):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core.errors import DUPLICATE_STAMP, OUT_OF_ORDER_STAMP, QUEUE_FULL, WRONG_JOINT_NAMES
-from suds_ros.core.ident.online import fit_streaming
+from suds_ros.core.ident.online import OnlineConfig, fit_streaming
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig
 
 N = 1200  # 12 gait cycles at 100 Hz
@@ -202,7 +202,8 @@ def test_resume_from_checkpoint_with_replayed_history(rec, reference, tmp_path) 
 
 
 def test_cadence(rec) -> None:
-    cfg = SessionConfig(actuated=tuple(rec.actuated), chunk=50, status_period=1.0, idle_flush=2.0)
+    cfg = SessionConfig(actuated=tuple(rec.actuated), online=OnlineConfig(chunk=50), status_period=1.0,
+                        idle_flush=2.0)
     s = EstimatorSession(cfg, now=0.0)
     published = [m for k in range(700) for m in (s.on_shape(shape(rec, k), now=0.0), s.on_pose(pose(rec, k), now=0.0))]
     assert sum(m is not None for m in published) >= 1  # after the fitted chunks
