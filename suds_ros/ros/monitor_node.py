@@ -49,8 +49,8 @@ from suds_ros.ros.conversions import diagnostics_to_msg, joint_state_from_msg, p
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS
 from suds_ros.ros.runner import run_node
-
 from suds_ros.ros.topics import DIAGNOSIS, MISMATCH, POSE, SHAPE
+
 
 @dataclass(frozen=True)
 class MonitorNodeConfig:
