@@ -36,6 +36,8 @@ EXISTS = "exists"
 UNKNOWN_SYSTEM = "unknown_system"
 CHECKPOINT_VERSION = "checkpoint_version"
 CHECKPOINT_DAMAGED = "checkpoint_damaged"
+OUT_OF_RANGE = "out_of_range"  # a config value outside its range or choices
+WRONG_TYPE = "wrong_type"  # a config value of the wrong kind (not a number, not an integer)
 
 
 class SudsError(Exception):

@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
 
+from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.ident.online import OnlineSudsEstimator
@@ -53,7 +54,7 @@ from suds_ros.ros.conversions import (
     system_info_from_msg,
     twist_to_msg,
 )
-from suds_ros.ros.params import add_validator, config_from_parameters
+from suds_ros.ros.params import config_from_parameters, watch_parameters
 from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, burst_qos, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SHAPE, STATUS, SYSTEM
@@ -61,19 +62,24 @@ from suds_ros.ros.topics import MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SH
 
 @dataclass(frozen=True)
 class EstimatorNodeConfig:
-    """Parameters of the estimator node beyond the session's (read-only)."""
+    """Parameters of the estimator node: the session's (:class:`SessionConfig`, flat names) and its own."""
 
-    joints: tuple[str, ...] = field(default=(), metadata={
-        "description": "the robot's joints in model order; other joints of a shape message are "
-                       "ignored (empty: the joints of `system` or suds/system, else the message's)"})
-    frame_id: str = field(default="body", metadata={
-        "description": "frame_id of the measured body twist"})
+    session: SessionConfig = setting(default_factory=SessionConfig, description="the identification session",
+                                     parameters={"flatten": True})
+    joints: tuple[str, ...] = setting((), "the robot's joints in model order; other joints of a shape message "
+                                          "are ignored (empty: the joints of `system` or suds/system, else the "
+                                          "message's)")
+    frame_id: str = setting("body", "frame_id of the measured body twist")
 
     def __post_init__(self) -> None:
+        check_settings(self)
         if len(set(self.joints)) != len(self.joints) or not all(self.joints):
             raise SudsConfigError(f"`joints`: expected distinct joint names, got {list(self.joints)}")
         if not self.frame_id:
             raise SudsConfigError("`frame_id`: expected a frame name, got ''")
+        actuated = self.session.actuated
+        if self.joints and actuated and not set(actuated) <= set(self.joints):
+            raise SudsConfigError(f"`actuated`: {list(actuated)} not all among `joints` {list(self.joints)}")
 
 
 class EstimatorNode(Node):
@@ -81,13 +87,9 @@ class EstimatorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("suds_estimator", **kwargs)
-        self.config = config_from_parameters(self, SessionConfig)
         self.node_config = config_from_parameters(self, EstimatorNodeConfig)
-        if self.node_config.joints and self.config.actuated and not set(self.config.actuated) <= set(
-                self.node_config.joints):
-            raise SudsConfigError(f"`actuated`: {list(self.config.actuated)} not all among `joints` "
-                                  f"{list(self.node_config.joints)}")
-        add_validator(self, lambda: self.config, on_valid=self._set_config)
+        self.config = self.node_config.session
+        watch_parameters(self, lambda: self.node_config, self._set_config)
         self.session = EstimatorSession(self.config, log=self._log, now=time.monotonic(), checkpoints=checkpoint)
         if self.config.system and self.session.est is None:  # roles from the system registry or model file
             s = make_system(self.config.system)
@@ -119,9 +121,11 @@ class EstimatorNode(Node):
         """The session's estimator (None until the joint roles are known)."""
         return self.session.est
 
-    def _set_config(self, new: SessionConfig) -> None:
-        self.config = new
-        self.session.config = new
+    def _set_config(self, new: EstimatorNodeConfig) -> None:
+        """Apply a config whose parameters were set (post-set: the set succeeded)."""
+        self.node_config = new
+        self.config = new.session
+        self.session.config = new.session
 
     def _log(self, level: str, text: str) -> None:
         # one call site per severity: rclpy refuses a severity change at one call site
@@ -231,7 +235,7 @@ class EstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run the estimator until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
-    return run_node(args, name="estimator", doc=__doc__, config_cls=(SessionConfig, EstimatorNodeConfig),
+    return run_node(args, name="estimator", doc=__doc__, config_cls=EstimatorNodeConfig,
                     make=EstimatorNode, close=EstimatorNode.close)
 
 

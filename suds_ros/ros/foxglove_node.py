@@ -26,6 +26,7 @@ from typing import Any
 
 from rclpy.node import Node
 
+from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.io import msgdefs
 from suds_ros.ros.conversions import message_class
@@ -55,6 +56,7 @@ class FoxgloveBridgeConfig:
         "description": "s between looks for new topics", "range": (0.01, 60.0)})
 
     def __post_init__(self) -> None:
+        check_settings(self)  # the ranges in the field metadata
         if not self.host:
             raise SudsConfigError("`host`: expected an address such as 127.0.0.1, got ''")
         if not self.topics:

@@ -28,9 +28,8 @@ physics; ``gait_hz`` defaults to the model's.
 
 from __future__ import annotations
 
-import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
@@ -43,71 +42,41 @@ from suds_ros.core.diagnosis.monitor import (
     MonitorConfig,
     chain_model,
 )
-from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.config import check_settings, setting
+from suds_ros.core.errors import SudsError
 from suds_ros.core.physics.systems import load_system
 from suds_ros.ros.conversions import diagnostics_to_msg, joint_state_from_msg, pose_from_msg
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS
 from suds_ros.ros.runner import run_node
-
 from suds_ros.ros.topics import DIAGNOSIS, MISMATCH, POSE, SHAPE
-
-_DEFAULT = MonitorConfig()
 
 
 @dataclass(frozen=True)
 class MonitorNodeConfig:
-    """Parameters of the monitor node (all read-only)."""
+    """Parameters of the monitor node (all read-only): the core :class:`MonitorConfig`'s (flat names) and its own."""
 
-    system: str = field(default="purcell3", metadata={
-        "description": "nominal system id (purcell3, swimmer9, nlinkN) or robot model file path"})
-    model_file: str = field(default="", metadata={
-        "description": "robot model file (suds-robot/1); when set it is the nominal model and `system` is ignored"})
-    gait_hz: float | None = field(default=None, metadata={
-        "description": "gait frequency, Hz (unset: the model's gait_hz)"})
-    rate: float = field(default=_DEFAULT.rate, metadata={
-        "description": "sample rate of shape and pose, Hz (rate / gait_hz samples per cycle)",
-        "range": (1.0, 100000.0)})
-    diff_window: int = field(default=_DEFAULT.diff_window, metadata={
-        "description": "samples per residual window", "range": (1, 10000)})
-    window_cycles: float = field(default=_DEFAULT.window_cycles, metadata={
-        "description": "gait cycles of the mean-square residual", "range": (0.05, 100.0)})
-    floor_cycles: float = field(default=_DEFAULT.floor_cycles, metadata={
-        "description": "gait cycles of data for the noise floor", "range": (0.05, 100.0)})
-    calibration_cycles: float = field(default=_DEFAULT.calibration_cycles, metadata={
-        "description": "cycles (assumed nominal) measuring the model's own discretisation error; 0: none",
-        "range": (0.0, 1000.0)})
-    warn: float = field(default=_DEFAULT.warn, metadata={
-        "description": "WARN when F = mean-square residual / floor exceeds this", "range": (1.0, 1e9)})
-    error: float = field(default=_DEFAULT.error, metadata={
-        "description": "ERROR when F exceeds this (> warn)", "range": (1.0, 1e9)})
-    persist_cycles: int = field(default=_DEFAULT.persist_cycles, metadata={
-        "description": "cycles in ERROR before the recent window is diagnosed (≥ 4)", "range": (4, 10000)})
-    history_cycles: float = field(default=_DEFAULT.history_cycles, metadata={
-        "description": "cycles of samples kept", "range": (1.0, 10000.0)})
-    update_every: int = field(default=_DEFAULT.update_every, metadata={
-        "description": "samples between statistics updates (and suds/mismatch messages)", "range": (1, 100000)})
-    diagnose: bool = field(default=True, metadata={
-        "description": "diagnose persistent mismatches and publish suds/diagnosis"})
-    depth: int = field(default=1000, metadata={
-        "description": "subscription queue depth of shape and pose", "range": (1, 10_000_000)})
-    best_effort: bool = field(default=False, metadata={
-        "description": "subscribe best effort (matches sensor-data publishers, e.g. motion capture) "
-                       "instead of reliable"})
+    system: str = setting("purcell3", "nominal system id (purcell3, swimmer9, nlinkN) or robot model file path")
+    model_file: str = setting("", "robot model file (suds-robot/1); when set it is the nominal model and "
+                                  "`system` is ignored")
+    monitor: MonitorConfig = setting(default_factory=MonitorConfig, description="the monitor's settings",
+                                     parameters={"flatten": True, "unset": {"gait_hz": "the model's gait_hz"}})
+    diagnose: bool = setting(True, "diagnose persistent mismatches and publish suds/diagnosis")
+    depth: int = setting(1000, "subscription queue depth of shape and pose", ge=1, le=10_000_000)
+    best_effort: bool = setting(False, "subscribe best effort (matches sensor-data publishers, e.g. motion "
+                                       "capture) instead of reliable")
 
     def __post_init__(self) -> None:
-        if self.gait_hz is not None and not (isinstance(self.gait_hz, (int, float)) and math.isfinite(self.gait_hz)
-                                             and 0 < self.gait_hz <= 1000):
-            raise SudsConfigError(f"`gait_hz`: expected a frequency in (0, 1000] Hz, got {self.gait_hz!r}")
+        check_settings(self)
 
-    def monitor_config(self, gait_hz: float) -> MonitorConfig:
-        """The core settings (``gait_hz`` when the parameter is unset)."""
-        return MonitorConfig(
-            gait_hz=float(self.gait_hz or gait_hz), rate=self.rate, diff_window=self.diff_window,
-            window_cycles=self.window_cycles, floor_cycles=self.floor_cycles,
-            calibration_cycles=self.calibration_cycles, warn=self.warn,
-            error=self.error, persist_cycles=self.persist_cycles, history_cycles=self.history_cycles,
-            update_every=self.update_every)
+    @property
+    def system_spec(self) -> str:
+        """What :func:`~suds_ros.core.physics.systems.load_system` builds: ``model_file``, else ``system``."""
+        return self.model_file or self.system
+
+
+def _model_gait_hz(system: object) -> float:
+    return float(getattr(chain_model(system), "gait_hz", 1.0))  # type: ignore[arg-type]
 
 
 class MonitorNode(Node):
@@ -115,11 +84,20 @@ class MonitorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("suds_monitor", **kwargs)
-        params = config_from_parameters(self, MonitorNodeConfig)
+        systems: dict[str, Any] = {}
+
+        def system(spec: str) -> Any:
+            if spec not in systems:
+                systems[spec] = load_system(spec)
+            return systems[spec]
+
+        # `gait_hz` unset: the nominal model's
+        params = config_from_parameters(self, MonitorNodeConfig, fill={
+            "gait_hz": lambda v: _model_gait_hz(system(v["model_file"] or v["system"]))})
         self.params = params
-        self.system = load_system(params.model_file or params.system)
+        self.system = system(params.system_spec)
         model = chain_model(self.system)
-        self.monitor = MismatchMonitor(self.system, params.monitor_config(getattr(model, "gait_hz", 1.0)))
+        self.monitor = MismatchMonitor(self.system, params.monitor)
         self.worker = DiagnosisWorker(model) if (params.diagnose and model is not None) else None
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import PoseStamped

@@ -1,36 +1,56 @@
-"""Declare ROS parameters from a frozen config dataclass and build the config from them.
+"""Node parameters generated from (nested) frozen config dataclasses.
 
-Each dataclass field becomes one parameter ``<namespace>.<field>`` (or
-``<field>`` with an empty namespace).  Per-field options go in the field's
-``metadata``::
+A node's config is a frozen dataclass whose fields are declared with
+:func:`~suds_ros.core.config.setting` (or a ``field`` with the same metadata): the
+metadata's description, range and ``read_only`` become the parameter's
+``ParameterDescriptor``; the default is the config's own default.  A field whose type
+is itself a config dataclass (a node config holding the core config) is walked into:
 
-    @dataclass(frozen=True)
-    class RecorderConfig:
-        flush_period: float = field(default=1.0, metadata={
-            "description": "seconds between flushes", "range": (0.01, 3600.0),
-            "read_only": False})
+* its parameters are named ``<field>.<name>``, or just ``<name>`` when the field's
+  metadata has ``parameters={"flatten": True}`` (the whole subtree is then flat: the
+  estimator's ``chunk`` and ``linear_order`` live in ``session.online`` and
+  ``session.online.suds``);
+* ``parameters={"exclude": ("gait_hz", ...)}`` leaves fields of the nested config out
+  (they keep their default, or the node sets them another way);
+* ``parameters={"unset": {"gait_hz": "the model's gait_hz"}}`` declares such a
+  parameter "not set" by default; the node gives its value at start-up
+  (``fill`` of :func:`build_config`).
 
-* ``description`` (str): shown by ``ros2 param describe``; defaults to the field name;
-* ``range`` ((lo, hi) or (lo, hi, step)): a ``floating_point_range`` or ``integer_range``;
-* ``read_only`` (bool, default True): structural parameters cannot change at runtime.
+Defaults come from the default instance of the enclosing config, so a nested default
+(``OnlineConfig().suds.linear_order``) is the one declared.  Two parameters with the
+same name are refused when the node is built (a :class:`TypeError`: a programming error).
 
-Field types map to parameter types: bool, int, float, str, and ``tuple``/``list``
-of str, int or float (arrays).  ``X | None`` fields are declared with dynamic
-typing and default "not set" (None).  :func:`config_from_parameters` declares
-and builds in one go; any failure (a wrong type, an out-of-range value, the
-dataclass's own ``__post_init__`` check) raises
-:class:`~suds_ros.core.errors.SudsConfigError` naming the parameter, so the
-node stops at startup with that reason.
+Field types map to parameter types: bool, int, float, str, and ``tuple[T, ...]``/``list``
+of str, int, float or bool (arrays).  ``X | None`` fields are declared with dynamic
+typing and default "not set" (None).
+
+Checking is the dataclasses' own: a config is valid when it can be built (its
+``__post_init__`` checks ranges through :func:`~suds_ros.core.config.check_settings`
+and whatever depends on several fields).  So
+
+* at start-up :func:`config_from_parameters` builds the config from the declared
+  values; any failure raises :class:`~suds_ros.core.errors.SudsConfigError` with the
+  config's reason (the node stops with it);
+* at runtime :func:`watch_parameters` registers an on-set callback that only builds the
+  candidate config (refusing the set with the config's reason) and a post-set callback
+  that builds it again from the parameters actually set and hands it to the node.
+
+The descriptor ranges (for ``ros2 param describe``) are the metadata's, so rclpy itself
+refuses a value outside them before either callback runs; a bound the descriptor cannot
+express (an open end) is left to the config.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
+import math
 import sys
 import types
 import typing
-from collections.abc import Callable
-from typing import Any, TypeVar
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple, TypeVar
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -43,9 +63,11 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from suds_ros.core.config import bounds, expected_text
 from suds_ros.core.errors import SudsConfigError, SudsError
 
 C = TypeVar("C")
+Path = tuple[str, ...]
 
 _SCALAR = {
     bool: ParameterType.PARAMETER_BOOL,
@@ -59,10 +81,23 @@ _ARRAY = {
     float: ParameterType.PARAMETER_DOUBLE_ARRAY,
     str: ParameterType.PARAMETER_STRING_ARRAY,
 }
+_INT64 = 2**63 - 1
 
 
-def _param_name(namespace: str, name: str) -> str:
-    return f"{namespace}.{name}" if namespace else name
+class ParamSpec(NamedTuple):
+    """One parameter: its public name, where it lives in the config, its type and descriptor."""
+
+    name: str
+    path: Path  # attribute path from the node config to the field
+    is_array: bool
+    optional: bool  # may stay unset (None): an ``X | None`` field or an ``unset`` one
+    default: Any
+    descriptor: ParameterDescriptor
+
+
+class _Layout(NamedTuple):
+    specs: tuple[ParamSpec, ...]
+    nested: frozenset[Path]  # paths of the nested config dataclasses
 
 
 def _unwrap_optional(tp: Any) -> tuple[Any, bool]:
@@ -74,7 +109,7 @@ def _unwrap_optional(tp: Any) -> tuple[Any, bool]:
     return tp, False
 
 
-def _param_type(cls_name: str, name: str, tp: Any) -> tuple[int, bool, bool]:
+def _param_type(where: str, tp: Any) -> tuple[int, bool, bool]:
     """(ParameterType, is_array, optional) of a field annotation."""
     tp, optional = _unwrap_optional(tp)
     if tp in _SCALAR:
@@ -82,12 +117,12 @@ def _param_type(cls_name: str, name: str, tp: Any) -> tuple[int, bool, bool]:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (tuple, list) and args and args[0] in _ARRAY:
         if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
-            raise TypeError(f"{cls_name}.{name}: use tuple[T, ...] for an array parameter, got {tp}")
+            raise TypeError(f"{where}: use tuple[T, ...] for an array parameter, got {tp}")
         return _ARRAY[args[0]], True, optional
-    raise TypeError(f"{cls_name}.{name}: field type {tp} has no ROS parameter type")
+    raise TypeError(f"{where}: field type {tp} has no ROS parameter type (exclude it or nest a dataclass)")
 
 
-def _default(f: dataclasses.Field) -> Any:
+def _field_default(f: dataclasses.Field) -> Any:
     if f.default is not dataclasses.MISSING:
         return f.default
     if f.default_factory is not dataclasses.MISSING:
@@ -95,145 +130,241 @@ def _default(f: dataclasses.Field) -> Any:
     return None  # required: must come from an override
 
 
-def descriptors(cls: type, namespace: str = "") -> list[tuple[str, Any, ParameterDescriptor]]:
-    """``(name, default, descriptor)`` for every field of the dataclass ``cls``."""
+def _default_instance(cls: type) -> Any:
+    try:
+        return cls()
+    except (TypeError, ValueError):  # required fields, or defaults that only make sense with overrides
+        return None
+
+
+def _descriptor(name: str, ptype: int, optional: bool, meta: Mapping[str, Any], unset: str | None,
+                integer: bool) -> ParameterDescriptor:
+    description = str(meta.get("description") or name.rsplit(".", 1)[-1])
+    if unset is not None:
+        description += f" (unset: {unset})"
+    d = ParameterDescriptor(name=name, type=ptype, description=description,
+                            read_only=bool(meta.get("read_only", True)), dynamic_typing=optional)
+    if "range" in meta or "choices" in meta:
+        d.additional_constraints = expected_text(meta, integer)
+    lo, hi, _ = bounds(meta)
+    if lo is None and hi is None:
+        return d
+    if ptype == ParameterType.PARAMETER_DOUBLE:
+        d.floating_point_range = [FloatingPointRange(
+            from_value=-math.inf if lo is None else float(lo), to_value=math.inf if hi is None else float(hi),
+            step=0.0)]
+    elif ptype == ParameterType.PARAMETER_INTEGER:
+        d.integer_range = [IntegerRange(from_value=-_INT64 if lo is None else math.ceil(lo),
+                                        to_value=_INT64 if hi is None else math.floor(hi), step=1)]
+    return d
+
+
+@functools.lru_cache(maxsize=None)
+def layout(cls: type) -> _Layout:
+    """Every parameter of the config dataclass ``cls`` (walking nested configs; see the module doc)."""
     if not (dataclasses.is_dataclass(cls) and isinstance(cls, type)):
         raise TypeError(f"`cls`: expected a dataclass type, got {cls!r}")
-    hints = typing.get_type_hints(cls)
-    out = []
-    for f in dataclasses.fields(cls):
-        if not f.init:
-            continue
-        ptype, is_array, optional = _param_type(cls.__name__, f.name, hints[f.name])
-        meta = f.metadata
-        default = _default(f)
-        d = ParameterDescriptor(
-            name=_param_name(namespace, f.name),
-            type=ptype,
-            description=str(meta.get("description", f.name)),
-            read_only=bool(meta.get("read_only", True)),
-            dynamic_typing=optional,
-        )
-        if "range" in meta:
-            lo, hi, *step = meta["range"]
-            if ptype == ParameterType.PARAMETER_DOUBLE:
-                d.floating_point_range = [
-                    FloatingPointRange(from_value=float(lo), to_value=float(hi),
-                                       step=float(step[0]) if step else 0.0)
-                ]
-            elif ptype == ParameterType.PARAMETER_INTEGER:
-                d.integer_range = [
-                    IntegerRange(from_value=int(lo), to_value=int(hi), step=int(step[0]) if step else 1)
-                ]
-        if is_array and default is not None:
-            default = list(default)
-        out.append((f.name, default, d))
-    return out
+    specs: list[ParamSpec] = []
+    nested: set[Path] = set()
+
+    def walk(c: type, inst: Any, path: Path, prefix: str, flat: bool, exclude: frozenset[Path],
+             unset: Mapping[Path, str]) -> None:
+        hints = typing.get_type_hints(c)
+        for f in dataclasses.fields(c):
+            p = path + (f.name,)
+            if not f.init or p in exclude:
+                continue
+            default = getattr(inst, f.name) if inst is not None else _field_default(f)
+            tp = hints[f.name]
+            if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+                opts = f.metadata.get("parameters", {})
+                nested.add(p)
+                walk(tp, default if default is not None else _default_instance(tp), p,
+                     prefix if flat or opts.get("flatten") else f"{prefix}{f.name}.",
+                     flat or bool(opts.get("flatten")),
+                     exclude | {p + tuple(e.split(".")) for e in opts.get("exclude", ())},
+                     {**unset, **{p + tuple(k.split(".")): v for k, v in opts.get("unset", {}).items()}})
+                continue
+            name = f"{prefix}{f.name}"
+            ptype, is_array, optional = _param_type(f"{c.__name__}.{f.name}", tp)
+            why_unset = unset.get(p)
+            if why_unset is not None:
+                optional, default = True, None
+            if is_array and default is not None:
+                default = list(default)
+            desc = _descriptor(name, ptype, optional, f.metadata, why_unset, _unwrap_optional(tp)[0] is int)
+            specs.append(ParamSpec(name, p, is_array, optional, default, desc))
+
+    walk(cls, _default_instance(cls), (), "", False, frozenset(), {})
+    seen: dict[str, Path] = {}
+    for s in specs:
+        if s.name in seen:
+            raise TypeError(f"{cls.__name__}: parameter `{s.name}` would name both "
+                            f"{'.'.join(seen[s.name])} and {'.'.join(s.path)} (exclude one)")
+        seen[s.name] = s.path
+    return _Layout(tuple(specs), frozenset(nested))
 
 
-def declare_from_dataclass(node: Node, cls: type, namespace: str = "") -> None:
-    """Declare one parameter per field of ``cls`` on ``node`` (defaults from the dataclass).
+def descriptors(cls: type) -> list[tuple[str, Any, ParameterDescriptor]]:
+    """``(name, default, descriptor)`` of every parameter of the config dataclass ``cls``."""
+    return [(s.name, s.default, s.descriptor) for s in layout(cls).specs]
+
+
+def declare_parameters(node: Node, cls: type) -> None:
+    """Declare every parameter of ``cls`` on ``node`` (defaults and descriptors from the dataclass).
 
     Raises
     ------
     SudsConfigError
         If an override has the wrong type or is outside the declared range.
     """
-    for name, default, desc in descriptors(cls, namespace):
-        full = _param_name(namespace, name)
-        value: Any = default
-        if default is None or (isinstance(default, list) and not default):
+    for s in layout(cls).specs:
+        value: Any = s.default
+        desc = copy.deepcopy(s.descriptor)  # rclpy writes into the descriptor it is given
+        if s.default is None or (isinstance(s.default, list) and not s.default):
             # no typed default: declare by type, so only an override of that type is accepted
             value = None if desc.dynamic_typing else Parameter.Type(desc.type)
         try:
-            node.declare_parameter(full, value, desc)
+            node.declare_parameter(s.name, value, desc)
         except Exception as exc:  # rclpy raises several unrelated exception types here
-            msg = f"parameter `{full}`: {exc}"
+            msg = f"parameter `{s.name}`: {exc}"
             raise SudsConfigError(msg) from None
 
 
-def _value(node: Node, name: str, is_array: bool) -> Any:
+def _value(node: Node, spec: ParamSpec) -> Any:
     try:
-        v = node.get_parameter(name).value
+        v = node.get_parameter(spec.name).value
     except ParameterUninitializedException:
         return None
     if v is None:
         return None
-    return tuple(v) if is_array else v
+    return tuple(v) if spec.is_array else v
 
 
-def build_config(node: Node, cls: type[C], namespace: str = "", **extra: Any) -> C:
-    """Read the declared parameters and build ``cls(**values, **extra)``.
+def _construct(cls: type, inst: Any, path: Path, values: Mapping[Path, Any], nested: frozenset[Path],
+               extra: Mapping[str, Any]) -> Any:
+    """``cls`` built from ``inst`` (its default, or the current config) with the values under ``path``."""
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        p = path + (f.name,)
+        if not f.init:
+            continue
+        if p in nested:
+            sub = getattr(inst, f.name) if inst is not None else _field_default(f)
+            if any(q[:len(p)] == p for q in values):
+                kwargs[f.name] = _construct(type(sub), sub, p, values, nested, {})
+            elif inst is None:
+                kwargs[f.name] = sub
+        elif p in values:
+            kwargs[f.name] = values[p]
+    kwargs.update(extra)
+    return dataclasses.replace(inst, **kwargs) if inst is not None else cls(**kwargs)
+
+
+def _refusal(exc: Exception) -> SudsConfigError:
+    return SudsConfigError(f"node parameters: {exc}", code=getattr(exc, "code", None))
+
+
+def build_config(node: Node, cls: type[C], fill: Mapping[str, Callable[[dict[str, Any]], Any]] | None = None,
+                 **extra: Any) -> C:
+    """Build ``cls`` from the declared parameters (and ``extra`` top-level fields).
+
+    ``fill[name](values)`` gives the value of the parameter ``name`` when it is not set
+    (``values``: every parameter's value by name).
 
     Raises
     ------
     SudsConfigError
-        Naming the parameter when the dataclass rejects a value (or a required one is unset).
+        The config's reason when it refuses a value, or a required parameter is unset.
     """
-    hints = typing.get_type_hints(cls)
-    values: dict[str, Any] = {}
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-        if not f.init or f.name in extra:
-            continue
-        full = _param_name(namespace, f.name)
-        _, is_array, optional = _param_type(cls.__name__, f.name, hints[f.name])
-        v = _value(node, full, is_array)
-        if v is None and not optional:
-            if _default(f) is None:
-                raise SudsConfigError(f"parameter `{full}` is required but was not set")
-            v = _default(f)
-        values[f.name] = v
+    lay = layout(cls)
+    named = {s.name: _value(node, s) for s in lay.specs}
+    for s in lay.specs:
+        if named[s.name] is None and not s.optional:
+            named[s.name] = tuple(s.default) if s.is_array and s.default is not None else s.default
+    for s in lay.specs:
+        if named[s.name] is None and fill and s.name in fill:
+            named[s.name] = fill[s.name](dict(named))
+    values: dict[Path, Any] = {}
+    for s in lay.specs:
+        v = named[s.name]
+        if v is None and not _none_allowed(cls, s):
+            raise SudsConfigError(f"parameter `{s.name}` is required but was not set")
+        if s.path[-1] not in extra or len(s.path) > 1:
+            values[s.path] = v
     try:
-        return cls(**values, **extra)
+        return typing.cast(C, _construct(cls, _default_instance(cls), (), values, lay.nested, extra))
     except (SudsError, ValueError, TypeError) as exc:
-        where = f"parameters of {namespace!r}" if namespace else "node parameters"
-        raise SudsConfigError(f"{where}: {exc}") from None
+        raise _refusal(exc) from None
 
 
-def config_from_parameters(node: Node, cls: type[C], namespace: str = "", **extra: Any) -> C:
-    """Declare the parameters of ``cls`` on ``node`` and build the config (see module doc)."""
-    declare_from_dataclass(node, cls, namespace)
-    return build_config(node, cls, namespace, **extra)
+def _none_allowed(cls: type, spec: ParamSpec) -> bool:
+    """True when the field itself is ``X | None`` (not just left unset for the node to fill)."""
+    c: Any = cls
+    for attr in spec.path[:-1]:
+        c = typing.get_type_hints(c)[attr]
+    return _unwrap_optional(typing.get_type_hints(c)[spec.path[-1]])[1]
 
 
-def add_validator(
-    node: Node,
-    get_config: Callable[[], C],
-    namespace: str = "",
-    on_valid: Callable[[C], None] | None = None,
-) -> Callable[[list[Parameter]], SetParametersResult]:
-    """Register an on-set-parameters callback that re-validates the whole config.
+def config_from_parameters(node: Node, cls: type[C],
+                           fill: Mapping[str, Callable[[dict[str, Any]], Any]] | None = None, **extra: Any) -> C:
+    """Declare the parameters of ``cls`` on ``node`` and build the config (see :func:`build_config`)."""
+    declare_parameters(node, cls)
+    return build_config(node, cls, fill, **extra)
 
-    A change to fields of ``get_config()``'s dataclass is accepted only if
-    ``dataclasses.replace(config, **changes)`` succeeds; otherwise the set is
-    refused with the error as ``reason``.  ``on_valid(new_config)`` is called
-    for an accepted change (store the new config there).  Returns the callback.
+
+def candidate(config: C, params: list[Parameter]) -> C | None:
+    """``config`` with the parameters ``params`` (those of its class) changed; None if none is its.
+
+    Raises
+    ------
+    SudsError, ValueError, TypeError
+        What the config's ``__post_init__`` raises for the changed values.
     """
-    prefix = f"{namespace}." if namespace else ""
+    lay = layout(type(config))
+    by_name = {s.name: s for s in lay.specs}
+    values: dict[Path, Any] = {}
+    for p in params:
+        s = by_name.get(p.name)
+        if s is not None:
+            v = p.value
+            values[s.path] = tuple(v) if isinstance(v, list) else v
+    if not values:
+        return None
+    return typing.cast(C, _construct(type(config), config, (), values, lay.nested, {}))
 
-    def callback(params: list[Parameter]) -> SetParametersResult:
-        cfg = get_config()
-        names = {f.name for f in dataclasses.fields(cfg)}  # type: ignore[arg-type]
-        changes = {}
-        for p in params:
-            if p.name.startswith(prefix) and p.name[len(prefix):] in names:
-                v = p.value
-                changes[p.name[len(prefix):]] = tuple(v) if isinstance(v, list) else v
-        if not changes:
-            return SetParametersResult(successful=True)
+
+def watch_parameters(node: Node, get_config: Callable[[], C], apply: Callable[[C], None]) -> None:
+    """Let the runtime-changeable parameters of ``get_config()``'s class change the node's config.
+
+    On set, the candidate config is built (:func:`candidate`): a config that refuses it
+    refuses the whole set, with its reason (naming the field, what was expected and what
+    was received).  Nothing is applied then: only once every on-set callback of the node
+    has accepted and the values are stored, the post-set callback builds the config from
+    them again and calls ``apply(new_config)``.
+    """
+
+    def validate(params: list[Parameter]) -> SetParametersResult:
         try:
-            new = dataclasses.replace(cfg, **changes)  # type: ignore[type-var]
+            candidate(get_config(), params)
         except (SudsError, ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
-        if on_valid is not None:
-            on_valid(new)
         return SetParametersResult(successful=True)
 
-    node.add_on_set_parameters_callback(callback)
-    return callback
+    def commit(params: list[Parameter]) -> None:
+        try:
+            new = candidate(get_config(), params)
+        except (SudsError, ValueError, TypeError) as exc:  # accepted a moment ago: cannot happen
+            node.get_logger().error(f"parameters were set but the config refused them: {exc}")
+            return
+        if new is not None:
+            apply(new)
+
+    node.add_on_set_parameters_callback(validate)
+    node.add_post_set_parameters_callback(commit)
 
 
-def parameters_help(prog: str, summary: str, cls: type | tuple[type, ...], namespace: str = "") -> str:
+def parameters_help(prog: str, summary: str, cls: type | tuple[type, ...]) -> str:
     """Usage text of a node: ``summary`` and one line per parameter (type, default, description).
 
     ``cls`` is the node's config dataclass, or a tuple of them when it declares several.
@@ -241,11 +372,11 @@ def parameters_help(prog: str, summary: str, cls: type | tuple[type, ...], names
     lines = [f"usage: {prog} [--ros-args -p NAME:=VALUE ... | --params-file FILE]", "", summary, "",
              "parameters:"]
     classes = cls if isinstance(cls, tuple) else (cls,)
-    for name, default, d in (row for c in classes for row in descriptors(c, namespace)):
+    for name, default, d in (row for c in classes for row in descriptors(c)):
         kind = Parameter.Type(d.type).name.lower()
         ro = ", read-only" if d.read_only else ""
-        lines.append(f"  {_param_name(namespace, name)} ({kind}{ro}, default {default!r}): "
-                     f"{d.description}")
+        allowed = f"; {d.additional_constraints}" if d.additional_constraints else ""
+        lines.append(f"  {name} ({kind}{ro}, default {default!r}): {d.description}{allowed}")
     return "\n".join(lines)
 
 

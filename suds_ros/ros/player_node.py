@@ -25,6 +25,7 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
 
+from suds_ros.core.config import check_settings
 from suds_ros.core.errors import MISSING_TOPIC, SudsBagError, SudsConfigError
 from suds_ros.io.mcap import bag_info, iter_raw_messages
 from suds_ros.io.stamps import float_to_ns, ns_to_float
@@ -61,6 +62,7 @@ class PlayerConfig:
                        "matched subscribers", "range": (0, 1000)})
 
     def __post_init__(self) -> None:
+        check_settings(self)  # the ranges in the field metadata
         if not self.bag:
             raise SudsConfigError("`bag`: expected the path of an .mcap bag, got ''")
         if not self.rate > 0:

@@ -31,6 +31,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
+from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError, SudsError, error_code
 from suds_ros.core.ident.predictor import StreamingPredictor, carry_over
 from suds_ros.ros.conversions import (
@@ -60,6 +61,7 @@ class PredictorConfig:
     system: str = field(default="", metadata={"description": "unused; accepted for the pipeline"})
 
     def __post_init__(self) -> None:
+        check_settings(self)  # the ranges in the field metadata
         if self.executor not in ("events", "single"):
             raise SudsConfigError(f"`executor`: expected 'events' or 'single', got {self.executor!r}")
         if not self.frame_id:

@@ -32,6 +32,7 @@ from typing import Any
 
 from rclpy.node import Node
 
+from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.io.mcap import BagWriter
 from suds_ros.io.recording_bag import (
@@ -92,6 +93,7 @@ class RecorderConfig:
         "range": (0.0, 1000.0)})
 
     def __post_init__(self) -> None:
+        check_settings(self)  # the ranges in the field metadata
         if not self.output:
             raise SudsConfigError("`output`: expected the path of the .mcap file to write, got ''")
         if not self.topics:

@@ -64,13 +64,14 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
 
+from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
 from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
-from suds_ros.ros.params import add_validator, config_from_parameters
+from suds_ros.ros.params import config_from_parameters, watch_parameters
 from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options
 from suds_ros.ros.runner import run_node
 from suds_ros.ros.topics import CLOCK, POSE, SHAPE, SYSTEM
@@ -125,17 +126,13 @@ class SimulatorConfig:
         "read_only": False})
 
     def __post_init__(self) -> None:
+        check_settings(self)  # the ranges in the field metadata
         parse_effects(self.effects)
         if self.gait_hz is not None:
             self._check_gait()
-        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
-            raise SudsConfigError(
-                f"`real_time_factor`: expected ≥ 0 (0: as fast as possible), got {self.real_time_factor!r}")
         if self.t0 is not None and (isinstance(self.t0, (bool, str)) or not math.isfinite(float(self.t0))
                                     or not 0 <= float(self.t0) < 2**31):
             raise SudsConfigError(f"`t0`: expected a stamp in [0, 2^31) s, got {self.t0!r}")
-        if self.noise < 0:
-            raise SudsConfigError(f"`noise`: expected ≥ 0, got {self.noise!r}")
 
     def _check_gait(self) -> None:
         gait = self.gait_hz
@@ -202,8 +199,8 @@ class SimulatorNode(Node):
         params = config_from_parameters(self, SimulatorConfig)
         self.system = load_system(params.system_spec)
         self.config = params.resolved(getattr(getattr(self.system, "model", None), "gait_hz", 1.0))
-        add_validator(self, lambda: self.config, on_valid=self._on_config)
-        self.add_on_set_parameters_callback(self._check_effects)  # runs before the validator above
+        watch_parameters(self, lambda: self.config, self._on_config)  # applied after a successful set
+        self.add_on_set_parameters_callback(self._check_effects)
         cfg = self.config
         self._pending_effects: list[dict[str, Any]] | None = parse_effects(cfg.effects) or None
         self._restart_at(cfg.first_stamp())  # a bad start value of `effects` stops the node here
@@ -256,6 +253,7 @@ class SimulatorNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_config(self, new: SimulatorConfig) -> None:
+        """Apply a config whose parameters were set (post-set: every check accepted them)."""
         if new.effects != self.config.effects:
             self._pending_effects = parse_effects(new.effects)
         if new.real_time_factor != self.config.real_time_factor:

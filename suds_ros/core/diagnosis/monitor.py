@@ -68,6 +68,7 @@ import numpy as np
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
+from suds_ros.core.config import check_settings, setting
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.rft import ChainModel
@@ -109,37 +110,29 @@ class MonitorConfig:
         Paired samples between two updates of the statistics.
     """
 
-    gait_hz: float = 1.0
-    rate: float = 100.0
-    diff_window: int = 10
-    window_cycles: float = 1.0
-    floor_cycles: float = 3.0
-    calibration_cycles: float = 3.0
-    warn: float = 4.0
-    error: float = 8.0
-    persist_cycles: int = 6
-    history_cycles: float = 12.0
-    update_every: int = 10
+    gait_hz: float = setting(1.0, "gait frequency, Hz", gt=0.0, le=1000.0)
+    rate: float = setting(100.0, "sample rate of shape and pose, Hz (rate / gait_hz samples per cycle)",
+                          gt=0.0, le=100000.0)
+    diff_window: int = setting(10, "samples per residual window", ge=1, le=10000)
+    window_cycles: float = setting(1.0, "gait cycles of the mean-square residual", gt=0.0, le=100.0)
+    floor_cycles: float = setting(3.0, "gait cycles of data for the noise floor", gt=0.0, le=100.0)
+    calibration_cycles: float = setting(3.0, "cycles (assumed nominal) measuring the model's own "
+                                             "discretisation error; 0: none", ge=0.0, le=1000.0)
+    warn: float = setting(4.0, "WARN when F = mean-square residual / floor exceeds this", gt=1.0, le=1e9)
+    error: float = setting(8.0, "ERROR when F exceeds this (> warn)", gt=1.0, le=1e9)
+    persist_cycles: int = setting(6, "cycles in ERROR before the recent window is diagnosed (≥ 4)", ge=4)
+    history_cycles: float = setting(12.0, "cycles of samples kept", ge=1.0, le=10000.0)
+    update_every: int = setting(10, "samples between statistics updates (and suds/mismatch messages)",
+                                ge=1, le=100000)
 
     def __post_init__(self) -> None:
-        checks = [
-            ("gait_hz", math.isfinite(self.gait_hz) and self.gait_hz > 0, "a frequency > 0 Hz"),
-            ("rate", math.isfinite(self.rate) and self.rate > 0, "a rate > 0 Hz"),
-            ("diff_window", self.diff_window >= 1, "an integer ≥ 1"),
-            ("window_cycles", self.window_cycles > 0, "> 0 cycles"),
-            ("floor_cycles", self.floor_cycles > 0, "> 0 cycles"),
-            ("calibration_cycles", self.calibration_cycles >= 0, "≥ 0 cycles"),
-            ("warn", self.warn > 1, "a threshold > 1"),
-            ("error", self.error > self.warn, f"a threshold > warn ({self.warn})"),
-            ("persist_cycles", self.persist_cycles >= 4, "an integer ≥ 4 cycles"),
-            ("history_cycles", self.history_cycles >= max(self.persist_cycles, self.window_cycles,
-                                                          self.floor_cycles),
-             "≥ persist_cycles, window_cycles and floor_cycles"),
-            ("update_every", self.update_every >= 1, "an integer ≥ 1"),
-        ]
-        for name, ok, expected in checks:
-            if not ok:
-                raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+        check_settings(self)
+        if not self.error > self.warn:
+            raise SudsConfigError(f"`error`: expected a threshold > warn ({self.warn}), got {self.error!r}")
+        if not self.history_cycles >= max(self.persist_cycles, self.window_cycles, self.floor_cycles):
+            raise SudsConfigError(f"`history_cycles`: expected ≥ persist_cycles, window_cycles and floor_cycles "
+                                  f"({self.persist_cycles}, {self.window_cycles}, {self.floor_cycles}), "
+                                  f"got {self.history_cycles!r}")
         spc = self.rate / self.gait_hz
         if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
             raise SudsConfigError(f"`rate`: rate / gait_hz must be an integer ≥ 8 (samples per cycle), "

@@ -28,12 +28,13 @@ samples at or before the last processed stamp count as already seen.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse
 
 from suds_ros.core._typing import FloatArray
+from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
@@ -83,27 +84,24 @@ class OnlineConfig:
         history catch-up after a restart or of a pose stream that stalls and resumes.
     """
 
-    suds: SudsConfig = field(default_factory=lambda: SudsConfig(linear_order=6, bilinear_order=3))
-    alternatives: tuple[SudsConfig, ...] = (SudsConfig(regressors=3, linear_order=6, bilinear_order=3, ridge=1e-7),)
-    selection_memory: float = 5.0
-    init_cycles: float = 5.0
-    gait_hz: float = 1.0
-    template_order: int = 8
-    phaser_order: int = 10
-    chunk: int = 100
-    max_pose_wait: float = 60.0
+    suds: SudsConfig = setting(default_factory=lambda: SudsConfig(linear_order=6, bilinear_order=3),
+                               description="regression hyperparameters of the first candidate model")
+    alternatives: tuple[SudsConfig, ...] = setting(
+        (SudsConfig(regressors=3, linear_order=6, bilinear_order=3, ridge=1e-7),),
+        "further candidate models fitted side by side")
+    selection_memory: float = setting(5.0, "chunks after which a chunk's prequential loss counts half",
+                                      gt=0.0, le=1e6)
+    init_cycles: float = setting(5.0, "gait cycles buffered before the phase is initialised (the phaser "
+                                      "needs ≥ 3)", ge=3.0, le=1000.0)
+    gait_hz: float = setting(1.0, "nominal gait frequency, Hz (counts the initial cycles)", gt=0.0, le=1000.0)
+    template_order: int = setting(8, "Fourier order of the gait template θ(φ)", ge=1, le=64)
+    phaser_order: int = setting(10, "Fourier order of the phaser correction", ge=1, le=64)
+    chunk: int = setting(100, "interval rows per regression update", ge=1, le=1_000_000)
+    max_pose_wait: float = setting(60.0, "stamp s a shape sample may wait for a covering pose while later "
+                                         "shape samples arrive, before it is dropped", gt=0.0, le=3600.0)
 
     def __post_init__(self) -> None:
-        if not self.init_cycles >= 3:
-            raise SudsConfigError(f"`init_cycles`: the phaser needs ≥ 3 cycles, got {self.init_cycles!r}")
-        if not self.gait_hz > 0:
-            raise SudsConfigError(f"`gait_hz`: expected > 0, got {self.gait_hz!r}")
-        if self.chunk < 1:
-            raise SudsConfigError(f"`chunk`: expected ≥ 1, got {self.chunk!r}")
-        if not self.max_pose_wait > 0:
-            raise SudsConfigError(f"`max_pose_wait`: expected > 0, got {self.max_pose_wait!r}")
-        if not self.selection_memory > 0:
-            raise SudsConfigError(f"`selection_memory`: expected > 0, got {self.selection_memory!r}")
+        check_settings(self)
 
     @property
     def candidates(self) -> tuple[SudsConfig, ...]:

@@ -38,10 +38,11 @@ from __future__ import annotations
 import math
 from collections import Counter, deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
+from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import (
     QUEUE_FULL,
     SudsConfigError,
@@ -52,10 +53,6 @@ from suds_ros.core.errors import (
 )
 from suds_ros.core.ident.model import SudsModel, check_stamp
 from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator
-from suds_ros.core.ident.sysid import SudsConfig
-
-_ONLINE = OnlineConfig()  # the estimator's defaults: the one source of the defaults below
-_SUDS = _ONLINE.suds
 
 Log = Callable[[str, str], None]  # (level "info" | "warning" | "error", text)
 
@@ -76,72 +73,43 @@ def _no_log(level: str, text: str) -> None:
 
 @dataclass(frozen=True)
 class SessionConfig:
-    """Parameters of a session (the estimator node's parameters; periods and ``pose_stall`` may change)."""
+    """Parameters of a session (the estimator node's parameters; periods and ``pose_stall`` may change).
 
-    system: str = field(default="", metadata={
-        "description": "system id giving the joint roles (empty: `actuated`, else /suds/system)"})
-    actuated: tuple[str, ...] = field(default=(), metadata={
-        "description": "actuated joint names (empty: from `system` or /suds/system)"})
-    gait_hz: float = field(default=0.0, metadata={
-        "description": "nominal gait frequency, Hz (0: from /suds/system, else 1)", "range": (0.0, 1000.0)})
-    init_cycles: float = field(default=_ONLINE.init_cycles, metadata={
-        "description": "gait cycles buffered before the phase is initialised", "range": (3.0, 1000.0)})
-    chunk: int = field(default=_ONLINE.chunk, metadata={
-        "description": "interval rows per regression update", "range": (1, 1_000_000)})
-    max_pose_wait: float = field(default=_ONLINE.max_pose_wait, metadata={
-        "description": "stamp s a shape sample given up on by the pairing may still wait in the "
-                       "estimator for a covering pose before it is dropped", "range": (1e-3, 3600.0)})
-    regressors: int = field(default=_SUDS.regressors, metadata={
-        "description": "SUDS regressor set 1, 2 or 3", "range": (1, 3)})
-    intercept_order: int = field(default=_SUDS.intercept_order, metadata={
-        "description": "Fourier order of the intercept C(φ)", "range": (0, 64)})
-    linear_order: int = field(default=_SUDS.linear_order, metadata={
-        "description": "Fourier order of the linear gains", "range": (0, 64)})
-    bilinear_order: int = field(default=_SUDS.bilinear_order, metadata={
-        "description": "Fourier order of the bilinear gains", "range": (0, 64)})
-    ridge: float = field(default=_SUDS.ridge, metadata={
-        "description": "relative Tikhonov weight", "range": (0.0, 1e6)})
-    forgetting: float = field(default=_SUDS.forgetting, metadata={
-        "description": "per-sample forgetting factor in (0, 1]", "range": (0.0, 1.0)})
-    template_order: int = field(default=_ONLINE.template_order, metadata={
-        "description": "Fourier order of the gait template θ(φ)", "range": (1, 64)})
-    phaser_order: int = field(default=_ONLINE.phaser_order, metadata={
-        "description": "Fourier order of the phaser correction", "range": (1, 64)})
-    history_depth: int = field(default=6000, metadata={
-        "description": "subscription depth of shape/pose and length of the pairing queue",
-        "range": (1, 10_000_000)})
-    checkpoint: str = field(default="", metadata={
-        "description": "checkpoint file: resumed from at start if it exists (empty: none)"})
-    checkpoint_period: float = field(default=5.0, metadata={
-        "description": "wall s between checkpoints", "range": (0.01, 86400.0), "read_only": False})
-    model_period: float = field(default=0.0, metadata={
-        "description": "wall s between /suds/model updates (0: after each fitted chunk)",
-        "range": (0.0, 86400.0), "read_only": False})
-    status_period: float = field(default=1.0, metadata={
-        "description": "wall s between /suds/status messages", "range": (0.05, 3600.0), "read_only": False})
-    pose_stall: float = field(default=60.0, metadata={
-        "description": "stamp s the shape stream may run ahead of the pose stream before a waiting "
-                       "shape sample is given up on (the pose stream counts as stalled); longer than "
-                       "the lag of a history catch-up after a restart",
-        "range": (0.01, 3600.0), "read_only": False})
-    idle_flush: float = field(default=2.0, metadata={
-        "description": "wall s without samples before the partial chunk is fitted and published",
-        "range": (0.01, 3600.0), "read_only": False})
+    ``online`` holds the estimator's own settings (:class:`OnlineConfig`, with its
+    :class:`~suds_ros.core.ident.sysid.SudsConfig`); the node names their parameters by the bare
+    field names (``chunk``, ``linear_order``, ``ridge``, ...), its ``gait_hz`` is this config's.
+    """
+
+    online: OnlineConfig = setting(
+        default_factory=OnlineConfig, description="the streaming estimator's settings",
+        parameters={"flatten": True, "exclude": ("gait_hz", "alternatives")})
+    system: str = setting("", "system id giving the joint roles (empty: `actuated`, else /suds/system)")
+    actuated: tuple[str, ...] = setting((), "actuated joint names (empty: from `system` or /suds/system)")
+    gait_hz: float = setting(0.0, "nominal gait frequency, Hz (0: from /suds/system, else 1)", ge=0.0, le=1000.0)
+    history_depth: int = setting(6000, "subscription depth of shape/pose and the most shape samples waiting "
+                                       "for the joint roles",
+                                 ge=1, le=10_000_000)
+    checkpoint: str = setting("", "checkpoint file: resumed from at start if it exists (empty: none)")
+    checkpoint_period: float = setting(5.0, "wall s between checkpoints", ge=0.01, le=86400.0, read_only=False)
+    model_period: float = setting(0.0, "wall s between /suds/model updates (0: after each fitted chunk)",
+                                  ge=0.0, le=86400.0, read_only=False)
+    status_period: float = setting(1.0, "wall s between /suds/status messages", ge=0.05, le=3600.0,
+                                   read_only=False)
+    pose_stall: float = setting(
+        60.0, "stamp s the shape stream may run ahead of the pose stream before the status warns that the "
+              "pose stream stalled (waiting shape samples are dropped after `max_pose_wait`)",
+        ge=0.01, le=3600.0, read_only=False)
+    idle_flush: float = setting(2.0, "wall s without samples before the partial chunk is fitted and published",
+                                ge=0.01, le=3600.0, read_only=False)
 
     def __post_init__(self) -> None:
-        if not 0 < self.forgetting <= 1:
-            raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
+        check_settings(self)
         if self.system and self.actuated:
             raise SudsConfigError("`system` and `actuated`: give one of them, not both")
 
     def online_config(self, gait_hz: float) -> OnlineConfig:
-        """The :class:`OnlineConfig` these parameters describe."""
-        suds = SudsConfig(regressors=self.regressors, intercept_order=self.intercept_order,
-                          linear_order=self.linear_order, bilinear_order=self.bilinear_order,
-                          ridge=self.ridge, forgetting=self.forgetting)
-        return OnlineConfig(suds=suds, init_cycles=self.init_cycles, gait_hz=gait_hz,
-                            template_order=self.template_order, phaser_order=self.phaser_order,
-                            chunk=self.chunk, max_pose_wait=self.max_pose_wait)
+        """The :class:`OnlineConfig` these parameters describe, at the gait frequency ``gait_hz``."""
+        return replace(self.online, gait_hz=gait_hz)
 
 
 class Status(NamedTuple):

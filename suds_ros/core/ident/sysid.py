@@ -48,7 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.config import check_settings, setting
+from suds_ros.core.errors import NotFittedError, SudsDataError
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.shape_kernel import KernelScale, kernel_features
 
@@ -94,34 +95,19 @@ class SudsConfig:
         Seed of their random directions and offsets.
     """
 
-    regressors: int = 2
-    intercept_order: int = 8
-    linear_order: int = 3
-    bilinear_order: int = 1
-    ridge: float = 1e-6
-    forgetting: float = 1.0
-    state: str = "start"
-    kernel_features: int = 0
-    kernel_gamma: float = 0.1
-    kernel_seed: int = 0
+    regressors: int = setting(2, "SUDS regressor set 1, 2 or 3", ge=1, le=3)
+    intercept_order: int = setting(8, "Fourier order of the intercept C(φ)", ge=0, le=64)
+    linear_order: int = setting(3, "Fourier order of the linear gains", ge=0, le=64)
+    bilinear_order: int = setting(1, "Fourier order of the bilinear gains", ge=0, le=64)
+    ridge: float = setting(1e-6, "relative Tikhonov weight", ge=0.0, le=1e6)
+    forgetting: float = setting(1.0, "per-sample forgetting factor in (0, 1]", gt=0.0, le=1.0)
+    state: str = setting("start", "interval state the rows regress on: start or midpoint", choices=STATES)
+    kernel_features: int = setting(0, "random features of the whole shape (0: none)", ge=0, le=100_000)
+    kernel_gamma: float = setting(0.1, "Gaussian-kernel width of the random features", gt=0.0)
+    kernel_seed: int = setting(0, "seed of the random features", ge=0, le=2**32 - 1)
 
     def __post_init__(self) -> None:
-        if self.state not in STATES:
-            raise SudsConfigError(f"`state`: expected one of {STATES}, got {self.state!r}")
-        if self.regressors not in (1, 2, 3):
-            raise SudsConfigError(f"`regressors`: expected 1, 2 or 3, got {self.regressors!r}")
-        for name in ("intercept_order", "linear_order", "bilinear_order"):
-            v = getattr(self, name)
-            if int(v) != v or v < 0:
-                raise SudsConfigError(f"`{name}`: expected an integer ≥ 0, got {v!r}")
-        if not self.ridge >= 0:
-            raise SudsConfigError(f"`ridge`: expected ≥ 0, got {self.ridge!r}")
-        if int(self.kernel_features) != self.kernel_features or self.kernel_features < 0:
-            raise SudsConfigError(f"`kernel_features`: expected an integer ≥ 0, got {self.kernel_features!r}")
-        if not self.kernel_gamma > 0:
-            raise SudsConfigError(f"`kernel_gamma`: expected > 0, got {self.kernel_gamma!r}")
-        if not 0 < self.forgetting <= 1:
-            raise SudsConfigError(f"`forgetting`: expected a value in (0, 1], got {self.forgetting!r}")
+        check_settings(self)
 
 
 def _upper_products(a: FloatArray) -> FloatArray:

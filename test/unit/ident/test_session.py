@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core.errors import DUPLICATE_STAMP, OUT_OF_ORDER_STAMP, QUEUE_FULL, WRONG_JOINT_NAMES
-from suds_ros.core.ident.online import fit_streaming
+from suds_ros.core.ident.online import OnlineConfig, fit_streaming
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig
 from suds_ros.io import checkpoint
 
@@ -130,7 +130,8 @@ def test_pose_stream_stalls_then_resumes_with_its_backlog(rec, reference) -> Non
 def test_stall_longer_than_pose_stall_gives_up_only_what_cannot_be_paired(rec) -> None:
     """The pose stream stops for good at 6 s: the shapes after it are given up, the rest are paired."""
     logs: list[tuple[str, str]] = []
-    s = EstimatorSession(SessionConfig(actuated=tuple(rec.actuated), pose_stall=1.0, max_pose_wait=1.0),
+    s = EstimatorSession(SessionConfig(actuated=tuple(rec.actuated), pose_stall=1.0,
+                                       online=OnlineConfig(max_pose_wait=1.0)),
                          log=lambda level, text: logs.append((level, text)))
     run(rec, [x for k in range(N) for x in ((("s", k), ("p", k)) if k < 600 else (("s", k),))], session=s)
     assert s.pose_stalled() == pytest.approx(rec.t[N - 1] - rec.t[599])
@@ -205,7 +206,8 @@ def test_resume_from_checkpoint_with_replayed_history(rec, reference, tmp_path) 
 
 
 def test_cadence(rec) -> None:
-    cfg = SessionConfig(actuated=tuple(rec.actuated), chunk=50, status_period=1.0, idle_flush=2.0)
+    cfg = SessionConfig(actuated=tuple(rec.actuated), online=OnlineConfig(chunk=50), status_period=1.0,
+                        idle_flush=2.0)
     s = EstimatorSession(cfg, now=0.0)
     published = [m for k in range(700) for m in (s.on_shape(shape(rec, k), now=0.0), s.on_pose(pose(rec, k), now=0.0))]
     assert sum(m is not None for m in published) >= 1  # after the fitted chunks
