@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.estimator import check_is_fitted
 from suds_ros.core.fourier import fourier_basis_and_derivative
 from suds_ros.core.phase.template import FourierTemplate
 
@@ -92,8 +93,7 @@ class PhaseTracker:
         weights: FloatArray | None = None,
         outlier_threshold: float = 4.0,
     ) -> None:
-        if not hasattr(template, "coef_"):
-            raise NotFittedError("`template`: expected a fitted FourierTemplate, got an unfitted one")
+        check_is_fitted(template, msg="`template`: expected a fitted FourierTemplate, got an unfitted %(name)s")
         self.template = template
         self.omega0 = _positive("omega", omega)
         self.omega = self.omega0
