@@ -40,6 +40,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
 from suds_ros.core.ident.intervals import interval_features, interval_row, overlap_segments
@@ -204,8 +205,9 @@ class OnlineSudsEstimator:
         self.last_residual = np.full(len(self.channels), np.nan)
 
     def _selector(self, scale: object) -> PrequentialSelector:
-        nj, na = len(self.joint_names), len(self.actuated)
-        regs = [SudsRegressor(nj, na, c, scale) for c in self.config.candidates]  # type: ignore[arg-type]
+        na = len(self.actuated)
+        regs = [SudsRegressor(c, n_actuated=na, kernel_scale=scale)  # type: ignore[arg-type]
+                for c in self.config.candidates]
         return PrequentialSelector(regs, self.config.selection_memory)
 
     @property
@@ -391,7 +393,7 @@ class OnlineSudsEstimator:
         order = self.config.template_order
         Bt = fourier_basis(X[:, 0], order)
         Bb = np.asarray(avg.weights @ fourier_basis(avg.X[:, 0], order))  # type: ignore[operator]
-        if hasattr(self.regressor, "coef_"):
+        if is_fitted(self.regressor):
             tc = self._output_template_coef()
             nb = len(BODY_CHANNELS)
             pred = self.regressor.predict(avg.X)[:, :nb]
@@ -449,7 +451,7 @@ class OnlineSudsEstimator:
     def model(self) -> SudsModel:
         """Snapshot of the current model, flushing the pending chunk first."""
         self.flush()
-        if not hasattr(self.regressor, "coef_"):
+        if not is_fitted(self.regressor):
             raise SudsDataError("no model yet: the estimator has not finished initialising",
                                 code=TOO_LITTLE_DATA)
         return SudsModel(
