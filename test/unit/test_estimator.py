@@ -190,6 +190,11 @@ def test_partial_fit_learns_shapes_on_the_first_call_and_keeps_them() -> None:
         reg.partial_fit(X, y[:, :1])
     with pytest.raises(SudsDataError, match=r"X: expected shape \(n, 9\)"):
         reg.predict(wider)
+    reg.set_params(config__regressors=3)
+    with pytest.raises(SudsConfigError, match="after the first fit laid out .*; call fit to start again"):
+        reg.partial_fit(X, y)
+    with pytest.raises(SudsConfigError, match="call fit to start again"):
+        reg.predict(X)
     # fit forgets the shapes: the wider rows are fine after a fresh fit
     reg.fit(wider, y)
     assert reg.n_joints_ == 4 and reg.n_samples_seen_ == 400

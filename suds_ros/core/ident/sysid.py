@@ -380,6 +380,12 @@ class SudsRegressor(BaseEstimator):
         return nj
 
     def _design(self, X: FloatArray) -> FloatArray:
+        """The design of X for a fitted regressor: X as wide as in the first fit, hyperparameters unchanged."""
+        layout = feature_layout(self.config, self.n_joints_, int(self.n_actuated))
+        if layout != self.layout_:
+            raise SudsConfigError(
+                f"`config`, `n_actuated`: set to a design of {layout.n_columns} columns after the first fit "
+                f"laid out {self.layout_.n_columns}; call fit to start again")
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
             raise SudsDataError(
