@@ -113,6 +113,8 @@ def test_init_only_stores_hyperparameters() -> None:
         reg.set_params(kernel_scale=KernelScale(np.zeros(2), np.ones(2), np.zeros(1), np.ones(1))).fit(X, y)
     with pytest.raises(SudsConfigError, match="`config`: expected a SudsConfig, got 3"):
         SudsRegressor(3, n_actuated=NA).fit(X, y)  # type: ignore[arg-type]
+    with pytest.raises(SudsConfigError, match="`config`: expected an IdentifyConfig, got None"):
+        SudsIdentifier(None).fit(None)  # type: ignore[arg-type]
     with pytest.raises(TypeError):
         SudsRegressor(NJ, NA, SudsConfig())  # type: ignore[misc]  # the old signature fails loudly
 

@@ -256,6 +256,8 @@ class SudsIdentifier(BaseEstimator):
         from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
         self._reset_learned()
+        if not isinstance(self.config, IdentifyConfig):
+            raise SudsConfigError(f"`config`: expected an IdentifyConfig, got {self.config!r}")
         rec = self._prepared(rec)
         phase = self._phase(rec, fit=True)
         span = rec.t[-1] - rec.t[0]
