@@ -92,7 +92,7 @@ def batch_and_limit(system, rec) -> tuple[float, float]:  # type: ignore[no-unty
     """Γ body of the batch identifier and of the exact-physics limit (30 / 30 cycles)."""
     train, test = split_cycles(rec, 30, 30)
     ident = SudsIdentifier(IdentifyConfig()).fit(train)
-    return ident.score(test).gamma_body, exact_physics(system, ident, test).gamma_body
+    return ident.scores(test).gamma_body, exact_physics(system, ident, test).gamma_body
 
 
 def breakdown(name: str, seed: int) -> list[str]:
@@ -117,7 +117,7 @@ def scores(system, rec) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
     """Γ body / passive: batch, streaming, and the exact-physics limit."""
     train, test = split_cycles(rec, 30, 30)
     ident = SudsIdentifier(IdentifyConfig()).fit(train)
-    b = ident.score(test)
+    b = ident.scores(test)
     s = score_prediction(evaluate_model(fit_streaming(train, OnlineConfig()).model(), test))
     x = exact_physics(system, ident, test)
     return b.gamma_body, b.gamma_passive, s.gamma_body, s.gamma_passive, x.gamma_body, x.gamma_passive

@@ -19,15 +19,14 @@ from _common import machine, stamp, write
 
 from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
 from suds_ros.core.physics.sim import SimConfig, simulate
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, feature_layout, regressor_input
 from suds_ros.core.physics.systems import make_system
 
 
 def rows(n: int, nj: int, na: int, n_out: int, seed: int = 0):
     rng = np.random.default_rng(seed)
-    X = np.concatenate(
-        [np.linspace(0, 2 * np.pi * n / 100, n)[:, None], rng.normal(size=(n, nj)), rng.normal(size=(n, na))], axis=1
-    )
+    delta, dda = rng.normal(size=(n, nj)), rng.normal(size=(n, na))
+    X = regressor_input(np.linspace(0, 2 * np.pi * n / 100, n), delta, dda, delta, dda)
     return X, rng.normal(size=(n, n_out))
 
 
@@ -43,10 +42,10 @@ def best_time(fn, repeat: int = 3) -> float:
 def main() -> None:
     cfg = SudsConfig(regressors=2, intercept_order=8, linear_order=6, bilinear_order=3)
     X, y = rows(6000, 8, 4, 7)
-    t_fit = best_time(lambda: SudsRegressor(8, 4, cfg).fit(X, y))
+    t_fit = best_time(lambda: SudsRegressor(cfg, n_actuated=4).fit(X, y))
 
     def chunked() -> None:
-        est = SudsRegressor(8, 4, cfg)
+        est = SudsRegressor(cfg, n_actuated=4)
         for k in range(0, 6000, 100):
             est.partial_fit(X[k : k + 100], y[k : k + 100])
 
@@ -57,7 +56,7 @@ def main() -> None:
         f"Measured {stamp()} on {machine()} by `python benchmarks/bench_fit.py`.",
         "",
         "## swimmer9 (8 joints, 4 actuated, 7 outputs, set 2, orders 8/6/3, "
-        f"{SudsRegressor(8, 4, cfg).n_parameters} parameters per output)",
+        f"{feature_layout(cfg, 8, 4).n_columns} parameters per output)",
         "",
         "| operation | 6000 samples | samples/s |",
         "|---|---|---|",
@@ -85,7 +84,7 @@ def main() -> None:
             t0 = time.perf_counter()
             ident = SudsIdentifier(c).fit(train)
             times.append((time.perf_counter() - t0) * 1e3)
-            sc = ident.score(test)
+            sc = ident.scores(test)
             params.append(ident.n_parameters)
             gb.append(sc.gamma_body)
             gp.append(sc.gamma_passive)

@@ -49,7 +49,7 @@ def one(n_links: int, seed: int, cycles: int) -> dict:
     t0 = time.perf_counter()
     ident = SudsIdentifier().fit(train)
     fit_ours = time.perf_counter() - t0
-    ours = ident.score(test)
+    ours = ident.scores(test)
     dtr, dte = data_of(ident, train, True), data_of(ident, test, False)
     groups = groups_of(ident.channels_)
     pred, fit_krr, info = run_krr(dtr, dte, groups, seed)

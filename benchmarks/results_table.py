@@ -40,7 +40,7 @@ def main() -> None:
             cfg = IdentifyConfig() if args.regressors is None else IdentifyConfig(
                 suds=SudsConfig(regressors=args.regressors), regressor_grid=(args.regressors,), kernel_grid=())
             ident = SudsIdentifier(cfg).fit(train)
-            sc = ident.score(test)
+            sc = ident.scores(test)
             gb.append(sc.gamma_body)
             gp.append(sc.gamma_passive)
             n_par = ident.n_parameters

@@ -36,7 +36,7 @@ def main() -> None:
             for k in (1, 2, 3):
                 cfg = IdentifyConfig(suds=SudsConfig(regressors=k), regressor_grid=(k,), kernel_grid=())
                 ident = SudsIdentifier(cfg).fit(train)
-                sc = ident.score(test)
+                sc = ident.scores(test)
                 res.setdefault((k, n), []).append((sc.gamma_body, sc.gamma_passive, ident.n_parameters))
                 print(f"seed {seed} train {n:2d} set {k}: Γb {sc.gamma_body:.3f} Γp {sc.gamma_passive:.3f} "
                       f"({ident.n_parameters} parameters)", flush=True)

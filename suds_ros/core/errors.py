@@ -91,8 +91,12 @@ class SudsPhaseError(SudsError, ValueError):
     code = "phase"
 
 
-class NotFittedError(SudsError, AttributeError):
-    """An estimator was used before ``fit`` or ``partial_fit``."""
+class NotFittedError(SudsError, ValueError, AttributeError):
+    """An estimator was used before ``fit`` or ``partial_fit``.
+
+    Like scikit-learn's ``NotFittedError`` it is both a ``ValueError`` and an
+    ``AttributeError`` (``hasattr`` on a property that needs the fit is False).
+    """
 
     code = "not_fitted"
 

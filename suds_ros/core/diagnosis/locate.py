@@ -14,7 +14,7 @@ from suds_ros.core.diagnosis.floor import Floors
 from suds_ros.core.diagnosis.replay import midpoint_xi, window_xi
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig, Located
 from suds_ros.core.fourier import fourier_basis, fourier_basis_and_derivative
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, regressor_input
 from suds_ros.core.physics.rft import ChainModel
 
 
@@ -246,7 +246,7 @@ def coefficient_comparison(
     """
     X, Y_rec, Y_sim, ok, half = _regression_data(data, sim_rp, sim_pose, w)
     cfg = SudsConfig(regressors=2, intercept_order=6, linear_order=2, bilinear_order=1, ridge=1e-6)
-    nj, na = data.r.shape[1], data.act.size
+    na = data.act.size
     fits = {}
     for key, Y, sel in (
         ("rec", Y_rec, ok),
@@ -254,7 +254,7 @@ def coefficient_comparison(
         ("a", Y_rec, ok & half),
         ("b", Y_rec, ok & ~half),
     ):
-        fits[key] = SudsRegressor(nj, na, cfg).fit(X[sel], Y[sel])
+        fits[key] = SudsRegressor(cfg, n_actuated=na).fit(X[sel], Y[sel])
     grid = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     C = {k: f.coefficients(grid) for k, f in fits.items()}
     outputs = list(BODY) + [f"rdot_{data.names[j]}" for j in data.pas]
@@ -296,8 +296,9 @@ def _regression_data(
 ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, BoolArray]:
     """SUDS regressors X and outputs of the recording and of the replay on the training half.
 
-    Returns X (phase, δr, δṙ_a), Y_rec, Y_sim (ξ and ṙ_p over w-sample intervals), the rows
-    where both are finite, and the rows of the first half (for the split-half noise scale).
+    Returns X (phase, δr, δṙ_a, r, ṙ_a: :func:`~suds_ros.core.ident.sysid.regressor_input`), Y_rec,
+    Y_sim (ξ and ṙ_p over w-sample intervals), the rows where both are finite, and the rows of the
+    first half (for the split-half noise scale).
     """
     n = data.n_train
     r = data.r[:n]
@@ -318,7 +319,7 @@ def _regression_data(
     dtheta = (dF @ coef) * omega
     delta = rmid - theta
     dda = (rdot - dtheta)[:, data.act]
-    X = np.column_stack([phm, delta, dda])
+    X = regressor_input(phm, delta, dda, rmid, rdot[:, data.act])
     Y_rec = np.column_stack([xi_rec, (rp_rec[w:] - rp_rec[:-w]) / (w * data.dt)])
     Y_sim = np.column_stack([xi_sim, (rp_sim[w:] - rp_sim[:-w]) / (w * data.dt)])
     ok = np.all(np.isfinite(Y_sim), axis=1) & np.all(np.isfinite(Y_rec), axis=1)

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import fourier_basis
 from suds_ros.core.ident.intervals import (
     Intervals,
@@ -38,6 +39,8 @@ from suds_ros.core.ident.sysid import (
     SudsRegressor,
     feature_layout,
     interval_state,
+    regressor_design,
+    segment_state,
 )
 
 _BODY = list(range(len(BODY_CHANNELS)))  # the body channels lead every output vector
@@ -50,7 +53,9 @@ class _Samples:
     ``Y`` (m, c) holds every channel on the shape intervals (the body channels from the pose
     interpolated at the shape stamps); ``pose`` the body velocity as measured over the pose
     intervals, or None when the streams share their stamps (then the two are the same);
-    ``seg_ph``, ``seg_r``, ``seg_rdot`` the state on the pose intervals' segments.
+    ``seg_ph``, ``seg_r``, ``seg_rdot`` the state at the pose intervals' segments' midpoints,
+    ``row_ph``, ``row_r`` the phase and state their regression rows use
+    (:func:`~suds_ros.core.ident.sysid.segment_state`).
     """
 
     iv: Intervals
@@ -60,6 +65,8 @@ class _Samples:
     seg_ph: FloatArray | None = None
     seg_r: FloatArray | None = None
     seg_rdot: FloatArray | None = None
+    row_ph: FloatArray | None = None
+    row_r: FloatArray | None = None
 
     @property
     def direct(self) -> FloatArray:
@@ -137,7 +144,7 @@ class IdentifyConfig:
             raise SudsConfigError(f"`template_order`: expected ≥ 1, got {self.template_order!r}")
 
 
-class SudsIdentifier:
+class SudsIdentifier(BaseEstimator):
     """Phase estimation, gait template and SUDS regression on recordings.
 
     Parameters
@@ -145,11 +152,26 @@ class SudsIdentifier:
     config : IdentifyConfig
     torque : bool
         Also identify actuator effort (requires ``Recording.effort``).
+
+    Attributes
+    ----------
+    phaser_ : Phaser (``config.phase == "phaser"``)
+    omega_ : float, mean phase rate ω̄ of the training recording, rad/s.
+    template_ : FourierTemplate, the gait θ(φ).
+    kernel_scale_ : KernelScale, the gait's scales for random shape features.
+    output_template_coef_ : (2·To + 1, c) phase-only template of the outputs.
+    cv_scores_ : dict, the model selection's score of every candidate.
+    regressor_ : SudsRegressor, the selected regression fitted on all training rows.
+    joint_names_, actuated_, passive_, channels_ : the training recording's joints and outputs.
     """
 
     def __init__(self, config: IdentifyConfig = IdentifyConfig(), torque: bool = False) -> None:
         self.config = config
         self.torque = torque
+
+    def __sklearn_is_fitted__(self) -> bool:
+        """Fitted once :meth:`fit` has finished (``channels_`` is its last result)."""
+        return "channels_" in vars(self)
 
     # ------------------------------------------------------------ phase
     def _phase(self, rec: Recording, fit: bool) -> FloatArray:
@@ -184,7 +206,10 @@ class SudsIdentifier:
         pv = pose_intervals(rec, rec.t[:-w], rec.t[w:], w)
         if pv.is_identity(iv.t):
             return _Samples(iv, ph, Y, None)
-        return _Samples(iv, ph, Y, pv, *segment_states(rec, pv, phase, w))
+        k = pv.seg_k
+        frac = (pv.seg_t - rec.t[k]) / (rec.t[k + w] - rec.t[k])
+        row = segment_state(self.config.suds, phase[k], phase[k + w], rec.r[k], rec.r[k + w], frac)
+        return _Samples(iv, ph, Y, pv, *segment_states(rec, pv, phase, w), *row)
 
     def _targets(self, rec: Recording, X: FloatArray, s: _Samples) -> tuple[FloatArray, AveragedTargets | None]:
         """Row targets and averaged (pose-interval) targets of the regression."""
@@ -194,15 +219,8 @@ class SudsIdentifier:
                                          y=s.pose.xi, columns=tuple(_BODY))
 
     def _segment_features(self, rec: Recording, s: _Samples) -> FloatArray:
-        """Regressor rows of the pose intervals' segments.
-
-        With ``state="start"`` a row predicts the mean over a whole shape interval from the
-        state it starts in, so a segment takes its shape interval's row; with ``"midpoint"``
-        the instantaneous map is evaluated at the segment's own midpoint.
-        """
-        if self.config.suds.state == "start":
-            return self.features(rec, s.iv, s.ph)[s.pose.seg_k]  # type: ignore[union-attr]
-        return self._features(rec, s.seg_r, s.seg_rdot, s.seg_ph)  # type: ignore[arg-type]
+        """Regressor rows of the pose intervals' segments (:func:`~suds_ros.core.ident.sysid.segment_state`)."""
+        return self._features(rec, s.row_r, s.seg_rdot, s.row_ph)  # type: ignore[arg-type]
 
     def _fit_output_template(self, s: _Samples) -> FloatArray:
         """Coefficients (2·To + 1, c) of the phase-only template of every output channel."""
@@ -220,7 +238,7 @@ class SudsIdentifier:
         return fourier_basis(phase, self.config.template_order) @ self.output_template_coef_
 
     def features(self, rec: Recording, iv: Intervals, phase_mid: FloatArray) -> FloatArray:
-        """Regressor input X = [φ, δ, δ̇_a] (m, 1 + nj + na) from interval data.
+        """Regressor input X = [φ, δ, δ̇_a, r, ṙ_a] (m, 1 + 2·(nj + na)) from interval data.
 
         δ is taken at the state :func:`~suds_ros.core.ident.sysid.interval_state` names
         (the interval's first sample by default), φ at the interval's midpoint.
@@ -237,6 +255,9 @@ class SudsIdentifier:
         """Estimate phase, template and the SUDS regression from a training recording."""
         from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
+        self._reset_learned()
+        if not isinstance(self.config, IdentifyConfig):
+            raise SudsConfigError(f"`config`: expected an IdentifyConfig, got {self.config!r}")
         rec = self._prepared(rec)
         phase = self._phase(rec, fit=True)
         span = rec.t[-1] - rec.t[0]
@@ -250,7 +271,7 @@ class SudsIdentifier:
         X = self.features(rec, s.iv, s.ph)
         self.output_template_coef_ = self._fit_output_template(s)
         suds = self._select_model(rec, X, s, self.output_template(s.ph))
-        self.regressor_ = SudsRegressor(len(rec.joint_names), len(rec.actuated), suds, self.kernel_scale_)
+        self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
         self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
         self.actuated_ = rec.actuated
@@ -286,17 +307,17 @@ class SudsIdentifier:
             Xs = self._segment_features(rec, s)
         best, best_score = cfg.suds, np.inf
         for family in ms.families(cands):  # designs nest within a family (same random features)
-            big = SudsRegressor(nj, na, ms.largest(family), self.kernel_scale_)
+            big = ms.largest(family)
             averaged = None
             if s.pose is not None:
                 W = s.pose.weights
                 averaged = ms.AveragedRows(
-                    A=np.asarray(W @ big._design(Xs)), y=s.pose.xi,
+                    A=np.asarray(W @ regressor_design(big, Xs, na, self.kernel_scale_)), y=s.pose.xi,
                     template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]), columns=tuple(_BODY),
                     fold_frac=np.asarray(W @ onehot))
-            problem = ms.CVProblem(A=big._design(X), y=s.Y[:, list(columns)], template=Yt[:, list(columns)],
-                                   columns=columns, groups=tuple(g for g in groups if g), edges=edges,
-                                   averaged=averaged)
+            problem = ms.CVProblem(A=regressor_design(big, X, na, self.kernel_scale_), y=s.Y[:, list(columns)],
+                                   template=Yt[:, list(columns)], columns=columns,
+                                   groups=tuple(g for g in groups if g), edges=edges, averaged=averaged)
             chosen, scores = ms.select(problem, family, nj, na)
             self.cv_scores_.update(scores)
             if scores[ms.key(chosen)] < best_score:
@@ -311,8 +332,7 @@ class SudsIdentifier:
         return on_shape_grid(rec)
 
     def _check(self, rec: Recording) -> None:
-        if not hasattr(self, "regressor_"):
-            raise NotFittedError("SudsIdentifier is not fitted yet; call fit first")
+        check_is_fitted(self)
         if rec.joint_names != self.joint_names_ or rec.actuated != self.actuated_:
             raise SudsDataError(
                 f"recording joints {list(rec.joint_names)} (actuated {list(rec.actuated)}) differ "
@@ -339,15 +359,25 @@ class SudsIdentifier:
         return Prediction(t=s.iv.t, phase=s.ph, channels=self.channels_, truth=s.Y, model=model,
                           template=template, body=body)
 
-    def score(self, rec: Recording) -> Scores:
-        """Γ and RMS errors of the model and the template on ``rec`` (held-out data)."""
+    def scores(self, rec: Recording) -> Scores:
+        """Γ per output group and RMS errors of the model and the template on ``rec`` (held-out data)."""
         return score_prediction(self.predict(rec))
+
+    def score(self, rec: Recording) -> float:
+        """One number for ``rec`` (held-out data): the mean Γ over the output groups it has.
+
+        The groups are the body velocity, the passive rates and (``torque``) the actuator
+        efforts; a group whose Γ is undefined (no such channels) is left out.  :meth:`scores`
+        gives each group's Γ and the per-channel errors.
+        """
+        sc = self.scores(rec)
+        groups = [g for g in (sc.gamma_body, sc.gamma_passive, sc.gamma_torque) if g is not None and np.isfinite(g)]
+        return float(np.mean(groups)) if groups else float("nan")
 
     @property
     def n_parameters(self) -> int:
         """Regression parameters per output channel."""
-        if not hasattr(self, "regressor_"):
-            raise NotFittedError("SudsIdentifier is not fitted yet; call fit first")
+        check_is_fitted(self)
         return self.regressor_.n_parameters
 
 

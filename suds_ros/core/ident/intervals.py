@@ -18,7 +18,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
-from suds_ros.core.ident.sysid import SudsConfig, interval_state, regressor_input
+from suds_ros.core.ident.sysid import SudsConfig, regressor_input, segment_state
 from suds_ros.core.recording import POSE_SPAN_TOL, Recording
 
 
@@ -245,23 +245,15 @@ def segment_features(suds: SudsConfig, template: object, omega: float, act: IntA
     """Regressor rows of segments lying in the shape intervals k → k + ``window``.
 
     ``t`` (n,), ``r`` (n, nj) and ``phase`` (n,) are the shape samples; ``k`` (s,) the interval
-    of each segment and ``seg_t`` (s,) its midpoint stamp.  A row predicts the mean output over
-    its segment: with ``suds.state == "start"`` a segment takes its shape interval's own row
-    (midpoint phase, state at the interval's first sample), since the mean over a whole shape
-    interval is set by the state it starts from; with ``"midpoint"`` the instantaneous map is
-    evaluated at the segment's midpoint on the interval's straight line.  This is the one place
-    the segment rows are made (batch identifier and live estimator).
+    of each segment and ``seg_t`` (s,) its midpoint stamp.  The row's phase and state are the
+    ones :func:`~suds_ros.core.ident.sysid.segment_state` names; ṙ is the interval's own.
     """
     k = np.asarray(k, dtype=int)
     t0, t1 = t[k], t[k + window]
     r0, r1 = r[k], r[k + window]
-    rdot = (r1 - r0) / (t1 - t0)[:, None]
-    if suds.state == "start":
-        return interval_features(template, omega, act, 0.5 * (phase[k] + phase[k + window]),
-                                 interval_state(suds, r0, r1), rdot)
     frac = (np.asarray(seg_t, dtype=float) - t0) / (t1 - t0)
-    ph = phase[k] + (phase[k + window] - phase[k]) * frac
-    return interval_features(template, omega, act, ph, r0 + (r1 - r0) * frac[:, None], rdot)
+    ph, rs = segment_state(suds, phase[k], phase[k + window], r0, r1, frac)
+    return interval_features(template, omega, act, ph, rs, (r1 - r0) / (t1 - t0)[:, None])
 
 
 def interval_features(template: object, omega: float, act: FloatArray, phase: FloatArray, r: FloatArray,

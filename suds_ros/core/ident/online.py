@@ -36,6 +36,7 @@ import scipy.sparse
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
 from suds_ros.core.ident.model import SudsModel, check_shape_sample
@@ -176,8 +177,9 @@ class OnlineSudsEstimator:
         self.last_residual = np.full(len(self.channels), np.nan)
 
     def _selector(self, scale: object) -> PrequentialSelector:
-        nj, na = len(self.joint_names), len(self.actuated)
-        regs = [SudsRegressor(nj, na, c, scale) for c in self.config.candidates]  # type: ignore[arg-type]
+        na = len(self.actuated)
+        regs = [SudsRegressor(c, n_actuated=na, kernel_scale=scale)  # type: ignore[arg-type]
+                for c in self.config.candidates]
         return PrequentialSelector(regs, self.config.selection_memory)
 
     @property
@@ -299,7 +301,7 @@ class OnlineSudsEstimator:
         order = self.config.template_order
         Bt = fourier_basis(X[:, 0], order)
         Bb = np.asarray(avg.weights @ fourier_basis(avg.X[:, 0], order))  # type: ignore[operator]
-        if hasattr(self.regressor, "coef_"):
+        if is_fitted(self.regressor):
             tc = self._output_template_coef()
             pred = self.regressor.predict(avg.X)[:, :nb]
             err_m = np.abs(np.asarray(avg.weights @ pred) - avg.y)  # type: ignore[operator]
@@ -347,7 +349,7 @@ class OnlineSudsEstimator:
     def model(self) -> SudsModel:
         """Snapshot of the current model, flushing the pending chunk first."""
         self.flush()
-        if not hasattr(self.regressor, "coef_"):
+        if not is_fitted(self.regressor):
             raise SudsDataError("no model yet: the estimator has not finished initialising",
                                 code=TOO_LITTLE_DATA)
         return SudsModel(

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
+from suds_ros.core.estimator import is_fitted
 from suds_ros.core.ident.sysid import AveragedTargets, SudsRegressor
 
 
@@ -36,19 +37,19 @@ class PrequentialSelector:
     loss_ : (k,) discounted prequential loss of each candidate (summed ratios).
     weight_ : float, the discounted number of chunks scored.
     current_ : int, index of the candidate with the lowest loss.
+
+    The attributes exist from the first chunk on; the candidates themselves are fitted in place
+    (each keeps its own sufficient statistics).
     """
 
     def __init__(self, candidates: list[SudsRegressor], memory: float = 20.0) -> None:
         self.candidates = candidates
         self.memory = memory
-        self.loss_ = np.zeros(len(candidates))
-        self.weight_ = 0.0
-        self.current_ = 0
 
     @property
     def current(self) -> SudsRegressor:
-        """The candidate published now."""
-        return self.candidates[self.current_]
+        """The candidate published now (the first one before any chunk)."""
+        return self.candidates[vars(self).get("current_", 0)]
 
     def score_then_fit(self, X: FloatArray, Y: FloatArray, avg: AveragedTargets,
                        ref_body: FloatArray, ref_rest: FloatArray) -> None:
@@ -58,8 +59,11 @@ class PrequentialSelector:
         chunk's averaged (body) and row outputs, the loss's denominators.
         """
         nb = len(avg.columns)
-        fitted = [hasattr(c, "coef_") for c in self.candidates]
-        if all(fitted) and ref_body.sum() > 0 and ref_rest.sum() > 0:
+        if "loss_" not in vars(self):  # the first chunk
+            self.loss_ = np.zeros(len(self.candidates))
+            self.weight_ = 0.0
+            self.current_ = 0
+        if all(is_fitted(c) for c in self.candidates) and ref_body.sum() > 0 and ref_rest.sum() > 0:
             decay = 0.5 ** (1.0 / self.memory)
             for i, c in enumerate(self.candidates):
                 pred_body = np.asarray(avg.weights @ c.predict(avg.X)[:, :nb])  # type: ignore[operator]

@@ -38,7 +38,9 @@ half of the answer's end point and blurs the map.  ``state="start"`` (the defaul
 on δ at the interval's first sample, ``"midpoint"`` on δ at r̄ (the instantaneous affine map
 at the midpoint, the convention of models saved before it existed).  The phase of a row is
 the interval's midpoint phase in both; δ̇_a is the interval's mean actuated rate, so the
-outputs stay affine in it.  :func:`interval_state` is the one place this choice is made.
+outputs stay affine in it.  :func:`interval_state` (a whole interval) and :func:`segment_state`
+(part of an interval, for outputs averaged over a pose interval) are the one place this
+choice is made.
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.config import check_settings, setting
-from suds_ros.core.errors import NotFittedError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.shape_kernel import KernelScale, kernel_features
 
@@ -63,6 +66,25 @@ def interval_state(config: "SudsConfig", r_start: FloatArray, r_end: FloatArray)
     if config.state == "start":
         return np.asarray(r_start, dtype=float)
     return 0.5 * (np.asarray(r_start, dtype=float) + np.asarray(r_end, dtype=float))
+
+
+def segment_state(config: "SudsConfig", phase_start: FloatArray, phase_end: FloatArray, r_start: FloatArray,
+                  r_end: FloatArray, frac: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Phase (s,) and joint state (s, nj) of the rows of segments of sampling intervals.
+
+    A segment is the part of the shape interval start → end (phases (s,), joint values
+    (s, nj)) that a pose interval covers; ``frac`` (s,) is the position of the segment's
+    midpoint in its interval (0 at the start, 1 at the end).  With ``state="start"`` a row
+    predicts the mean over a whole interval from the state it starts in, so a segment takes
+    its interval's row (midpoint phase, start state); with ``"midpoint"`` the instantaneous
+    map is evaluated at the segment's own midpoint (phase and shape interpolated there).
+    """
+    phase_start, phase_end = np.asarray(phase_start, dtype=float), np.asarray(phase_end, dtype=float)
+    r_start, r_end = np.asarray(r_start, dtype=float), np.asarray(r_end, dtype=float)
+    if config.state == "start":
+        return 0.5 * (phase_start + phase_end), r_start
+    frac = np.asarray(frac, dtype=float)
+    return phase_start + (phase_end - phase_start) * frac, r_start + (r_end - r_start) * frac[:, None]
 
 
 @dataclass(frozen=True)
@@ -198,6 +220,39 @@ def regressor_input(phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray, 
     return np.concatenate([np.asarray(phase, dtype=float)[:, None], delta, ddelta_a, r, rdot_a], axis=1)
 
 
+def input_joints(n_columns: int, n_actuated: int) -> int:
+    """The joint count nj of rows with ``n_columns`` = 1 + 2·(nj + na) columns; -1 if no nj ≥ max(na, 1) fits."""
+    nj = (n_columns - 1) // 2 - n_actuated
+    return nj if (n_columns - 1) % 2 == 0 and nj >= max(n_actuated, 1) else -1
+
+
+def split_regressor_input(X: FloatArray, n_actuated: int) -> tuple[FloatArray, ...]:
+    """(φ (n,), δ (n, nj), δ̇_a (n, na), r (n, nj), ṙ_a (n, na)) of regressor rows X (:func:`regressor_input`).
+
+    Raises
+    ------
+    SudsDataError
+        X is not 2-D with 1 + 2·(nj + na) columns for some nj ≥ max(na, 1), or holds NaN/Inf.
+    """
+    X = np.asarray(X, dtype=float)
+    na = int(n_actuated)
+    nj = input_joints(X.shape[1], na) if X.ndim == 2 else -1
+    if nj < 0:
+        raise SudsDataError(
+            f"X: expected shape (n, 1 + 2·(nj + {na})) = [phase, δ (nj), δ̇_a ({na}), r (nj), ṙ_a ({na})] "
+            f"for n_actuated = {na} and nj ≥ {max(na, 1)} joints, got {X.shape}")
+    if not np.all(np.isfinite(X)):
+        raise SudsDataError("X contains NaN or Inf")
+    a, b = 1 + nj, 1 + nj + na
+    return X[:, 0], X[:, 1:a], X[:, a:b], X[:, b : b + nj], X[:, b + nj :]
+
+
+def regressor_design(config: SudsConfig, X: FloatArray, n_actuated: int,
+                     kernel_scale: KernelScale | None = None) -> FloatArray:
+    """The SUDS design matrix (n, p) of regressor rows X (:func:`regressor_input`) with na = ``n_actuated``."""
+    return design_matrix(config, *split_regressor_input(X, n_actuated), kernel_scale=kernel_scale)
+
+
 @dataclass(frozen=True)
 class AveragedTargets:
     """Outputs measured as time averages of the model's row predictions.
@@ -220,26 +275,40 @@ class AveragedTargets:
     columns: tuple[int, ...]
 
 
-class SudsRegressor:
+class SudsRegressor(BaseEstimator):
     """Phase-varying SUDS regression fitted from accumulated normal equations.
 
-    ``X`` passed to :meth:`fit`, :meth:`partial_fit`, :meth:`predict` is (n, 1 + nj + na):
-    column 0 the phase φ (rad), then δ (nj columns), then δ̇_a (na columns); optionally (always
-    with kernel features) followed by the shape r (nj) and the actuated rate ṙ_a (na):
-    :func:`regressor_input` builds it.
-    ``y`` is (n, n_out): the outputs (body velocity components, passive velocities, …).
+    ``X`` passed to :meth:`fit`, :meth:`partial_fit`, :meth:`predict` is (n, 1 + 2·(nj + na)):
+    column 0 the phase φ (rad), then δ (nj columns), δ̇_a (na columns), the shape r (nj) and the
+    actuated rate ṙ_a (na); :func:`regressor_input` builds it.  The last two blocks are read only
+    by random shape features (``config.kernel_features`` > 0).  ``y`` is (n, n_out): the outputs
+    (body velocity components, passive velocities, …).
 
     Parameters
     ----------
-    n_joints, n_actuated : int
-        nj and na.
     config : SudsConfig
-        Hyperparameters.
+        Regression hyperparameters (regressor set, Fourier orders, ridge, forgetting, state,
+        random features).
+    n_actuated : int
+        na, the number of actuated joints.  It is a hyperparameter because it says how to read
+        the columns of X, which their count alone cannot tell: 1 + 2·(nj + na) columns fit
+        several (nj, na).  The number of joints nj is learned from X (``n_joints_``).
+    kernel_scale : KernelScale or None
+        Standardisation of the shape and the actuated rate for random shape features (needed
+        when ``config.kernel_features`` > 0, ignored otherwise).  The caller learns it from the
+        gait template (:func:`~suds_ros.core.ident.shape_kernel.gait_kernel_scale`), which this
+        regressor never sees; it fixes the feature map before any row is added (rows must not
+        change meaning between ``partial_fit`` calls), so it is given like a hyperparameter,
+        fitting never changes it, and a :func:`~suds_ros.core.estimator.clone` builds the same
+        features.
 
     Attributes
     ----------
     coef_ : (p, n_out) fitted coefficients.
-    n_samples_seen_ : int
+    n_features_in_ : int, the number of columns of X, 1 + 2·(nj + na).
+    n_joints_ : int, nj.
+    n_outputs_ : int, n_out.
+    n_samples_seen_ : int, rows accumulated since the last :meth:`fit`.
     normal_ : NormalEquations, the accumulated (forgetting-weighted) XᵀX (p, p) and XᵀY of the
         outputs fitted row by row (all outputs unless averaged targets were given).
     normal_avg_ : NormalEquations or None, the same for the averaged outputs (design W·A).
@@ -253,69 +322,110 @@ class SudsRegressor:
     own relative ridge).  Without averaged targets the fit is the plain one on A.
     """
 
-    def __init__(self, n_joints: int, n_actuated: int, config: SudsConfig = SudsConfig(),
+    def __init__(self, config: SudsConfig = SudsConfig(), *, n_actuated: int,
                  kernel_scale: KernelScale | None = None) -> None:
-        self.n_joints = n_joints
-        self.n_actuated = n_actuated
         self.config = config
+        self.n_actuated = n_actuated
         self.kernel_scale = kernel_scale
 
+    def __sklearn_is_fitted__(self) -> bool:
+        """Fitted once a solve has given coefficients."""
+        return "coef_" in vars(self)
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # regressors pickled before the estimator contract (checkpoint version 5) held the joint
+        # count as the constructor argument ``n_joints``; their X always had the wide layout
+        if "n_joints" in state:
+            nj = int(state.pop("n_joints"))  # type: ignore[call-overload]
+            if "normal_" in state:
+                state["n_joints_"] = nj
+                state["n_features_in_"] = 1 + 2 * (nj + int(state["n_actuated"]))  # type: ignore[call-overload]
+        self.__dict__.update(state)
+
     # -------------------------------------------------------------- helpers
-    def _split(self, X: FloatArray) -> tuple[FloatArray, ...]:
-        X = np.asarray(X, dtype=float)
-        nj, na = self.n_joints, self.n_actuated
-        narrow, wide = 1 + nj + na, 1 + 2 * (nj + na)
-        ok = X.ndim == 2 and (X.shape[1] == wide or (X.shape[1] == narrow and not self.config.kernel_features))
-        if not ok:
-            raise SudsDataError(
-                f"X: expected shape (n, {narrow}) = [phase, δ ({nj}), δ̇_a ({na})] or (n, {wide}) with the "
-                f"shape r ({nj}) and actuated rate ({na}) after them (needed with kernel features), got {X.shape}")
-        if not np.all(np.isfinite(X)):
-            raise SudsDataError("X contains NaN or Inf")
-        parts = (X[:, 0], X[:, 1 : 1 + nj], X[:, 1 + nj : narrow])
-        if X.shape[1] == wide:
-            return parts + (X[:, narrow : narrow + nj], X[:, narrow + nj :])
-        return parts + (None, None)
+    def _check_params(self, n_columns: int) -> int:
+        """Validate the hyperparameters for X with ``n_columns`` columns; returns nj."""
+        if not isinstance(self.config, SudsConfig):
+            raise SudsConfigError(f"`config`: expected a SudsConfig, got {self.config!r}")
+        na = self.n_actuated
+        if isinstance(na, bool) or not isinstance(na, (int, np.integer)) or na < 0:
+            raise SudsConfigError(f"`n_actuated`: expected an integer ≥ 0, got {na!r}")
+        nj = input_joints(n_columns, int(na))
+        if self.config.kernel_features and nj > 0:
+            sc = self.kernel_scale
+            if not isinstance(sc, KernelScale):
+                raise SudsConfigError(
+                    f"`kernel_scale`: random shape features (config.kernel_features = "
+                    f"{self.config.kernel_features}) need the gait's KernelScale, got {sc!r}")
+            shapes = tuple(np.shape(getattr(sc, k)) for k in ("r_mean", "r_std", "u_mean", "u_std"))
+            if shapes != ((nj,), (nj,), (int(na),), (int(na),)):
+                raise SudsConfigError(
+                    f"`kernel_scale`: expected scales of shapes ({nj},), ({nj},), ({na},), ({na},) for "
+                    f"{nj} joints, {na} actuated, got {shapes}")
+        return nj
 
     def _design(self, X: FloatArray) -> FloatArray:
-        return design_matrix(self.config, *self._split(X), kernel_scale=self.kernel_scale)
+        """The design of X for a fitted regressor: X as wide as in the first fit, hyperparameters unchanged."""
+        layout = feature_layout(self.config, self.n_joints_, int(self.n_actuated))
+        if layout != self.layout_:
+            raise SudsConfigError(
+                f"`config`, `n_actuated`: set to a design of {layout.n_columns} columns after the first fit "
+                f"laid out {self.layout_.n_columns}; call fit to start again")
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise SudsDataError(
+                f"X: expected shape (n, {self.n_features_in_}) = [phase, δ ({self.n_joints_}), δ̇_a "
+                f"({self.n_actuated}), r ({self.n_joints_}), ṙ_a ({self.n_actuated})] as in the first fit, "
+                f"got {X.shape}")
+        return regressor_design(self.config, X, self.n_actuated, self.kernel_scale)
 
     @property
     def n_parameters(self) -> int:
         """Parameters per output."""
-        return feature_layout(self.config, self.n_joints, self.n_actuated).n_columns
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "coef_"):
-            raise NotFittedError(
-                f"this {type(self).__name__} is not fitted yet; call fit or partial_fit first"
-            )
+        check_is_fitted(self, "layout_")
+        return self.layout_.n_columns
 
     # ----------------------------------------------------------------- API
     def fit(self, X: FloatArray, y: FloatArray, averaged: AveragedTargets | None = None) -> "SudsRegressor":
-        """Fit from scratch on (X, y) and optional averaged targets (resets accumulated statistics)."""
-        for attr in ("coef_", "normal_", "normal_avg_", "avg_columns_", "n_samples_seen_", "layout_", "n_outputs_"):
-            if hasattr(self, attr):
-                delattr(self, attr)
+        """Fit from scratch on (X, y) and optional averaged targets (forgets everything learned)."""
+        self._reset_learned()
         return self.partial_fit(X, y, averaged)
 
     def partial_fit(self, X: FloatArray, y: FloatArray, averaged: AveragedTargets | None = None) -> "SudsRegressor":
         """Add a chunk of samples to the sufficient statistics and re-solve.
 
+        The first call (after construction or :meth:`fit`) validates the hyperparameters and
+        learns nj from the width of X; later calls must give X as wide and y with as many outputs.
         ``averaged`` (see :class:`AveragedTargets`) must be given on the first call for the
         outputs it names to be fitted on averages; later calls may omit it (no averaged rows in
         that chunk).  With forgetting, the chunk's averaged rows are weighted as if spread
         evenly over its rows.
+
+        Raises
+        ------
+        SudsConfigError
+            Bad hyperparameters (first call).
+        SudsDataError
+            Malformed X or y, or X's column count / y's output count differs from the first call.
         """
-        A = self._design(X)
-        y = self._targets(y, A.shape[0], "y")
-        first = not hasattr(self, "normal_")
+        X = np.asarray(X, dtype=float)
+        first = not hasattr(self, "n_features_in_")
         if first:
-            self.layout_ = feature_layout(self.config, self.n_joints, self.n_actuated)
+            if X.ndim != 2:
+                raise SudsDataError(f"X: expected a 2-D array (n, 1 + 2·(nj + na)), got shape {X.shape}")
+            nj = self._check_params(X.shape[1])
+            A = regressor_design(self.config, X, self.n_actuated, self.kernel_scale)
+            y = self._targets(y, A.shape[0], "y")
+            self.n_features_in_ = X.shape[1]
+            self.n_joints_ = nj
+            self.layout_ = feature_layout(self.config, nj, int(self.n_actuated))
             self.avg_columns_ = () if averaged is None else tuple(int(c) for c in averaged.columns)
             self.n_outputs_ = y.shape[1] + len(self.avg_columns_)
             self.normal_ = NormalEquations(A.shape[1], y.shape[1])
             self.normal_avg_ = NormalEquations(A.shape[1], len(self.avg_columns_)) if self.avg_columns_ else None
+        else:
+            A = self._design(X)
+            y = self._targets(y, A.shape[0], "y")
         if y.shape[1] != self.n_outputs_ - len(self.avg_columns_):
             raise SudsDataError(
                 f"y: expected {self.n_outputs_ - len(self.avg_columns_)} outputs as before, got {y.shape[1]}")
@@ -364,11 +474,12 @@ class SudsRegressor:
 
     def predict(self, X: FloatArray) -> FloatArray:
         """Predicted outputs (n, n_out)."""
-        self._check_fitted()
+        check_is_fitted(self)
         return self._design(X) @ self.coef_
 
     def score(self, X: FloatArray, y: FloatArray) -> float:
         """Coefficient of determination R², averaged over outputs."""
+        check_is_fitted(self)
         pred = self.predict(X)
         y = np.asarray(y, dtype=float).reshape(pred.shape)
         ss_res = ((y - pred) ** 2).sum(axis=0)
@@ -381,7 +492,7 @@ class SudsRegressor:
         C (k, n_out), C_r (k, n_out, nj), B (k, n_out, na), B_r (k, n_out, nj, na), and for set 3
         D_rr, D_aa (packed upper triangles).
         """
-        self._check_fitted()
+        check_is_fitted(self)
         phase = np.asarray(phase, dtype=float)
         out: dict[str, FloatArray] = {}
         sl = self.layout_.slices()
@@ -392,6 +503,6 @@ class SudsRegressor:
             if name == "C":
                 val = val[:, :, 0]
             elif name == "B_r":
-                val = val.reshape(phase.size, -1, self.n_joints, self.n_actuated)
+                val = val.reshape(phase.size, -1, self.n_joints_, int(self.n_actuated))
             out[name] = val
         return out

@@ -24,7 +24,8 @@ import math
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.estimator import check_is_fitted
 from suds_ros.core.phase.template import FourierTemplate
 
 #: Forgetting rate of the running residual scale (per accepted sample).
@@ -103,8 +104,7 @@ class PhaseTracker:
         weights: FloatArray | None = None,
         outlier_threshold: float = 4.0,
     ) -> None:
-        if not hasattr(template, "coef_"):
-            raise NotFittedError("`template`: expected a fitted FourierTemplate, got an unfitted one")
+        check_is_fitted(template, msg="`template`: expected a fitted FourierTemplate, got an unfitted %(name)s")
         self.template = template
         self.omega0 = _positive("omega", omega)
         self.omega = self.omega0

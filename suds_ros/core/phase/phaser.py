@@ -41,7 +41,8 @@ import numpy as np
 import scipy.signal
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.errors import SudsConfigError, SudsDataError, SudsPhaseError
+from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import fourier_basis
 
 _TWO_PI = 2.0 * np.pi
@@ -179,7 +180,7 @@ def _coherence_weights(R: FloatArray, min_coherence: float) -> FloatArray:
 
 
 # ----------------------------------------------------------------- phaser
-class Phaser:
+class Phaser(BaseEstimator):
     """Data-driven asymptotic phase estimator for multichannel quasi-periodic signals.
 
     Parameters
@@ -216,6 +217,10 @@ class Phaser:
         Correction of the combined phase.
     zero_offset_ : float
         Phase (rad) added so that phase zero is the reference signal's upward crossing.
+    zero_loadings_ : ndarray, shape (n_channels,), or None
+        Channel loadings of the reference signal (None with ``zero_channel``).
+    anchor_ : int
+        Channel along which the combined phase is unwrapped.
     """
 
     def __init__(self, config: PhaserConfig = PhaserConfig()) -> None:
@@ -245,7 +250,10 @@ class Phaser:
         SudsConfigError
             ``zero_channel`` does not name a non-constant channel of ``X``.
         """
+        self._reset_learned()
         cfg = self.config
+        if not isinstance(cfg, PhaserConfig):
+            raise SudsConfigError(f"`config`: expected a PhaserConfig, got {cfg!r}")
         X = _check_X(X)
         n, C = X.shape
         n_min = 4 * cfg.order + 4
@@ -310,7 +318,7 @@ class Phaser:
         self.weights_[idx] = w
         self.coherence_ = full.copy()
         self.coherence_[idx] = R
-        self._anchor = int(idx[anchor])
+        self.anchor_ = int(idx[anchor])
         self.combined_coef_ = combined_coef
         self.zero_offset_ = zero
         self.zero_loadings_ = None if loadings is None else self._expand(loadings, idx, C)
@@ -392,10 +400,6 @@ class Phaser:
         return np.asarray(phase - _TWO_PI * np.floor(phase[0] / _TWO_PI), dtype=float)
 
     # --------------------------------------------------------- transform
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "phase_"):
-            raise NotFittedError("Phaser: expected a fitted phaser, got one without `phase_`; call fit first")
-
     def transform(self, X: FloatArray) -> FloatArray:
         """Phase of a new segment using the learned corrections.
 
@@ -410,7 +414,7 @@ class Phaser:
         ndarray, shape (n_samples,)
             Unwrapped phase in rad, first value in [0, 2π).
         """
-        self._check_fitted()
+        check_is_fitted(self)
         X = _check_X(X, self.n_features_in_)
         if X.shape[0] < 2:
             raise SudsDataError(f"`X`: expected at least 2 samples, got {X.shape[0]}")
@@ -421,7 +425,7 @@ class Phaser:
         Phi = np.stack(
             [_apply_correction(psi[:, j], self.channel_coef_[i], order) for j, i in enumerate(idx)], axis=1
         )
-        anchor = int(np.flatnonzero(idx == self._anchor)[0])
+        anchor = int(np.flatnonzero(idx == self.anchor_)[0])
         combined = _combine(Phi, self.offsets_[idx], self.weights_[idx], anchor)
         return self._finish(_apply_correction(combined, self.combined_coef_, order))
 
@@ -432,5 +436,5 @@ class Phaser:
     @property
     def used_channels(self) -> BoolArray:
         """Channels with non-zero combination weight, shape (n_channels,)."""
-        self._check_fitted()
+        check_is_fitted(self)
         return np.asarray(self.weights_ > 0, dtype=np.bool_)

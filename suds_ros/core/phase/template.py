@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.estimator import BaseEstimator, check_is_fitted, is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis, n_coefficients
 
 #: Smallest accepted eigenvalue ratio λ_min/λ_max of the normal matrix.
@@ -53,7 +54,7 @@ def _as_phase(phase: FloatArray | float, name: str = "phase") -> FloatArray:
     return arr
 
 
-class FourierTemplate:
+class FourierTemplate(BaseEstimator):
     """Least-squares Fourier series template θ(φ) of a multichannel periodic signal.
 
     Parameters
@@ -86,15 +87,14 @@ class FourierTemplate:
     def __init__(self, config: FourierTemplateConfig = FourierTemplateConfig()) -> None:
         self.config = config
 
+    def __sklearn_is_fitted__(self) -> bool:
+        """Fitted once the accumulated data determine every coefficient (``coef_``)."""
+        return "coef_" in vars(self)
+
     @property
     def n_coefficients(self) -> int:
         """Coefficients per channel, 2·order + 1."""
         return n_coefficients(self.config.order)
-
-    # -------------------------------------------------------------- fit
-    def _reset(self) -> None:
-        for name in ("coef_", "normal_", "n_samples_seen_", "n_features_in_", "residual_var_"):
-            self.__dict__.pop(name, None)
 
     def fit(
         self, phase: FloatArray, Y: FloatArray, sample_weight: FloatArray | None = None,
@@ -125,9 +125,9 @@ class FourierTemplate:
         SudsDataError
             Malformed input, or too few samples / too narrow a spread of phases for the order.
         """
-        self._reset()
+        self._reset_learned()
         self.partial_fit(phase, Y, sample_weight, mix)
-        if not hasattr(self, "coef_"):
+        if not is_fitted(self):
             p = self.n_coefficients
             raise SudsDataError(
                 f"`phase`: too few samples for a Fourier template of order {self.config.order}: "
@@ -152,6 +152,8 @@ class FourierTemplate:
         FourierTemplate
             ``self``.
         """
+        if not isinstance(self.config, FourierTemplateConfig):
+            raise SudsConfigError(f"`config`: expected a FourierTemplateConfig, got {self.config!r}")
         phase = _as_phase(phase)
         Y = np.asarray(Y, dtype=float)
         if Y.ndim == 1:
@@ -201,12 +203,6 @@ class FourierTemplate:
         self.residual_var_ = self.normal_.residual_ss(self.coef_) / max(self.normal_.sw, np.finfo(float).tiny)
 
     # ---------------------------------------------------------- predict
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "coef_"):
-            raise NotFittedError(
-                "FourierTemplate: expected a fitted template, got one without `coef_`; call fit or partial_fit first"
-            )
-
     def predict(self, phase: FloatArray | float) -> FloatArray:
         """Template values θ(φ).
 
@@ -219,7 +215,7 @@ class FourierTemplate:
         -------
         ndarray, shape (n, d)
         """
-        self._check_fitted()
+        check_is_fitted(self)
         return fourier_basis(_as_phase(phase), self.config.order) @ self.coef_
 
     def derivative(self, phase: FloatArray | float, k: int = 1) -> FloatArray:
@@ -237,7 +233,7 @@ class FourierTemplate:
         ndarray, shape (n, d)
             In units of Y per rad^k.
         """
-        self._check_fitted()
+        check_is_fitted(self)
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
             raise SudsConfigError(f"`k`: expected an integer ≥ 0, got {k!r}")
         return fourier_basis(_as_phase(phase), self.config.order, int(k)) @ self.coef_

@@ -74,8 +74,8 @@ def _interpolated(rec):  # type: ignore[no-untyped-def]
 
 def test_identify_on_a_lab_recording_beats_interpolation(lab_run) -> None:
     train, test = split_cycles(lab_run, 12, 8)
-    new = SudsIdentifier(IdentifyConfig()).fit(train).score(test)
-    old = SudsIdentifier(IdentifyConfig()).fit(_interpolated(train)).score(test)
+    new = SudsIdentifier(IdentifyConfig()).fit(train).scores(test)
+    old = SudsIdentifier(IdentifyConfig()).fit(_interpolated(train)).scores(test)
     assert new.gamma_body > 0.7 and new.gamma_passive > 0.9
     assert new.gamma_body > old.gamma_body + 0.08  # both judged on the measured pose displacements
 
@@ -89,6 +89,6 @@ def test_streaming_matches_batch_on_async_data(lab_run) -> None:
     assert est.regressor.avg_columns_ == (0, 1, 2)
     assert est.regressor.normal_avg_.n > 1.1 * est.regressor.normal_.n  # 120 Hz pose vs 100 Hz shape
     sc = score_prediction(evaluate_model(a, test))
-    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).score(test)
+    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).scores(test)
     assert sc.gamma_body > batch.gamma_body - 0.05
     assert sc.gamma_passive > batch.gamma_passive - 0.05

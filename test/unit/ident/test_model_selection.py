@@ -9,7 +9,16 @@ from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.ident import model_selection as ms
 from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
 from suds_ros.core.ident.model import SudsModel
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, design_matrix, feature_layout, interval_state
+from suds_ros.core.ident.sysid import (
+    SudsConfig,
+    SudsRegressor,
+    design_matrix,
+    feature_layout,
+    interval_state,
+    regressor_design,
+    regressor_input,
+    segment_state,
+)
 
 
 def test_candidate_designs_are_column_subsets_of_the_largest() -> None:
@@ -35,20 +44,21 @@ def test_cv_scores_equal_refits_on_each_fold(n: int) -> None:
     """
     rng = np.random.default_rng(5)
     nj, na = 3, 1
-    X = np.column_stack([np.linspace(0, 40, n), rng.normal(size=(n, nj)), rng.normal(size=(n, na))])
+    delta, dda = rng.normal(size=(n, nj)), rng.normal(size=(n, na))
+    X = regressor_input(np.linspace(0, 40, n), delta, dda, delta, dda)
     y = np.column_stack([np.sin(X[:, 0]) + X[:, 1] * X[:, 4], X[:, 2] - X[:, 3]]) + 0.1 * rng.normal(size=(n, 2))
     T = np.column_stack([np.sin(X[:, 0]), np.zeros(n)])
     cands = ms.candidates(SudsConfig(intercept_order=2), (1, 2), ((1, 0), (4, 2)), (1e-6, 1e-2))
-    big = SudsRegressor(nj, na, ms.largest(cands))
     edges = np.linspace(0, n, 4).astype(int)
-    problem = ms.CVProblem(A=big._design(X), y=y, template=T, columns=(0, 1), groups=((0,), (1,)), edges=edges)
+    problem = ms.CVProblem(A=regressor_design(ms.largest(cands), X, na), y=y, template=T, columns=(0, 1),
+                           groups=((0,), (1,)), edges=edges)
     best, scores = ms.select(problem, cands, nj, na)
     for cfg in cands:
         total = 0.0
         for f in range(3):
             te = np.zeros(n, dtype=bool)
             te[edges[f]:edges[f + 1]] = True
-            reg = SudsRegressor(nj, na, cfg).fit(X[~te], y[~te])
+            reg = SudsRegressor(cfg, n_actuated=na).fit(X[~te], y[~te])
             err = np.abs(reg.predict(X[te]) - y[te])
             ref = np.abs(T[te] - y[te])
             total += np.mean(err.sum(0) / ref.sum(0))
@@ -67,8 +77,8 @@ def test_the_model_follows_the_amount_of_data(swimmer9_run) -> None:
     chosen = p_large.regressor_.config
     assert p_large.cv_scores_[ms.key(chosen)] == min(p_large.cv_scores_.values())
     assert chosen != p_small.regressor_.config
-    fixed = SudsIdentifier(IdentifyConfig(suds=chosen, order_grid=())).fit(small).score(test)
-    own = p_small.score(test)
+    fixed = SudsIdentifier(IdentifyConfig(suds=chosen, order_grid=())).fit(small).scores(test)
+    own = p_small.scores(test)
     print(p_small.regressor_.config, own.gamma_body, own.gamma_passive, "vs", fixed.gamma_body, fixed.gamma_passive)
     assert own.gamma_body + own.gamma_passive > fixed.gamma_body + fixed.gamma_passive + 0.02
 
@@ -79,7 +89,7 @@ def test_start_state_beats_midpoint_on_swimmer9_passive(swimmer9_run) -> None:
     g = {}
     for state in ("start", "midpoint"):
         cfg = IdentifyConfig(suds=SudsConfig(linear_order=6, bilinear_order=3, state=state), order_grid=())
-        g[state] = SudsIdentifier(cfg).fit(train).score(test).gamma_passive
+        g[state] = SudsIdentifier(cfg).fit(train).scores(test).gamma_passive
     print(g)
     assert g["start"] > g["midpoint"] + 0.005
 
@@ -90,6 +100,19 @@ def test_interval_state_and_config() -> None:
     np.testing.assert_array_equal(interval_state(SudsConfig(state="midpoint"), a, b), [0.5, 3.0])
     with pytest.raises(SudsConfigError, match="`state`"):
         SudsConfig(state="end")
+
+
+def test_segment_state() -> None:
+    """A segment takes its interval's row ("start") or the state at its own midpoint ("midpoint")."""
+    p0, p1 = np.array([0.0, 1.0]), np.array([0.5, 2.0])
+    a, b = np.array([[0.0, 2.0], [1.0, 1.0]]), np.array([[1.0, 4.0], [3.0, 1.0]])
+    frac = np.array([0.25, 1.0])
+    ph, r = segment_state(SudsConfig(), p0, p1, a, b, frac)
+    np.testing.assert_array_equal(ph, [0.25, 1.5])
+    np.testing.assert_array_equal(r, a)
+    ph, r = segment_state(SudsConfig(state="midpoint"), p0, p1, a, b, frac)
+    np.testing.assert_array_equal(ph, [0.125, 2.0])
+    np.testing.assert_array_equal(r, [[0.25, 2.5], [3.0, 1.0]])
 
 
 def test_model_dicts_without_a_state_are_midpoint_models(purcell3_run) -> None:

@@ -30,7 +30,7 @@ def test_streaming_chunking_is_exact_and_matches_batch_accuracy(purcell3_run) ->
         np.testing.assert_allclose(cb.coef_, ca.coef_, atol=1e-9 * np.abs(ca.coef_).max())
     a = ea.model()
     sc = score_prediction(evaluate_model(a, test))
-    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).score(test)
+    batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).scores(test)
     assert sc.gamma_body > batch.gamma_body - 0.05
     assert sc.gamma_passive > batch.gamma_passive - 0.05
 

@@ -7,7 +7,7 @@ import pytest
 
 from suds_ros.core.errors import NotFittedError, SudsConfigError, SudsDataError
 from suds_ros.core.ident.scoring import gamma
-from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, design_matrix, feature_layout
+from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, design_matrix, feature_layout, regressor_input
 
 
 def _data(n: int = 900, nj: int = 4, na: int = 2, n_out: int = 3, seed: int = 0):
@@ -15,7 +15,7 @@ def _data(n: int = 900, nj: int = 4, na: int = 2, n_out: int = 3, seed: int = 0)
     phase = np.cumsum(np.full(n, 2 * np.pi / 100)) + rng.normal(scale=0.01, size=n)
     delta = rng.normal(scale=0.2, size=(n, nj))
     dda = rng.normal(scale=2.0, size=(n, na))
-    X = np.concatenate([phase[:, None], delta, dda], axis=1)
+    X = regressor_input(phase, delta, dda, delta, dda)  # r, ṙ_a unused without random features
     y = rng.normal(size=(n, n_out)) + np.sin(phase)[:, None] + delta[:, :1] * dda[:, :1]
     return X, y
 
@@ -25,8 +25,8 @@ def _data(n: int = 900, nj: int = 4, na: int = 2, n_out: int = 3, seed: int = 0)
 def test_partial_fit_in_chunks_equals_fit(regressors: int, forgetting: float) -> None:
     X, y = _data()
     cfg = SudsConfig(regressors=regressors, forgetting=forgetting)
-    full = SudsRegressor(4, 2, cfg).fit(X, y)
-    inc = SudsRegressor(4, 2, cfg)
+    full = SudsRegressor(cfg, n_actuated=2).fit(X, y)
+    inc = SudsRegressor(cfg, n_actuated=2)
     for start, stop in [(0, 137), (137, 138), (138, 500), (500, 900)]:
         inc.partial_fit(X[start:stop], y[start:stop])
     assert inc.n_samples_seen_ == full.n_samples_seen_ == 900
@@ -37,9 +37,9 @@ def test_partial_fit_in_chunks_equals_fit(regressors: int, forgetting: float) ->
 def test_forgetting_weights_old_samples_geometrically() -> None:
     X, y = _data(n=300)
     lam = 0.99
-    est = SudsRegressor(4, 2, SudsConfig(forgetting=lam, ridge=0.0)).fit(X, y)
+    est = SudsRegressor(SudsConfig(forgetting=lam, ridge=0.0), n_actuated=2).fit(X, y)
     w = lam ** np.arange(299, -1, -1)
-    A = design_matrix(est.config, X[:, 0], X[:, 1:5], X[:, 5:])
+    A = design_matrix(est.config, X[:, 0], X[:, 1:5], X[:, 5:7])
     ref = np.linalg.lstsq(A * np.sqrt(w)[:, None], y * np.sqrt(w)[:, None], rcond=None)[0]
     np.testing.assert_allclose(est.coef_, ref, atol=1e-7)
 
@@ -72,14 +72,14 @@ def test_recovers_a_model_of_its_own_form_exactly() -> None:
     rng = np.random.default_rng(1)
     cfg = SudsConfig(regressors=2, intercept_order=3, linear_order=2, bilinear_order=1, ridge=0.0)
     X, _ = _data(n=2000, seed=2)
-    A = design_matrix(cfg, X[:, 0], X[:, 1:5], X[:, 5:])
+    A = design_matrix(cfg, X[:, 0], X[:, 1:5], X[:, 5:7])
     true = rng.normal(size=(A.shape[1], 3))
-    est = SudsRegressor(4, 2, cfg).fit(X, A @ true)
+    est = SudsRegressor(cfg, n_actuated=2).fit(X, A @ true)
     np.testing.assert_allclose(est.coef_, true, atol=1e-8)
     assert est.score(X, A @ true) == pytest.approx(1.0)
     # coefficient view agrees with prediction: C + C_r δ + B δ̇ + B_r δ⊗δ̇
     c = est.coefficients(X[:5, 0])
-    d, a = X[:5, 1:5], X[:5, 5:]
+    d, a = X[:5, 1:5], X[:5, 5:7]
     manual = c["C"] + np.einsum("kor,kr->ko", c["C_r"], d) + np.einsum("koa,ka->ko", c["B"], a) \
         + np.einsum("kora,kr,ka->ko", c["B_r"], d, a)
     np.testing.assert_allclose(manual, est.predict(X[:5]), atol=1e-9)
@@ -87,14 +87,16 @@ def test_recovers_a_model_of_its_own_form_exactly() -> None:
 
 def test_errors() -> None:
     X, y = _data(n=50)
-    est = SudsRegressor(4, 2)
+    est = SudsRegressor(n_actuated=2)
     with pytest.raises(NotFittedError, match="not fitted"):
         est.predict(X)
     with pytest.raises(NotFittedError, match="not fitted"):
         est.coefficients(X[:, 0])
-    with pytest.raises(SudsDataError, match=r"expected shape \(n, 7\)"):
-        est.fit(X[:, :5], y)
+    with pytest.raises(SudsDataError, match=r"expected shape \(n, 1 \+ 2·\(nj \+ 2\)\)"):
+        est.fit(X[:, :7], y)
     est.fit(X, y)
+    with pytest.raises(SudsDataError, match=r"expected shape \(n, 13\)"):
+        est.predict(X[:, :11])
     with pytest.raises(SudsDataError, match="expected 3 outputs"):
         est.partial_fit(X, y[:, :2])
     bad = X.copy()
