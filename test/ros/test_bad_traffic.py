@@ -96,7 +96,8 @@ def test_estimator_survives_bad_traffic(start_process, node_command, probe):
     from suds_ros.ros.qos import STATUS_QOS
 
     status = probe.listen("/suds/status", DiagnosticArray, STATUS_QOS)
-    est = start_process(node_command("estimator_node", "actuated:=['joint_1']", "pose_stall:=1.0"),
+    est = start_process(node_command("estimator_node", "actuated:=['joint_1']", "pose_stall:=1.0",
+                                     "max_pose_wait:=1.0"),
                         "estimator")
     wait_for(lambda: status.publishers() >= 1, 60, lambda: f"the estimator's /suds/status\n{est.output()}")
     pub = start_process([sys.executable, __file__], "publisher")

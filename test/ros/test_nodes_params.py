@@ -62,13 +62,17 @@ def test_bad_parameter_is_refused_with_reason(ros_context, kind, params, match):
         make(kind, ros_context, **params)
 
 
-def test_unreadable_checkpoint_stops_the_estimator(ros_context, tmp_path):
-    from suds_ros.core.errors import SudsDataError
-
+def test_unreadable_checkpoint_is_moved_aside_and_the_estimator_starts_afresh(ros_context, tmp_path):
     bad = tmp_path / "garbage.ckpt"
-    bad.write_bytes(b"not a pickle")
-    with pytest.raises(SudsDataError, match="unreadable"):
-        make("estimator", ros_context, checkpoint=str(bad))
+    bad.write_bytes(b"not a checkpoint")
+    node = make("estimator", ros_context, checkpoint=str(bad), actuated=["joint_1"])
+    try:
+        aside = tmp_path / "garbage.ckpt.refused-1"
+        assert node.session.refused_checkpoint == str(aside) and node.est is None
+        assert aside.read_bytes() == b"not a checkpoint" and not bad.exists()
+        assert node.status_values()["refused_checkpoint"] == str(aside)
+    finally:
+        node.destroy_node()
 
 
 def test_simulator_runtime_parameters(ros_context):
