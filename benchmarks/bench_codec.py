@@ -13,8 +13,8 @@ message:
 Our hand-written encoder is timed from ``suds_ros/io/cdr.py`` as it is at ``--baseline``
 (a git revision; default: the last commit that still had the hand-written encoders),
 loaded from git into a throw-away module, so the figures stay reproducible after the
-encoders were removed; our fast decoders are timed as they are in the work tree.  Each library's bytes are checked against the others before
-timing.  Writes docs/results/codec.md.
+encoders were removed; our fast decoders are timed as they are in the work tree.  Every
+encoder's bytes are checked against rosbags' before timing.  Writes docs/results/codec.md.
 
     python benchmarks/bench_codec.py [--baseline REV] [--seconds 0.2]
 """

@@ -3,5 +3,6 @@
 ``mcap`` (generic MCAP: writer, readers, :class:`~suds_ros.io.mcap.BagInfo`), ``mcap_scan`` (the
 tolerant reader of truncated or damaged files) and ``mcap_records`` (its record parsers),
 ``recording_bag`` (the recording contract: topics, metadata keys, reader and writer),
-``stamps`` (float ↔ ns, ROS stamps, quaternion yaw), ``cdr`` (CDR codec), ``msgdefs`` (schemas).
+``stamps`` (float ↔ ns, ROS stamps, quaternion yaw), ``cdr`` (CDR through rosbags, two fast
+decoders), ``msgdefs`` (schemas).
 """

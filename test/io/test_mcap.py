@@ -152,7 +152,7 @@ def test_writer_argument_errors(tmp_path: Path) -> None:
             w.add_topic("/x", "rosgraph_msgs/msg/Clock")
         with pytest.raises(SudsBagError, match=r"keys and values must be str"):
             w.write_metadata("suds", {"gait_hz": 1.0})  # type: ignore[dict-item]
-        w.write_raw("/x", cdr.serialize("std_msgs/msg/String", {"data": "hi"}), 5)
+        w.write_raw("/x", cdr.encode("std_msgs/msg/String", {"data": "hi"}), 5)
     from mcap.reader import make_reader
 
     with open(tmp_path / "b.mcap", "rb") as f:
