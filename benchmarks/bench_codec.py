@@ -22,6 +22,7 @@ encoder's bytes are checked against rosbags' before timing.  Writes docs/results
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
@@ -194,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", default=None, help="git revision of the hand-written cdr.py")
     ap.add_argument("--seconds", type=float, default=0.2, help="time per measurement (s)")
     args = ap.parse_args(argv)
+    load0 = os.getloadavg()[0]
     rev = args.baseline or _newest_with_encoders()
     ours = _baseline_module(rev)
     if ours is None:
@@ -227,7 +229,9 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(label, {k: {n: round(v, 2) for n, v in row[k].items()} for k in ("enc", "dec")},
               file=sys.stderr)
-    write("codec.md", report(rows, rev) + bag_report(args.seconds))
+    bags = bag_report(args.seconds)
+    load = f"Load average (1 min) {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end (shared machine).\n"
+    write("codec.md", report(rows, rev) + bags + "\n" + load)
     return 0
 
 

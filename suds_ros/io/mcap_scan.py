@@ -51,8 +51,9 @@ from suds_ros.io.mcap_records import (BLOCK, FOOTER_LEN, KNOWN_OPS, MAGIC, MESSA
 
 #: the fast path over the records of a decompressed chunk (``chunk``), where almost every
 #: record is a message: one unpack of the record head and one of the message head instead of
-#: ``mcap.records.Message.read``'s seven stream reads (``docs/results/codec.md``: the scan
-#: is several times faster; test_mcap.py checks it against ``mcap.stream_reader.breakup_chunk``)
+#: the seven stream reads of ``mcap.records.Message.read`` (the whole scan, damage checks
+#: included, beats the mcap package's StreamReader: ``docs/results/codec.md``; test_mcap.py
+#: checks the messages against it)
 _HEAD = struct.Struct("<BQ")
 _MESSAGE = struct.Struct("<HIQQ")  # channel_id, sequence, log_time, publish_time
 if _HEAD.size != RECORD_HEAD or _MESSAGE.size != MESSAGE_HEAD:  # pragma: no cover
