@@ -116,7 +116,8 @@ def _sequence(item: tuple[Any, Any]) -> Callable[[Any], Any]:
     if spec[0] == "string":
         return lambda v: [str(x) for x in (v if v is not None else ())]
     dtype = _NUMPY[spec[0]]
-    return lambda v: np.asarray(v if v is not None else (), dtype=dtype).reshape(-1)
+    # rosbags serializes arrays from their buffer: they must be contiguous
+    return lambda v: np.ascontiguousarray(np.asarray(v if v is not None else (), dtype=dtype).reshape(-1))
 
 
 def _primitive(spec: tuple[str, int], default: Any) -> Callable[[Any], Any]:
@@ -134,6 +135,11 @@ def _primitive(spec: tuple[str, int], default: Any) -> Callable[[Any], Any]:
             return v[0] if v else 0
         return 0 if v is None else int(v)
     return integer
+
+
+def _f64(values: Any) -> np.ndarray:
+    """``values`` (None: empty) as a contiguous float64 vector (rosbags serializes from the buffer)."""
+    return np.ascontiguousarray(np.asarray(() if values is None else values, dtype=np.float64).reshape(-1))
 
 
 def encode(type_name: str, msg: Any) -> bytes:
@@ -220,9 +226,7 @@ def joint_state(
         header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
                                         frame_id=frame_id),
         name=[str(n) for n in names],
-        position=np.asarray(position, dtype=np.float64).reshape(-1),
-        velocity=np.asarray(velocity, dtype=np.float64).reshape(-1),
-        effort=np.asarray(effort, dtype=np.float64).reshape(-1))
+        position=_f64(position), velocity=_f64(velocity), effort=_f64(effort))
     return bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
 
 

@@ -118,6 +118,17 @@ def test_joint_state_and_pose_helpers_round_trip() -> None:
     assert cdr.parse_pose_stamped(data) == (0, 5, "world", (1.0, 2.0, 3.0, 0.0, 0.0, 0.6, 0.8))
 
 
+def test_strided_arrays_encode() -> None:
+    """A row of a Fortran-ordered or column-picked array is not contiguous; it still encodes."""
+    r = np.asfortranarray(np.arange(12.0).reshape(4, 3))[:, [1, 0, 2]]
+    assert not r[2].flags.c_contiguous
+    data = cdr.joint_state(7, ["a", "b", "c"], r[2], (), r[1, ::-1])
+    assert cdr.parse_joint_state(data)[3:] == ((7.0, 6.0, 8.0), (), (5.0, 3.0, 4.0))
+    m = cdr.decode(JS, cdr.encode(JS, {"name": ["a", "b"], "position": r[::2, 0]}))
+    assert list(m.position) == [1.0, 7.0]
+    assert cdr.joint_state(7, ["a"], [1.0], None, None) == cdr.joint_state(7, ["a"], [1.0])
+
+
 def test_fast_decoders_agree_with_rosbags_on_random_messages() -> None:
     rng = np.random.default_rng(3)
     for _ in range(200):
