@@ -14,9 +14,11 @@ Our hand-written encoder is timed from ``suds_ros/io/cdr.py`` as it is at ``--ba
 (a git revision; default: the last commit that still had the hand-written encoders),
 loaded from git into a throw-away module, so the figures stay reproducible after the
 encoders were removed; our fast decoders are timed as they are in the work tree.  Every
-encoder's bytes are checked against rosbags' before timing.  Writes docs/results/codec.md.
+encoder's bytes are checked against rosbags' before timing.  Whole bags are read by our
+tolerant reader, by the one before it was streamed (``--scan-baseline``, loaded from git the
+same way) and by the mcap package's StreamReader.  Writes docs/results/codec.md.
 
-    python benchmarks/bench_codec.py [--baseline REV] [--seconds 0.2]
+    python benchmarks/bench_codec.py [--baseline REV] [--scan-baseline REV] [--seconds 0.2]
 """
 
 from __future__ import annotations
@@ -130,15 +132,38 @@ def _baseline_module(rev: str) -> types.ModuleType | None:
     return mod if hasattr(mod, "serialize") else None
 
 
-def _newest_with_encoders() -> str:
-    out = subprocess.run(["git", "log", "--format=%h", "--", "suds_ros/io/cdr.py"], cwd=ROOT,
-                         check=True, capture_output=True, text=True).stdout.split()
-    out.insert(0, "HEAD")
-    for rev in out:
-        if _baseline_module(rev) is not None:
+def _baseline_scan(rev: str) -> Callable[..., Any]:
+    """``scan`` of ``suds_ros/io/mcap_scan.py`` as of ``rev`` (the whole-file, hand-parsed reader)."""
+    mods = {}
+    for name in ("mcap_records", "mcap_scan"):
+        text = subprocess.run(["git", "show", f"{rev}:suds_ros/io/{name}.py"], cwd=ROOT, check=True,
+                              capture_output=True, text=True).stdout
+        text = text.replace("from suds_ros.io.mcap_records import", "from _baseline_mcap_records import")
+        mod = types.ModuleType(f"_baseline_{name}")
+        sys.modules[mod.__name__] = mod
+        exec(compile(text, f"{rev}:suds_ros/io/{name}.py", "exec"), mod.__dict__)  # noqa: S102
+        mods[name] = mod
+    return mods["mcap_scan"].scan
+
+
+def _newest_with(path: str, has: Callable[[str], bool]) -> str:
+    """The newest commit (short hash) whose ``path`` satisfies ``has(text)``."""
+    revs = subprocess.run(["git", "log", "--format=%h", "--", path], cwd=ROOT, check=True,
+                          capture_output=True, text=True).stdout.split()
+    for rev in ["HEAD", *revs]:
+        shown = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, capture_output=True, text=True)
+        if shown.returncode == 0 and has(shown.stdout):
             return subprocess.run(["git", "rev-parse", "--short", rev], cwd=ROOT, check=True,
                                   capture_output=True, text=True).stdout.strip()
-    raise SystemExit("no commit of suds_ros/io/cdr.py has the hand-written encoders")
+    raise SystemExit(f"no commit of {path} has what the baseline needs")
+
+
+def _newest_with_encoders() -> str:
+    return _newest_with("suds_ros/io/cdr.py", lambda text: "\ndef serialize(" in text)
+
+
+def _newest_whole_file_reader() -> str:
+    return _newest_with("suds_ros/io/mcap_records.py", lambda text: "\ndef read_file(" in text)
 
 
 # ---------------------------------------------------------------- timing
@@ -193,6 +218,8 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--baseline", default=None, help="git revision of the hand-written cdr.py")
+    ap.add_argument("--scan-baseline", default=None,
+                    help="git revision of the whole-file reader (default: the newest that had it)")
     ap.add_argument("--seconds", type=float, default=0.2, help="time per measurement (s)")
     args = ap.parse_args(argv)
     load0 = os.getloadavg()[0]
@@ -229,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(label, {k: {n: round(v, 2) for n, v in row[k].items()} for k in ("enc", "dec")},
               file=sys.stderr)
-    bags = bag_report(args.seconds)
+    bags = bag_report(args.seconds, args.scan_baseline or _newest_whole_file_reader())
     load = f"Load average (1 min) {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end (shared machine).\n"
     write("codec.md", report(rows, rev) + bags + "\n" + load)
     return 0
@@ -265,14 +292,13 @@ def _peak(fn: Callable[[], Any]) -> int:
         tracemalloc.stop()
 
 
-def bag_report(seconds: float) -> str:
-    """Whole-bag reading: our streamed scan against the mcap package's StreamReader; peak memory."""
+def bag_report(seconds: float, rev: str) -> str:
+    """Whole-bag reading: our streamed scan, the one at ``rev``, the mcap StreamReader; peak memory."""
     import tempfile
     from pathlib import Path
 
     from mcap.stream_reader import StreamReader
 
-    from suds_ros.io.mcap import bag_info
     from suds_ros.io.mcap_scan import scan
     from suds_ros.io.recording_bag import read_recording
 
@@ -281,26 +307,30 @@ def bag_report(seconds: float) -> str:
             for _ in StreamReader(f, validate_crcs=True).records:
                 pass
 
+    old_scan = _baseline_scan(rev)
     lines = ["", "## Reading whole bags", "",
              "Bags of n 9-joint JointState + n PoseStamped messages written by `BagWriter` (zstd, 256 KiB",
              "chunks).  `scan` is our tolerant reader (mcap records, streamed; messages inside chunks on",
              "its two-unpack fast path), keeping every payload; `mcap StreamReader` is the mcap package's",
              "sequential reader with CRC checks (every record parsed by `mcap.records`, nothing kept).",
-             "`read_recording` adds the decoding (fast decoders) and checks.  Peak: tracemalloc peak of",
-             "`bag_info` (no payloads kept).", "",
-             "| samples n | file MB | scan ms | mcap StreamReader ms | scan µs/msg | StreamReader µs/msg "
-             "| read_recording ms | bag_info peak MB |",
-             "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             f"`scan` at `{rev}` is the reader before this change (whole file in memory, hand-written",
+             "field readers).  `read_recording` adds the decoding (fast decoders) and checks.  Peak:",
+             "tracemalloc peak of a scan without payloads (what `bag_info` does).", "",
+             f"| samples n | file MB | scan ms | scan at {rev} ms | mcap StreamReader ms | scan µs/msg "
+             f"| read_recording ms | peak MB | peak at {rev} MB |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     with tempfile.TemporaryDirectory() as tmp:
         for n in (5000, 20000):
             path = Path(tmp) / f"bag{n}.mcap"
             size = _bag(path, n)
-            t = per_call_us({"scan": lambda: scan(path), "mcap": lambda: mcap_reader(path),
-                             "read": lambda: read_recording(path)}, seconds, rounds=3)
-            peak = _peak(lambda: bag_info(path))
-            lines.append(f"| {n} | {size / 1e6:.2f} | {t['scan'] / 1e3:.0f} | {t['mcap'] / 1e3:.0f} | "
-                         f"{t['scan'] / (2 * n):.2f} | {t['mcap'] / (2 * n):.2f} | {t['read'] / 1e3:.0f} | "
-                         f"{peak / 1e6:.2f} |")
+            t = per_call_us({"scan": lambda: scan(path), "old": lambda: old_scan(path),
+                             "mcap": lambda: mcap_reader(path), "read": lambda: read_recording(path)},
+                            seconds, rounds=3)
+            peak = _peak(lambda: scan(path, keep_messages=False))
+            old_peak = _peak(lambda: old_scan(path, keep_messages=False))
+            lines.append(f"| {n} | {size / 1e6:.2f} | {t['scan'] / 1e3:.0f} | {t['old'] / 1e3:.0f} | "
+                         f"{t['mcap'] / 1e3:.0f} | {t['scan'] / (2 * n):.2f} | {t['read'] / 1e3:.0f} | "
+                         f"{peak / 1e6:.2f} | {old_peak / 1e6:.2f} |")
             print(lines[-1], file=sys.stderr)
     return "\n".join(lines) + "\n"
 
