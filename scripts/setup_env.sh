@@ -14,8 +14,10 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 VPY="$VENV/bin/python"
 
-DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap
-      mcap-ros2-support matplotlib pytest rosbags flake8 pydocstyle foxglove-sdk)
+# runtime: rclpy and the messages, numpy, scipy, mcap, rosbags (the CDR codec, io/cdr.py);
+# tests and extras: mcap-ros2-support (a second CDR decoder), matplotlib, pytest, linters, foxglove-sdk
+DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap rosbags
+      mcap-ros2-support matplotlib pytest flake8 pydocstyle foxglove-sdk)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 

@@ -15,13 +15,12 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
-from typing import Any, BinaryIO, Callable
+from typing import Any, BinaryIO
 
 from suds_ros.core.errors import EXISTS, SudsBagError
-from suds_ros.io import msgdefs
+from suds_ros.io import cdr, msgdefs
 from suds_ros.io.mcap_records import Damage
 from suds_ros.io.mcap_scan import scan
 from suds_ros.io.stamps import ns_to_float
@@ -367,34 +366,18 @@ def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:
     return scan(path, keep_messages=False, chunks=False).metadata
 
 
-@lru_cache(maxsize=64)
-def _decoder(type_name: str, schema: bytes) -> Callable[[bytes], Any]:
-    from mcap.records import Schema
-    from mcap_ros2.decoder import DecoderFactory
-
-    rec = Schema(id=1, name=type_name, encoding="ros2msg", data=schema)
-    dec = DecoderFactory().decoder_for("cdr", rec)
-    if dec is None:  # pragma: no cover - factory always handles cdr + ros2msg
-        raise SudsBagError(f"no decoder for {type_name!r}")
-    return dec
-
-
 def decode_message(type_name: str, data: bytes, schema: bytes = b"") -> Any:
     """Decode CDR ``data`` of ``type_name`` with the bag's ``schema`` text (default: ``msg_defs``).
 
     Returns
     -------
     object
-        Message with attribute access by ROS field name (``msg.header.stamp.sec``).
+        Message with attribute access by ROS field name (``msg.header.stamp.sec``); see
+        :func:`suds_ros.io.cdr.decode`.
 
     Raises
     ------
     SudsBagError
         Unknown type or malformed data.
     """
-    dec = _decoder(type_name, schema or msgdefs.schema_text(type_name).encode("utf-8"))
-    try:
-        return dec(data)
-    except Exception as exc:  # mcap_ros2 raises assorted errors on bad input
-        raise SudsBagError(f"cannot decode {type_name!r} message ({len(data)} bytes): {exc}"
-                           ) from None
+    return cdr.decode(type_name, data, schema)

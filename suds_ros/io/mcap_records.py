@@ -1,113 +1,178 @@
-"""MCAP records for the tolerant reader: opcodes, bounded parsers, decompression, result types.
+"""MCAP records for the tolerant reader: the ``mcap`` package's parsers, bounded, on a streamed file.
 
-Every parser checks a length field against the bytes present before it slices
-or allocates, raising :class:`RecordError` (never ``struct.error`` or an
-over-long read), and :func:`decompress` bounds the decompressed size, so a
-corrupted file cannot make the reader allocate more than a small multiple of
-its own size.  The walk that uses them is :mod:`suds_ros.io.mcap_scan`.
+The record layouts, opcodes and field readers are the ``mcap`` package's
+(``mcap.records``, ``mcap.opcode``, ``mcap.data_stream``); this module bounds
+them.  A :class:`Source` reads the file piece by piece (never whole), and every
+record is parsed from a :class:`Strict` stream that refuses to read past the
+record's declared length, raising :class:`RecordError` before anything is read
+or allocated.  :func:`decompress` bounds the decompressed size (the ``mcap``
+package's chunk reader does not), so a corrupted file cannot make the reader
+allocate more than a small multiple of one record.  The walk that uses them is
+:mod:`suds_ros.io.mcap_scan`.
 """
 
 from __future__ import annotations
 
+import io
 import re
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
+
+from mcap import records as rec
+from mcap.data_stream import ReadDataStream, RecordBuilder
+from mcap.opcode import Opcode
+from mcap.writer import MCAP0_MAGIC as MAGIC
 
 from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
 from suds_ros.io.stamps import format_ns
 
-MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 1, 2, 3, 4, 5, 6
-OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS = 0x07, 0x08, 0x0B
-OP_METADATA, OP_DATA_END = 0x0C, 0x0F
 #: every opcode MCAP v0 defines (0x80–0xFF are for private records)
-KNOWN_OPS = frozenset(range(0x01, 0x10))
-SUMMARY_OPS = frozenset({0x03, 0x04, 0x08, 0x0A, 0x0B, 0x0D, 0x0E})
-U16, U32, U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
-MSG_HEAD = struct.Struct("<HIQQ")
-CHUNK_HEAD = struct.Struct("<QQQI")
-FOOTER = struct.Struct("<QQI")
-FOOTER_LEN = 9 + FOOTER.size
+KNOWN_OPS = frozenset(int(op) for op in Opcode)
+SUMMARY_OPS = frozenset({Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK_INDEX, Opcode.ATTACHMENT_INDEX,
+                         Opcode.STATISTICS, Opcode.METADATA_INDEX, Opcode.SUMMARY_OFFSET})
+#: records that may appear in the data section (where a resync search may land)
+DATA_OPS = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.CHUNK, Opcode.MESSAGE_INDEX,
+            Opcode.ATTACHMENT, Opcode.METADATA, Opcode.DATA_END)
 COMPRESSIONS = ("", "zstd", "lz4")
 #: a record start worth checking when searching for the next record after a bad one:
 #: a data-section opcode and a length below 2**32
-RESYNC = re.compile(rb"[\x03-\x07\x09\x0c\x0f][\x00-\xff]{4}\x00\x00\x00\x00", re.DOTALL)
+RESYNC = re.compile(b"[" + re.escape(bytes(sorted(DATA_OPS))) + rb"][\x00-\xff]{4}\x00\x00\x00\x00",
+                    re.DOTALL)
 #: decompressed chunks are at most this many times their compressed size (plus 1 MiB)…
 MAX_RATIO = 1024
 #: …and never larger than this (bytes)
 MAX_CHUNK = 1 << 31
+#: bytes read at a time where the file is walked or searched rather than parsed record by record
+BLOCK = 1 << 20
+
+
+def _encoded(record: rec.McapRecord) -> bytes:
+    out = RecordBuilder()
+    record.write(out)
+    return out.end()
+
+
+#: opcode (1) + length (8): the start of every record
+RECORD_HEAD = 9
+#: a whole footer record, and the fixed part of a message record (before its data)
+FOOTER_LEN = len(_encoded(rec.Footer(0, 0, 0)))
+MESSAGE_HEAD = len(_encoded(rec.Message(0, 0, b"", 0, 0))) - RECORD_HEAD
 
 
 class RecordError(ValueError):
     """A record that cannot be right; the message says why."""
 
 
-def take(buf: memoryview, pos: int, n: int) -> tuple[memoryview, int]:
-    if n < 0 or pos + n > len(buf):
-        raise RecordError(f"field of {n} bytes at {pos} overruns its record ({len(buf)} bytes)")
-    return buf[pos:pos + n], pos + n
+class Source:
+    """An open MCAP file read piece by piece: its size, and bytes at an offset."""
+
+    def __init__(self, path: Path, f: BinaryIO) -> None:
+        self.path, self.f = path, f
+        self.size = f.seek(0, io.SEEK_END)
+
+    def read(self, pos: int, n: int) -> bytes:
+        """Up to ``n`` bytes at ``pos`` (fewer only at the end of the file)."""
+        n = max(0, min(n, self.size - pos))
+        if n == 0:
+            return b""
+        self.f.seek(pos)
+        return self.f.read(n)
+
+    def head(self, pos: int) -> tuple[int, int] | None:
+        """``(opcode, length)`` of the record at ``pos`` (None if the file ends first)."""
+        raw = self.read(pos, RECORD_HEAD)
+        if len(raw) < RECORD_HEAD:
+            return None
+        s = ReadDataStream(io.BytesIO(raw))
+        return s.read1(), s.read8()
+
+    def close(self) -> None:
+        self.f.close()
 
 
-def read_int(fmt: struct.Struct, buf: memoryview, pos: int) -> tuple[int, int]:
-    if pos + fmt.size > len(buf):
-        raise RecordError(f"record of {len(buf)} bytes too short for its fields")
-    return fmt.unpack_from(buf, pos)[0], pos + fmt.size
+class _Window:
+    """A file-like view of ``[pos, …)`` of a :class:`Source` (what :class:`Strict` reads from)."""
+
+    def __init__(self, src: Source, pos: int) -> None:
+        self.src, self.pos = src, pos
+
+    def read(self, n: int) -> bytes:
+        data = self.src.read(self.pos, n)
+        self.pos += len(data)
+        return data
 
 
-def read_string(buf: memoryview, pos: int) -> tuple[str, int]:
-    n, pos = read_int(U32, buf, pos)
-    raw, pos = take(buf, pos, n)
-    return bytes(raw).decode("utf-8"), pos
+class Strict(ReadDataStream):
+    """An ``mcap`` read stream over one record body that cannot be read past its ``size``."""
+
+    def __init__(self, raw: Any, size: int) -> None:
+        super().__init__(raw)
+        self.size = size
+
+    def read(self, length: int) -> bytes:
+        """Exactly ``length`` bytes, or :class:`RecordError` (checked before reading)."""
+        if length < 0 or self.count + length > self.size:
+            raise RecordError(f"field of {length} bytes at {self.count} overruns its record "
+                              f"({self.size} bytes)")
+        data = super().read(length)
+        if len(data) != length:
+            raise RecordError(f"record of {self.size} bytes ends early (file changed?)")
+        return data
 
 
-def read_bytes(buf: memoryview, pos: int, size: struct.Struct = U32) -> tuple[memoryview, int]:
-    n, pos = read_int(size, buf, pos)
-    return take(buf, pos, n)
+def body_stream(body: bytes) -> Strict:
+    """A :class:`Strict` stream over a record body held in memory."""
+    return Strict(io.BytesIO(body), len(body))
 
 
-def read_map(buf: memoryview, pos: int) -> tuple[dict[str, str], int]:
-    raw, end = read_bytes(buf, pos)
-    out: dict[str, str] = {}
-    p = 0
-    while p < len(raw):
-        key, p = read_string(raw, p)
-        out[key], p = read_string(raw, p)
-    return out, end
+def file_stream(src: Source, pos: int, length: int) -> Strict:
+    """A :class:`Strict` stream over the ``length``-byte record body at ``pos`` of the file."""
+    return Strict(_Window(src, pos), length)
 
 
-def chunk_header(body: memoryview) -> tuple[int, int, int, int, str, memoryview]:
-    """``(start_ns, end_ns, uncompressed_size, crc, compression, compressed records)``."""
-    if len(body) < CHUNK_HEAD.size:
-        raise RecordError(f"chunk of {len(body)} bytes is shorter than its header")
-    start, end, size, crc = CHUNK_HEAD.unpack_from(body, 0)
-    compression, pos = read_string(body, CHUNK_HEAD.size)
-    data, pos = read_bytes(body, pos, U64)
-    if pos != len(body):
-        raise RecordError(f"chunk length {len(body)} does not match its fields ({pos} bytes)")
-    return start, end, size, crc, compression, data
+def parse(op: int, s: Strict) -> rec.McapRecord | None:
+    """The record of opcode ``op`` read from ``s`` by the ``mcap`` package (None: not parsed here).
+
+    Raises :class:`RecordError` (or ``UnicodeDecodeError``) for a record that cannot be right.
+    """
+    if op == Opcode.MESSAGE:
+        if s.size < MESSAGE_HEAD:
+            raise RecordError(f"message record of {s.size} bytes is shorter than its header")
+        return rec.Message.read(s, s.size)
+    if op == Opcode.CHUNK:
+        chunk = rec.Chunk.read(s)
+        if s.count != s.size:
+            raise RecordError(f"chunk length {s.size} does not match its fields ({s.count} bytes)")
+        return chunk
+    reader = _READERS.get(op)
+    return reader(s) if reader is not None else None
 
 
-def plausible(op: int, body: memoryview) -> bool:
-    """Whether ``body`` parses as a record of ``op`` (used to find records after a bad one)."""
+_READERS = {Opcode.SCHEMA: rec.Schema.read, Opcode.CHANNEL: rec.Channel.read,
+            Opcode.METADATA: rec.Metadata.read, Opcode.HEADER: rec.Header.read,
+            Opcode.MESSAGE_INDEX: rec.MessageIndex.read, Opcode.CHUNK_INDEX: rec.ChunkIndex.read,
+            Opcode.STATISTICS: rec.Statistics.read, Opcode.DATA_END: rec.DataEnd.read,
+            Opcode.FOOTER: rec.Footer.read}
+
+
+def plausible(op: int, s: Strict) -> bool:
+    """Whether the body in ``s`` parses as a record of ``op`` (used to find records after a bad one)."""
     try:
-        if op == OP_CHUNK:
-            start, end, _, _, compression, _ = chunk_header(body)
-            return start <= end and compression in COMPRESSIONS
-        if op == OP_MESSAGE:
-            return len(body) >= MSG_HEAD.size
-        if op == OP_MESSAGE_INDEX:
-            return len(body) >= 6 and (len(body) - 6) % 16 == 0
-        if op == OP_DATA_END:
-            return len(body) == 4
-        if op == OP_METADATA:
-            _, pos = read_string(body, 0)
-            return read_map(body, pos)[1] == len(body)
-        if op in (OP_SCHEMA, OP_CHANNEL):
-            pos = 2 if op == OP_SCHEMA else 4
-            _, pos = read_string(body, pos)
-            return len(body) >= pos
+        if op == Opcode.CHUNK:
+            chunk = parse(op, s)
+            assert isinstance(chunk, rec.Chunk)
+            return chunk.message_start_time <= chunk.message_end_time and \
+                chunk.compression in COMPRESSIONS
+        if op == Opcode.MESSAGE:
+            return s.size >= MESSAGE_HEAD
+        if op == Opcode.MESSAGE_INDEX:
+            return s.size >= 6 and (s.size - 6) % 16 == 0
+        if op == Opcode.DATA_END:
+            return s.size == 4
+        if op in (Opcode.METADATA, Opcode.SCHEMA, Opcode.CHANNEL):
+            parse(op, s)
+            return op != Opcode.METADATA or s.count == s.size
         return op in KNOWN_OPS
     except (RecordError, UnicodeDecodeError):
         return False
@@ -173,12 +238,12 @@ class Damage:
                 "topics": dict(self.topics)}
 
 
-def decompress(compression: str, data: memoryview, size: int) -> bytes | memoryview:
+def decompress(compression: str, data: bytes, size: int) -> bytes:
     """Records of a chunk, exactly ``size`` bytes (raises :class:`RecordError` otherwise)."""
     if size > min(MAX_CHUNK, MAX_RATIO * len(data) + (1 << 20)):
         raise RecordError(f"implausible uncompressed size {size} for {len(data)} compressed bytes")
     if compression == "":
-        out: bytes | memoryview = data
+        out = data
     elif compression == "zstd":
         import zstandard
 
@@ -194,7 +259,7 @@ def decompress(compression: str, data: memoryview, size: int) -> bytes | memoryv
         import lz4.frame
 
         try:
-            out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
+            out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
         except RuntimeError as exc:
             raise RecordError(f"lz4: {exc}") from None
     else:
@@ -241,24 +306,18 @@ class Summary:
     stats_total: int | None = None
     stats_counts: dict[int, int] = field(default_factory=dict)
 
-    def add(self, op: int, body: memoryview) -> None:
+    def add(self, record: rec.McapRecord | None) -> None:
         """Take in a chunk index or statistics record (other records are ignored)."""
-        if op == OP_CHUNK_INDEX:
-            if len(body) < 32:
-                raise RecordError("chunk index record too short")
-            start, end, offset, length = struct.unpack_from("<QQQQ", body, 0)
-            self.chunk_index[offset] = (start, end, length)
-        elif op == OP_STATISTICS:
-            total, p = read_int(U64, body, 0)
-            counts, _ = read_bytes(body, p + 2 + 4 * 4 + 16)
-            if len(counts) % 10:
-                raise RecordError("statistics channel counts have a bad length")
-            self.stats_total = total
-            self.stats_counts = {c: k for c, k in struct.iter_unpack("<HQ", counts)}
+        if isinstance(record, rec.ChunkIndex):
+            self.chunk_index[record.chunk_start_offset] = (
+                record.message_start_time, record.message_end_time, record.chunk_length)
+        elif isinstance(record, rec.Statistics):
+            self.stats_total = record.message_count
+            self.stats_counts = dict(record.channel_message_counts)
 
 
-def read_file(path: str | Path) -> tuple[Path, bytes]:
-    """Resolve ``path`` (a file, or a rosbag2 directory with one ``.mcap``) and read it.
+def open_file(path: str | Path) -> Source:
+    """Resolve ``path`` (a file, or a rosbag2 directory with one ``.mcap``) and open it.
 
     Raises
     ------
@@ -273,26 +332,35 @@ def read_file(path: str | Path) -> tuple[Path, bytes]:
             raise SudsBagError(msg)
         p = found[0]
     try:
-        return p, p.read_bytes()
+        return Source(p, open(p, "rb"))  # noqa: SIM115 - closed by the caller
     except FileNotFoundError:
         raise SudsBagError(f"{p}: no such file") from None
     except OSError as exc:
         raise SudsBagError(f"{p}: cannot read: {exc.strerror}") from None
 
 
-def check_start(p: Path, buf: bytes) -> None:
-    """Raise :class:`SudsBagError` unless ``buf`` starts with the magic and a complete header."""
-    n = len(buf)
+def check_start(src: Source) -> int:
+    """Length of the header record; :class:`SudsBagError` unless the file starts with the magic and it.
+
+    Raises
+    ------
+    SudsBagError
+        Empty or foreign file, or one cut before the end of its header record.
+    """
+    p, n = src.path, src.size
+    start = src.read(0, 8)
     if n == 0:
         raise SudsBagError(f"{p}: file is empty (0 bytes), not an MCAP recording",
                            code=DAMAGED_BAG)
-    if buf[:8] != MAGIC:
-        if n < 8 and MAGIC.startswith(buf):
+    if start != MAGIC:
+        if n < 8 and MAGIC.startswith(start):
             raise SudsBagError(f"{p}: truncated MCAP file: only {n} bytes of the 8-byte magic",
                                code=DAMAGED_BAG)
         raise SudsBagError(
-            f"{p}: not an MCAP file (starts with {buf[:8]!r}, expected the magic {MAGIC!r})",
+            f"{p}: not an MCAP file (starts with {start!r}, expected the magic {MAGIC!r})",
             code=DAMAGED_BAG)
-    if n < 17 or buf[8] != OP_HEADER or 17 + U64.unpack_from(buf, 9)[0] > n:
+    head = src.head(8)
+    if head is None or head[0] != Opcode.HEADER or 8 + RECORD_HEAD + head[1] > n:
         msg = f"{p}: truncated MCAP file: the header record is incomplete ({n} bytes)"
         raise SudsBagError(msg, code=DAMAGED_BAG)
+    return head[1]

@@ -22,25 +22,45 @@ read instead of failing on it:
 * duplicated chunks are read once; records in any order are accepted
   (messages are sorted by log time at the end).
 
-Lengths are checked and sizes bounded before anything is allocated
-(:mod:`suds_ros.io.mcap_records`).  Nothing here knows the recording contract;
-the writer and bag summaries are in :mod:`suds_ros.io.mcap`.
+The file is streamed, never read whole: records are read one at a time (a
+chunk, then its decompressed records), the byte search reads blocks, and the
+data-section CRC is accumulated as the walk goes, so memory does not grow with
+the file (only with the messages kept).  Records are parsed by the ``mcap``
+package; lengths are checked and sizes bounded before anything is read or
+allocated (:mod:`suds_ros.io.mcap_records`).  Nothing here knows the recording
+contract; the writer and bag summaries are in :mod:`suds_ros.io.mcap`.
 """
 
 from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mcap import records as rec
+from mcap.opcode import Opcode
+
 from suds_ros.core.errors import DAMAGED_BAG, SudsBagError
-from suds_ros.io.mcap_records import (FOOTER, FOOTER_LEN, KNOWN_OPS, MAGIC, MSG_HEAD, OP_CHANNEL,
-                                      OP_CHUNK, OP_DATA_END, OP_FOOTER, OP_HEADER, OP_MESSAGE,
-                                      OP_MESSAGE_INDEX, OP_METADATA, OP_SCHEMA, RESYNC, SUMMARY_OPS,
-                                      U16, U32, U64, ChannelInfo, Damage, RecordError, ScanResult,
-                                      Summary, check_start, chunk_header, decompress, plausible,
-                                      read_bytes, read_file, read_int, read_map, read_string, take)
+from suds_ros.io.mcap_records import (BLOCK, FOOTER_LEN, KNOWN_OPS, MAGIC, MESSAGE_HEAD, RECORD_HEAD,
+                                      RESYNC, SUMMARY_OPS, ChannelInfo, Damage, RecordError,
+                                      ScanResult, Source, Strict, Summary, body_stream,
+                                      check_start, decompress, file_stream, open_file, parse,
+                                      plausible)
+
+#: the fast path over the records of a decompressed chunk (``chunk``), where almost every
+#: record is a message: one unpack of the record head and one of the message head instead of
+#: the seven stream reads of ``mcap.records.Message.read`` (the whole scan, damage checks
+#: included, beats the mcap package's StreamReader: ``docs/results/codec.md``; test_mcap.py
+#: checks the messages against it)
+_HEAD = struct.Struct("<BQ")
+_MESSAGE = struct.Struct("<HIQQ")  # channel_id, sequence, log_time, publish_time
+if _HEAD.size != RECORD_HEAD or _MESSAGE.size != MESSAGE_HEAD:  # pragma: no cover
+    raise ImportError("the mcap package's record layout is not the one this fast path reads")
+
+_NAMES = {Opcode.MESSAGE: "message", Opcode.SCHEMA: "schema", Opcode.CHANNEL: "channel",
+          Opcode.METADATA: "metadata", Opcode.MESSAGE_INDEX: "message index"}
 
 
 # ---------------------------------------------------------------- the walk
@@ -60,10 +80,10 @@ class _Skip:
 class _Walker:
     """One pass over a file; see the module docstring for the rules."""
 
-    def __init__(self, path: Path, buf: bytes, topics: frozenset[str] | None, keep: bool,
+    def __init__(self, src: Source, topics: frozenset[str] | None, keep: bool,
                  chunks: bool) -> None:
-        self.buf, self.view, self.n = buf, memoryview(buf), len(buf)
-        self.r = ScanResult(path=path)
+        self.src, self.n = src, src.size
+        self.r = ScanResult(path=src.path)
         self.topics, self.keep, self.chunks = topics, keep, chunks
         self.skips: list[_Skip] = []
         self.times: dict[int, list[int]] = {}
@@ -76,91 +96,85 @@ class _Walker:
         self.bad_indexes: list[tuple[int, int]] = []
         self.summary: Summary | None = None
         self.footer_ok = False
+        #: data-section CRCs from byte 0 and from byte 8 up to ``crc_pos`` (None: not followed)
+        self.crc_pos: int | None = None
+        self.crc0 = self.crc8 = 0
 
     # ------------------------------------------------------------ records
-    def record(self, op: int, body: memoryview, pos: int) -> None:
-        """Apply one complete record; :class:`RecordError` and decoding errors propagate."""
+    def record(self, op: int, s: Strict, pos: int) -> None:
+        """Parse and apply one complete record; :class:`RecordError` and decoding errors propagate."""
         r = self.r
-        if op == OP_MESSAGE:
-            self.message(body)
-        elif op == OP_SCHEMA:
-            sid, p = read_int(U16, body, 0)
-            name, p = read_string(body, p)
-            encoding, p = read_string(body, p)
-            data, _ = read_bytes(body, p)
-            r.schemas[sid] = (name, encoding, bytes(data))
-        elif op == OP_CHANNEL:
-            cid, p = read_int(U16, body, 0)
-            sid, p = read_int(U16, body, p)
-            topic, p = read_string(body, p)
-            encoding, p = read_string(body, p)
-            meta, _ = read_map(body, p)
-            name, _, data = r.schemas.get(sid, ("", "", b""))
-            r.channels[cid] = ChannelInfo(topic, name, data, encoding, meta)
-        elif op == OP_CHUNK:
+        if op == Opcode.CHUNK:
             if self.chunks:
-                self.chunk(pos, body)
-        elif op == OP_MESSAGE_INDEX:
-            self.message_index(body, pos)
-        elif op == OP_METADATA:
-            name, p = read_string(body, 0)
-            r.metadata[name], _ = read_map(body, p)
-        elif op == OP_HEADER:
-            r.profile, p = read_string(body, 0)
-            r.library, _ = read_string(body, p)
+                self.chunk(pos, s)
+            return
+        record = parse(op, s)
+        if isinstance(record, rec.Message):
+            self.message(record.channel_id, record.log_time, record.publish_time, record.data)
+        elif isinstance(record, rec.Schema):
+            r.schemas[record.id] = (record.name, record.encoding, bytes(record.data))
+        elif isinstance(record, rec.Channel):
+            name, _, data = r.schemas.get(record.schema_id, ("", "", b""))
+            r.channels[record.id] = ChannelInfo(record.topic, name, data, record.message_encoding,
+                                                record.metadata)
+        elif isinstance(record, rec.MessageIndex):
+            self.message_index(record, pos)
+        elif isinstance(record, rec.Metadata):
+            r.metadata[record.name] = record.metadata
+        elif isinstance(record, rec.Header):
+            r.profile, r.library = record.profile, record.library
 
-    def message(self, body: memoryview) -> None:
-        if len(body) < MSG_HEAD.size:
-            raise RecordError(f"message record of {len(body)} bytes is shorter than its header")
-        cid, _seq, log_time, pub_time = MSG_HEAD.unpack_from(body, 0)
+    def message(self, cid: int, log_time: int, pub_time: int, data: bytes) -> None:
         r = self.r
         r.counts[cid] = r.counts.get(cid, 0) + 1
         span = self.times.setdefault(cid, [log_time, log_time])
-        span[0], span[1] = min(span[0], log_time), max(span[1], log_time)
+        if log_time < span[0]:
+            span[0] = log_time
+        elif log_time > span[1]:
+            span[1] = log_time
         if self.keep:
             ch = r.channels.get(cid)
             if ch is None or self.topics is None or ch.topic in self.topics:
-                r.messages.append((cid, log_time, pub_time, bytes(body[MSG_HEAD.size:])))
+                r.messages.append((cid, log_time, pub_time, data))
 
-    def message_index(self, body: memoryview, pos: int) -> None:
+    def message_index(self, index: rec.MessageIndex, pos: int) -> None:
         """Check a message index against the chunk before it, or count what a damaged one held."""
-        cid, p = read_int(U16, body, 0)
-        entries, _ = read_bytes(body, p)
         skip = self.after_chunk
         if skip is None:
             if self.last_read is not None:
                 chunk_pos, found = self.last_read
-                listed = sorted(struct.iter_unpack("<QQ", entries)) if len(entries) % 16 == 0 \
-                    else None
-                if listed != sorted(found.get(cid, [])):
+                if sorted(index.records) != sorted(found.get(index.channel_id, [])):
                     self.bad_indexes.append((pos, chunk_pos))
             return
-        lost = len(entries) // 16 - skip.read.get(cid, 0)
+        lost = len(index.records) - skip.read.get(index.channel_id, 0)
         skip.counts = skip.counts or {}
         if lost > 0:
-            skip.counts[cid] = skip.counts.get(cid, 0) + lost
+            skip.counts[index.channel_id] = skip.counts.get(index.channel_id, 0) + lost
 
-    def chunk(self, pos: int, body: memoryview) -> None:
+    def chunk(self, pos: int, s: Strict) -> None:
         """Read one chunk, or record why not (never raises for a bad chunk)."""
         self.after_chunk, self.last_read = None, None
         self.visited.add(pos)
         indexed = self.summary.chunk_index.get(pos) if self.summary else None
         try:
-            start, end, size, crc, compression, data = chunk_header(body)
+            chunk = parse(Opcode.CHUNK, s)
+            assert isinstance(chunk, rec.Chunk)
         except (RecordError, UnicodeDecodeError) as exc:
             times = indexed[:2] if indexed else (None, None)
             self.skip(pos, "chunk", f"malformed chunk header: {exc}", *times)
             return
+        start, end = chunk.message_start_time, chunk.message_end_time
+        size, crc = chunk.uncompressed_size, chunk.uncompressed_crc
         key = (start, end, size, crc)
-        if indexed and indexed[2] == len(body) + 9:
+        if indexed and indexed[2] == s.size + RECORD_HEAD:
             start, end = indexed[0], indexed[1]  # the CRC-checked index's times, for reports
         if key in self.read_keys:
             self.skips.append(_Skip(pos, "chunk", f"duplicate of the chunk at byte "
                                     f"{self.read_keys[key]}; read once", start, end, {}))
             return
-        self.r.compressions.add(compression or "none")
+        self.r.compressions.add(chunk.compression or "none")
         try:
-            records = decompress(compression, data, size)
+            records = decompress(chunk.compression, chunk.data, size)
             got = zlib.crc32(records) if crc else 0
             if got != crc:
                 raise RecordError(f"CRC of the uncompressed records is 0x{got:08x}, the chunk "
@@ -168,29 +182,35 @@ class _Walker:
         except (RecordError, MemoryError) as exc:
             self.after_chunk = self.skip(pos, "chunk", str(exc) or "out of memory", start, end)
             return
+        del chunk
         self.read_keys[key] = pos
         before = dict(self.r.counts)
         found: dict[int, list[tuple[int, int]]] = {}
-        inner = memoryview(records)
+        n = len(records)
         p = 0
-        while p < len(inner):
+        while p < n:
             try:
-                if p + 9 > len(inner):
-                    raise RecordError(f"{len(inner) - p} stray bytes at the end of the chunk")
-                op, length = inner[p], U64.unpack_from(inner, p + 1)[0]
-                if p + 9 + length > len(inner):
+                if p + RECORD_HEAD > n:
+                    raise RecordError(f"{n - p} stray bytes at the end of the chunk")
+                op, length = _HEAD.unpack_from(records, p)
+                body = p + RECORD_HEAD
+                if body + length > n:
                     raise RecordError(f"record at chunk offset {p} overruns the chunk")
-                if op in (OP_MESSAGE, OP_SCHEMA, OP_CHANNEL):
-                    self.record(op, inner[p + 9:p + 9 + length], -1)
-                if op == OP_MESSAGE:
-                    cid, _, log, _ = MSG_HEAD.unpack_from(inner, p + 9)
-                    found.setdefault(cid, []).append((log, p))
+                if op == Opcode.MESSAGE:
+                    if length < MESSAGE_HEAD:
+                        raise RecordError(f"message record of {length} bytes is shorter than "
+                                          "its header")
+                    cid, _, log_time, pub_time = _MESSAGE.unpack_from(records, body)
+                    self.message(cid, log_time, pub_time, records[body + MESSAGE_HEAD:body + length])
+                    found.setdefault(cid, []).append((log_time, p))
+                elif op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                    self.record(op, body_stream(records[body:body + length]), -1)
             except (RecordError, UnicodeDecodeError) as exc:
                 skip = self.skip(pos, "chunk", f"{exc}; rest of the chunk skipped", start, end)
                 skip.read = {c: k - before.get(c, 0) for c, k in self.r.counts.items()}
                 self.after_chunk = skip
                 return
-            p += 9 + length
+            p = body + length
         self.last_read = (pos, found)
 
     def skip(self, offset: int, record: str, reason: str, start: int | None = None,
@@ -202,20 +222,27 @@ class _Walker:
     # ------------------------------------------------------------ summary (via the footer)
     def read_summary(self) -> int:
         """Read the summary section if the footer and its CRC are intact; returns the data end."""
-        n, buf = self.n, self.buf
+        n, src = self.n, self.src
         fpos = n - 8 - FOOTER_LEN
-        if fpos < 8 or buf[n - 8:] != MAGIC or buf[fpos] != OP_FOOTER or \
-                U64.unpack_from(buf, fpos + 1)[0] != FOOTER.size:
+        if fpos < 8:
+            return n
+        tail = src.read(fpos, FOOTER_LEN + 8)
+        head = src.head(fpos)
+        if tail[FOOTER_LEN:] != MAGIC or head is None or head[0] != Opcode.FOOTER or \
+                head[1] != FOOTER_LEN - RECORD_HEAD:
             return n
         self.footer_ok = True
-        start, _, crc = FOOTER.unpack_from(buf, fpos + 9)
+        footer = parse(Opcode.FOOTER, body_stream(tail[RECORD_HEAD:FOOTER_LEN]))
+        assert isinstance(footer, rec.Footer)
+        start, crc = footer.summary_start, footer.summary_crc
         if start == 0:
             return fpos
         if not 8 < start <= fpos:
             self.skip(fpos, "summary", f"footer points to a summary at byte {start}, outside "
                       "the file; scanned the data section").counts = {}
             return fpos
-        if crc and zlib.crc32(self.view[start:fpos + 9 + 16]) != crc:
+        # the CRC covers the summary and the footer up to its summary_crc field
+        if crc and self.crc_of(start, fpos + FOOTER_LEN - 4) != crc:
             self.skip(start, "summary", "summary section CRC mismatch; ignored it and scanned "
                       "the data section").counts = {}
             return fpos
@@ -224,12 +251,18 @@ class _Walker:
         try:
             pos = start
             while pos < fpos:
-                op, length = buf[pos], U64.unpack_from(buf, pos + 1)[0]
-                body, pos = take(self.view, pos + 9, length)
-                if pos > fpos:
+                head = src.head(pos)
+                assert head is not None  # pos < fpos leaves the footer's bytes after it
+                op, length = head
+                if pos + RECORD_HEAD + length > fpos:
                     raise RecordError("a record overruns the footer")
-                self.summary_record(op, body, summary)
-        except (RecordError, UnicodeDecodeError, struct.error) as exc:
+                s = file_stream(src, pos + RECORD_HEAD, length)
+                if op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                    self.record(op, s, -1)
+                elif op in (Opcode.CHUNK_INDEX, Opcode.STATISTICS):
+                    summary.add(parse(op, s))
+                pos += RECORD_HEAD + length
+        except (RecordError, UnicodeDecodeError) as exc:
             self.r.schemas, self.r.channels = saved
             self.skip(start, "summary", f"malformed summary section ({exc}); ignored it and "
                       "scanned the data section").counts = {}
@@ -238,65 +271,95 @@ class _Walker:
         self.r.has_summary = True
         return start
 
-    def summary_record(self, op: int, body: memoryview, summary: Summary) -> None:
-        if op in (OP_SCHEMA, OP_CHANNEL):
-            self.record(op, body, -1)
-        else:
-            summary.add(op, body)
+    def crc_of(self, start: int, stop: int, crc: int = 0) -> int:
+        """CRC-32 of the file's bytes ``[start, stop)``, read block by block."""
+        for pos in range(start, stop, BLOCK):
+            crc = zlib.crc32(self.src.read(pos, min(BLOCK, stop - pos)), crc)
+        return crc
 
     # ------------------------------------------------------------ the data section
-    def walk(self, end: int) -> int:
+    def walk(self, end: int, header_length: int) -> int:
         """Walk records from after the header up to ``end``; returns where the walk stopped."""
-        buf, view = self.buf, self.view
-        pos = 8 + 9 + U64.unpack_from(buf, 9)[0]
+        src = self.src
+        pos = 8 + RECORD_HEAD + header_length
+        self.crc_pos, self.crc8 = pos, self.crc_of(8, pos)
+        self.crc0 = zlib.crc32(self.src.read(8, pos - 8), zlib.crc32(MAGIC))
         while pos < end:
-            op = buf[pos]
-            length = U64.unpack_from(buf, pos + 1)[0] if pos + 9 <= end else end
-            nxt = pos + 9 + length
+            head = src.head(pos) if pos + RECORD_HEAD <= end else None
+            op, length = head if head is not None else (src.read(pos, 1)[0], end)
+            nxt = pos + RECORD_HEAD + length
             if nxt > end or op not in KNOWN_OPS and (op < 0x80 or not self.next_ok(nxt, end)):
                 if nxt > end and not self.footer_ok and self.find_record(pos + 1, end) is None:
                     self.cut_short(pos, op)
                     return end
                 pos = self.resync(pos, op, end)
                 continue
-            if op == OP_FOOTER:
+            if op == Opcode.FOOTER:
                 return pos
-            if op == OP_HEADER:
+            body: bytes | None = None
+            if op != Opcode.CHUNK or self.chunks:
+                body = src.read(pos + RECORD_HEAD, length)
+            if op != Opcode.DATA_END:  # its CRC covers everything before it
+                self.follow_crc(pos, nxt, body)
+            if op == Opcode.HEADER:
                 self.skip(pos, "bytes", "a second header record in the data section"
                           ).counts = {}
-            elif op in KNOWN_OPS:
+            elif op in KNOWN_OPS and body is not None:
                 try:
-                    self.record(op, view[pos + 9:nxt], pos)
+                    self.record(op, body_stream(body), pos)
                 except (RecordError, UnicodeDecodeError) as exc:
-                    self.bad_record(pos, op, view[pos + 9:nxt], str(exc))
-            if op == OP_DATA_END:
-                self.check_data_crc(pos, view[pos + 9:nxt])
+                    self.bad_record(pos, op, body, str(exc))
+            if op == Opcode.DATA_END:
+                assert body is not None
+                self.check_data_crc(pos, body)
                 return nxt
             pos = nxt
         return pos
 
-    def bad_record(self, pos: int, op: int, body: memoryview, why: str) -> None:
-        names = {OP_MESSAGE: "message", OP_SCHEMA: "schema", OP_CHANNEL: "channel",
-                 OP_METADATA: "metadata", OP_MESSAGE_INDEX: "message index"}
-        skip = self.skip(pos, names.get(op, f"record 0x{op:02x}"), f"malformed: {why}")
-        if op == OP_MESSAGE and len(body) >= MSG_HEAD.size:
-            cid, _, log, _ = MSG_HEAD.unpack_from(body, 0)
-            skip.start_ns = skip.end_ns = log
-            skip.counts = {cid: 1}
-        elif op == OP_MESSAGE:
+    def follow_crc(self, pos: int, nxt: int, body: bytes | None) -> None:
+        """Add the record ``[pos, nxt)`` to the data-section CRCs if the walk has read every byte so far."""
+        if self.crc_pos != pos or body is None:
+            self.crc_pos = None
+            return
+        raw = self.src.read(pos, RECORD_HEAD)
+        self.crc0 = zlib.crc32(body, zlib.crc32(raw, self.crc0))
+        self.crc8 = zlib.crc32(body, zlib.crc32(raw, self.crc8))
+        self.crc_pos = nxt
+
+    def bad_record(self, pos: int, op: int, body: bytes, why: str) -> None:
+        skip = self.skip(pos, _NAMES.get(op, f"record 0x{op:02x}"), f"malformed: {why}")
+        if op == Opcode.MESSAGE and len(body) >= MESSAGE_HEAD:
+            m = rec.Message.read(body_stream(body), len(body))
+            skip.start_ns = skip.end_ns = m.log_time
+            skip.counts = {m.channel_id: 1}
+        elif op == Opcode.MESSAGE:
             skip.counts = None
-        elif op != OP_MESSAGE_INDEX:
+        elif op != Opcode.MESSAGE_INDEX:
             skip.counts = {}
 
     def next_ok(self, pos: int, end: int) -> bool:
         """Whether a record could start at ``pos`` (or the data section ends there)."""
         if pos == end:
             return True
-        if pos + 9 > end:
+        if pos + RECORD_HEAD > end:
             return False
-        op, length = self.buf[pos], U64.unpack_from(self.buf, pos + 1)[0]
-        return op in KNOWN_OPS and pos + 9 + length <= end and \
-            plausible(op, self.view[pos + 9:pos + 9 + length])
+        head = self.src.head(pos)
+        assert head is not None
+        op, length = head
+        return op in KNOWN_OPS and pos + RECORD_HEAD + length <= end and \
+            plausible(op, file_stream(self.src, pos + RECORD_HEAD, length))
+
+    def candidates(self, pos: int, end: int) -> Iterator[int]:
+        """Offsets in ``[pos, end)`` where :data:`RESYNC` matches, searching block by block."""
+        start = pos
+        while start < end:
+            stop = min(end, start + BLOCK)
+            data = self.src.read(start, min(end, stop + RECORD_HEAD - 1) - start)
+            for m in RESYNC.finditer(data):
+                if start + m.start() >= stop:
+                    break
+                yield start + m.start()
+            start = stop
 
     def find_record(self, pos: int, end: int) -> int | None:
         """The first offset ≥ ``pos`` where a plausible record followed by another one starts.
@@ -312,13 +375,14 @@ class _Walker:
             for o in (o for o in marks if pos <= o < end):
                 if self.next_ok(o, end):
                     return o
-        for m in RESYNC.finditer(self.buf, pos, end):
-            q = m.start()
+        for q in self.candidates(pos, end):
             if any(a < q < b for a, b in spans):
                 continue
             if self.next_ok(q, end):
-                nxt = q + 9 + U64.unpack_from(self.buf, q + 1)[0]
-                if self.next_ok(nxt, end) or (nxt + 9 > end and not self.footer_ok):
+                head = self.src.head(q)
+                assert head is not None
+                nxt = q + RECORD_HEAD + head[1]
+                if self.next_ok(nxt, end) or (nxt + RECORD_HEAD > end and not self.footer_ok):
                     return q
         return None
 
@@ -341,17 +405,17 @@ class _Walker:
         self.r.truncated = True
         self.r.problem = (f"file ends at byte {self.n} without a complete footer; read up to "
                           f"byte {pos}")
-        if op == OP_CHUNK and pos + 9 + 16 <= self.n:
-            start, end = struct.unpack_from("<QQ", self.buf, pos + 9)
+        if op == Opcode.CHUNK and pos + RECORD_HEAD + 16 <= self.n:
+            s = file_stream(self.src, pos + RECORD_HEAD, 16)  # the chunk's two log times
+            start, end = s.read8(), s.read8()
             self.skip(pos, "chunk", f"file ends inside this chunk (cut at byte {self.n})",
                       start, end).counts = None
-        elif op == OP_MESSAGE:
+        elif op == Opcode.MESSAGE:
             self.skip(pos, "message", f"file ends inside this message (cut at byte {self.n})")
 
-    def check_data_crc(self, pos: int, body: memoryview) -> None:
-        crc = U32.unpack_from(body, 0)[0] if len(body) >= 4 else 0
-        if crc and crc not in (zlib.crc32(self.view[:pos]), zlib.crc32(self.view[8:pos])) \
-                and not self.skips:
+    def check_data_crc(self, pos: int, body: bytes) -> None:
+        crc = rec.DataEnd.read(body_stream(body)).data_section_crc if len(body) >= 4 else 0
+        if crc and self.crc_pos is not None and not self.skips and crc not in (self.crc0, self.crc8):
             self.skip(pos, "data section", "data section CRC mismatch outside the chunks "
                       "(chunks passed their own CRC checks)").counts = None
 
@@ -361,10 +425,12 @@ class _Walker:
         They fill in only ids the data section did not define (its channel records may
         have been in a damaged chunk).  Without an intact footer the file is truncated.
         """
-        buf, n = self.buf, self.n
-        while pos + 9 <= n:
-            op, length = buf[pos], U64.unpack_from(buf, pos + 1)[0]
-            if pos + 9 + length > n or op not in KNOWN_OPS:
+        src, n = self.src, self.n
+        while pos + RECORD_HEAD <= n:
+            head = src.head(pos)
+            assert head is not None
+            op, length = head
+            if pos + RECORD_HEAD + length > n or op not in KNOWN_OPS:
                 q = self.find_record(pos + 1, n) if self.footer_ok else None
                 if q is None:
                     break
@@ -372,26 +438,26 @@ class _Walker:
                 continue
             if op in SUMMARY_OPS and not self.footer_ok:
                 self.r.has_summary = True
-            if op in (OP_SCHEMA, OP_CHANNEL):
-                self.salvage(op, self.view[pos + 9:pos + 9 + length])
-            if op == OP_FOOTER:
-                pos += 9 + length
-                if buf[pos:pos + 8] == MAGIC:
+            if op in (Opcode.SCHEMA, Opcode.CHANNEL):
+                self.salvage(op, file_stream(src, pos + RECORD_HEAD, length))
+            if op == Opcode.FOOTER:
+                pos += RECORD_HEAD + length
+                if src.read(pos, 8) == MAGIC:
                     return
                 break
-            pos += 9 + length
+            pos += RECORD_HEAD + length
         if self.footer_ok:
             return
         self.r.truncated = True
         self.r.problem = (f"file ends at byte {n} without a complete footer; read up to "
                           f"byte {pos}")
 
-    def salvage(self, op: int, body: memoryview) -> None:
+    def salvage(self, op: int, s: Strict) -> None:
         """A schema or channel record outside the data section, for an id still unknown."""
         r = self.r
         saved = (dict(r.schemas), dict(r.channels))
         try:
-            self.record(op, body, -1)
+            self.record(op, s, -1)
         except (RecordError, UnicodeDecodeError):
             return
         for old, new in zip(saved, (r.schemas, r.channels)):
@@ -405,8 +471,10 @@ class _Walker:
         for offset, (start, end, length) in sorted(self.summary.chunk_index.items()):
             if offset in self.visited or (start, end) in read:
                 continue
-            if offset + length <= self.n and length >= 9 and self.buf[offset] == OP_CHUNK:
-                self.chunk(offset, self.view[offset + 9:offset + length])
+            head = self.src.head(offset) if offset + length <= self.n and length >= 9 else None
+            if head is not None and head[0] == Opcode.CHUNK:
+                body = self.src.read(offset + RECORD_HEAD, length - RECORD_HEAD)
+                self.chunk(offset, body_stream(body))
             else:
                 self.skip(offset, "chunk", "the summary's chunk index points here but no chunk "
                           "record is there", start, end).counts = None
@@ -492,17 +560,21 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
     SudsBagError
         Missing, empty or foreign file, or one cut before the end of its header.
     """
-    p, buf = read_file(path)
-    check_start(p, buf)
-    walker = _Walker(p, buf, topics, keep_messages, chunks)
+    src = open_file(path)
     try:
-        walker.record(OP_HEADER, memoryview(buf)[17:17 + U64.unpack_from(buf, 9)[0]], 8)
-    except (RecordError, UnicodeDecodeError) as exc:
-        raise SudsBagError(f"{p}: malformed MCAP header record: {exc}", code=DAMAGED_BAG) from None
-    data_end = walker.read_summary()
-    stop = walker.walk(data_end)
-    if walker.summary is None and not walker.r.truncated:
-        walker.tail(stop)
-    if chunks:
-        walker.unread_indexed_chunks()
-    return walker.finish()
+        header_length = check_start(src)
+        walker = _Walker(src, topics, keep_messages, chunks)
+        try:
+            walker.record(Opcode.HEADER, file_stream(src, 8 + RECORD_HEAD, header_length), 8)
+        except (RecordError, UnicodeDecodeError) as exc:
+            raise SudsBagError(f"{src.path}: malformed MCAP header record: {exc}",
+                               code=DAMAGED_BAG) from None
+        data_end = walker.read_summary()
+        stop = walker.walk(data_end, header_length)
+        if walker.summary is None and not walker.r.truncated:
+            walker.tail(stop)
+        if chunks:
+            walker.unread_indexed_chunks()
+        return walker.finish()
+    finally:
+        src.close()

@@ -4,7 +4,7 @@ Every module that reads, writes, publishes or subscribes a contract topic takes
 its name from here.  :func:`read_recording` turns a contract bag into a
 :class:`~suds_ros.core.recording.Recording` and :func:`write_recording` the
 reverse, without rclpy (generic MCAP in :mod:`suds_ros.io.mcap`, CDR in
-:mod:`suds_ros.io.cdr`).
+:mod:`suds_ros.io.cdr`: rosbags, plus fast decoders of the two recorded streams).
 """
 
 from __future__ import annotations

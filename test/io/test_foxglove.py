@@ -62,7 +62,7 @@ def test_every_schema_we_write_reads_in_foxglove(tmp_path: Path) -> None:
     with BagWriter(path) as w:
         for i, (topic, (type_name, msg)) in enumerate(msgs.items()):
             w.add_topic(topic, type_name)
-            w.write_raw(topic, cdr.serialize(type_name, msg), log_time_ns=1000 + i)
+            w.write_raw(topic, cdr.encode(type_name, msg), log_time_ns=1000 + i)
     out = _read(path)
     assert set(out["topics"]) == set(msgs)
     assert out["first"]["/suds/predicted/body_velocity"]["twist"]["angular"]["z"] == pytest.approx(0.3)

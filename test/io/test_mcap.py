@@ -152,7 +152,7 @@ def test_writer_argument_errors(tmp_path: Path) -> None:
             w.add_topic("/x", "rosgraph_msgs/msg/Clock")
         with pytest.raises(SudsBagError, match=r"keys and values must be str"):
             w.write_metadata("suds", {"gait_hz": 1.0})  # type: ignore[dict-item]
-        w.write_raw("/x", cdr.serialize("std_msgs/msg/String", {"data": "hi"}), 5)
+        w.write_raw("/x", cdr.encode("std_msgs/msg/String", {"data": "hi"}), 5)
     from mcap.reader import make_reader
 
     with open(tmp_path / "b.mcap", "rb") as f:
@@ -249,3 +249,65 @@ def test_cut_chunk_is_reported_and_channels_lost_with_first_chunk(tmp_path: Path
     assert info.messages_lost == sum(x.messages for x in info.damage)
     with pytest.raises(SudsBagError, match=r"not in the bag.*\(the bag is damaged: .*chunk at byte"):
         read_recording(cut)
+
+
+# ------------------------------------------------------------------ streaming and the mcap package
+def _bag_of(path: Path, n: int) -> bytes:
+    """A bag of ``n`` shape and pose samples written by our writer; its bytes."""
+    rec = make_rec(n=n)
+    with BagWriter(path, overwrite=True, chunk_size=64 * 1024, chunk_interval=None) as w:
+        w.add_topic("/suds/shape", JS)
+        w.add_topic("/suds/body_pose", PS)
+        for k in range(n):
+            ns = int(float_to_ns(rec.t[k]))
+            w.write_raw("/suds/shape", cdr.joint_state(ns, rec.joint_names, rec.r[k]), ns)
+            w.write_raw("/suds/body_pose", cdr.pose_stamped(ns, (k, 0, 0), (0, 0, 0, 1)), ns)
+    return path.read_bytes()
+
+
+def _peak_bytes(fn, *args) -> int:
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        fn(*args)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_memory_does_not_grow_with_the_file(tmp_path: Path) -> None:
+    """bag_info streams the file: the peak is about one chunk, for a 4× larger file as well."""
+    sizes, peaks = [], []
+    for n in (4000, 16000):
+        data = _bag_of(tmp_path / f"b{n}.mcap", n)
+        chunks = [pos for pos, op in _top_records(data) if op == 0x06]
+        damaged = bytearray(data)
+        damaged[chunks[len(chunks) // 2] + 80] ^= 0x10  # one chunk in the middle
+        cut = data[:len(data) * 3 // 4]  # and a truncated copy
+        (tmp_path / "d.mcap").write_bytes(bytes(damaged))
+        (tmp_path / "c.mcap").write_bytes(cut)
+        assert bag_info(tmp_path / "d.mcap").damage and bag_info(tmp_path / "c.mcap").truncated
+        sizes.append(len(data))
+        peaks.append([_peak_bytes(bag_info, tmp_path / name)
+                      for name in (f"b{n}.mcap", "d.mcap", "c.mcap")])
+    assert sizes[1] > 3.5 * sizes[0]
+    for small, large in zip(*peaks):
+        assert large < 1.5 * small + 256 * 1024, (sizes, peaks)
+        assert large < sizes[1] / 4, (sizes, peaks)  # far below the file: never read whole
+
+
+def test_messages_equal_the_mcap_stream_reader(tmp_path: Path) -> None:
+    """The fast path over chunk records gives what the mcap package's own reader gives."""
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+
+    path = tmp_path / "b.mcap"
+    _bag_of(path, 700)
+    with open(path, "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+    topic = {r.id: r.topic for r in records if isinstance(r, Channel)}
+    theirs = sorted(((topic[m.channel_id], m.log_time, m.publish_time, m.data)
+                     for m in records if isinstance(m, Message)), key=lambda m: m[1])
+    ours = [(m.topic, m.log_time_ns, m.publish_time_ns, m.data) for m in iter_raw_messages(path)]
+    assert len(ours) == 1400 and ours == theirs

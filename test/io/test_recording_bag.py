@@ -289,7 +289,7 @@ def write_fleet(path: Path, robots: dict[str, object], meta: dict[str, str] | No
             info = {"system": rec.system, "joint_names": list(rec.joint_names), "actuated": list(rec.actuated),
                     "passive": list(rec.passive), "gait_hz": rec.gait_hz}
             t0 = int(float_to_ns(rec.t[0]))
-            w.write_raw(topics["y"], cdr.serialize(STRING_TYPE, {"data": json.dumps(info)}), t0, t0)
+            w.write_raw(topics["y"], cdr.encode(STRING_TYPE, {"data": json.dumps(info)}), t0, t0)
             for k, t in enumerate(rec.t):
                 n = int(float_to_ns(t))
                 w.write_raw(topics["s"], cdr.joint_state(n, rec.joint_names, rec.r[k], (), ()), n, n)

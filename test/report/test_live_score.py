@@ -65,7 +65,7 @@ def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace
             text = json.dumps({"system": rec.system, "joint_names": list(rec.joint_names),
                                "actuated": list(rec.actuated), "passive": list(rec.passive), "gait_hz": 1.0})
             t0 = float_to_ns(rec.t[0])
-            w.write_raw(namespaced(namespace, SYSTEM_TOPIC), cdr.serialize(STRING_TYPE, {"data": text}), t0, t0)
+            w.write_raw(namespaced(namespace, SYSTEM_TOPIC), cdr.encode(STRING_TYPE, {"data": text}), t0, t0)
         else:
             w.write_metadata(METADATA_NAME, info)
         for k, t in enumerate(rec.t):
@@ -79,7 +79,7 @@ def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace
                 twist = {"header": _header(ns), "twist": {
                     "linear": {"x": xi[0], "y": xi[1], "z": 0.0},
                     "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
-                w.write_raw(body, cdr.serialize(TWIST_TYPE, twist), ns, ns)
+                w.write_raw(body, cdr.encode(TWIST_TYPE, twist), ns, ns)
                 w.write_raw(passive, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
 
 
