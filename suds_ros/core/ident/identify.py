@@ -308,14 +308,16 @@ class SudsIdentifier(BaseEstimator):
         best, best_score = cfg.suds, np.inf
         for family in ms.families(cands):  # designs nest within a family (same random features)
             big = ms.largest(family)
+            P = feature_layout(big, nj, na).n_columns
             averaged = None
             if s.pose is not None:
                 W = s.pose.weights
                 averaged = ms.AveragedRows(
-                    A=np.asarray(W @ regressor_design(big, Xs, na, self.kernel_scale_)), y=s.pose.xi,
-                    template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]), columns=tuple(_BODY),
-                    fold_frac=np.asarray(W @ onehot))
-            problem = ms.CVProblem(A=regressor_design(big, X, na, self.kernel_scale_), y=s.Y[:, list(columns)],
+                    A=ms.LazyDesign(W.shape[0], P, _averaged_rows(big, Xs, W, na, self.kernel_scale_, P)),
+                    y=s.pose.xi, template=np.asarray(W @ self.output_template(s.seg_ph)[:, _BODY]),
+                    columns=tuple(_BODY), fold_frac=np.asarray(W @ onehot))
+            problem = ms.CVProblem(A=ms.LazyDesign(X.shape[0], P, _rows(big, X, na, self.kernel_scale_)),
+                                   y=s.Y[:, list(columns)],
                                    template=Yt[:, list(columns)], columns=columns,
                                    groups=tuple(g for g in groups if g), edges=edges, averaged=averaged)
             chosen, scores = ms.select(problem, family, nj, na)
@@ -379,6 +381,29 @@ class SudsIdentifier(BaseEstimator):
         """Regression parameters per output channel."""
         check_is_fitted(self)
         return self.regressor_.n_parameters
+
+
+def _rows(config: SudsConfig, X: FloatArray, n_actuated: int, kernel_scale: object) -> object:
+    """Rows a … b − 1 of the design of regressor rows X, on demand."""
+    return lambda a, b: regressor_design(config, X[a:b], n_actuated, kernel_scale)  # type: ignore[arg-type]
+
+
+def _averaged_rows(config: SudsConfig, Xs: FloatArray, W: object, n_actuated: int, kernel_scale: object,
+                   n_columns: int) -> object:
+    """Rows a … b − 1 of the averaged design W·A(Xs), built from the segments those rows use only."""
+    import scipy.sparse
+
+    Wc = scipy.sparse.csr_matrix(W)
+
+    def rows(a: int, b: int) -> FloatArray:
+        used = Wc.indices[Wc.indptr[a]:Wc.indptr[b]]
+        if not used.size:
+            return np.zeros((b - a, n_columns))
+        s0, s1 = int(used.min()), int(used.max()) + 1
+        A = regressor_design(config, Xs[s0:s1], n_actuated, kernel_scale)  # type: ignore[arg-type]
+        return np.asarray(Wc[a:b, s0:s1] @ A)
+
+    return rows
 
 
 def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tuple[Recording, Recording]:

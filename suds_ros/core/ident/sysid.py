@@ -57,6 +57,9 @@ from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.ident.shape_kernel import KernelScale, kernel_features
 
 
+#: most design values built at once by :meth:`SudsRegressor.partial_fit` and ``predict`` (40 MB)
+BLOCK_ELEMENTS = 5_000_000
+
 #: the interval states a regression row can be built on (see "Sampled-data state")
 STATES = ("start", "midpoint")
 
@@ -195,7 +198,7 @@ def design_matrix(
         "B": ddelta_a,
     }
     if config.regressors >= 2:
-        feats["B_r"] = (delta[:, :, None] * ddelta_a[:, None, :]).reshape(n, -1)
+        feats["B_r"] = (delta[:, :, None] * ddelta_a[:, None, :]).reshape(n, delta.shape[1] * ddelta_a.shape[1])
     if config.regressors == 3:
         feats["D_rr"] = _upper_products(delta)
         feats["D_aa"] = _upper_products(ddelta_a)
@@ -210,7 +213,7 @@ def design_matrix(
     cols = []
     for name, _, order in layout.groups:
         F = feats[name]
-        cols.append((F[:, :, None] * basis[:, None, : 2 * order + 1]).reshape(n, -1))
+        cols.append((F[:, :, None] * basis[:, None, : 2 * order + 1]).reshape(n, F.shape[1] * (2 * order + 1)))
     return np.concatenate(cols, axis=1)
 
 
@@ -366,6 +369,10 @@ class SudsRegressor(BaseEstimator):
 
     def _design(self, X: FloatArray) -> FloatArray:
         """The design of X for a fitted regressor: X as wide as in the first fit, hyperparameters unchanged."""
+        return regressor_design(self.config, self._check_input(X), self.n_actuated, self.kernel_scale)
+
+    def _check_input(self, X: FloatArray) -> FloatArray:
+        """X as floats, checked: as wide as in the first fit, the layout unchanged since."""
         layout = feature_layout(self.config, self.n_joints_, int(self.n_actuated))
         if layout != self.layout_:
             raise SudsConfigError(
@@ -377,7 +384,7 @@ class SudsRegressor(BaseEstimator):
                 f"X: expected shape (n, {self.n_features_in_}) = [phase, δ ({self.n_joints_}), δ̇_a "
                 f"({self.n_actuated}), r ({self.n_joints_}), ṙ_a ({self.n_actuated})] as in the first fit, "
                 f"got {X.shape}")
-        return regressor_design(self.config, X, self.n_actuated, self.kernel_scale)
+        return X
 
     @property
     def n_parameters(self) -> int:
@@ -414,41 +421,66 @@ class SudsRegressor(BaseEstimator):
             if X.ndim != 2:
                 raise SudsDataError(f"X: expected a 2-D array (n, 1 + 2·(nj + na)), got shape {X.shape}")
             nj = self._check_params(X.shape[1])
-            A = regressor_design(self.config, X, self.n_actuated, self.kernel_scale)
-            y = self._targets(y, A.shape[0], "y")
+            split_regressor_input(X, self.n_actuated)  # the rows' own checks (finite, width)
+            y = self._targets(y, X.shape[0], "y")
             self.n_features_in_ = X.shape[1]
             self.n_joints_ = nj
             self.layout_ = feature_layout(self.config, nj, int(self.n_actuated))
             self.avg_columns_ = () if averaged is None else tuple(int(c) for c in averaged.columns)
             self.n_outputs_ = y.shape[1] + len(self.avg_columns_)
-            self.normal_ = NormalEquations(A.shape[1], y.shape[1])
-            self.normal_avg_ = NormalEquations(A.shape[1], len(self.avg_columns_)) if self.avg_columns_ else None
+            p = self.layout_.n_columns
+            self.normal_ = NormalEquations(p, y.shape[1])
+            self.normal_avg_ = NormalEquations(p, len(self.avg_columns_)) if self.avg_columns_ else None
         else:
-            A = self._design(X)
-            y = self._targets(y, A.shape[0], "y")
+            split_regressor_input(self._check_input(X), self.n_actuated)  # finite: no bad chunk half-added
+            y = self._targets(y, X.shape[0], "y")
         if y.shape[1] != self.n_outputs_ - len(self.avg_columns_):
             raise SudsDataError(
                 f"y: expected {self.n_outputs_ - len(self.avg_columns_)} outputs as before, got {y.shape[1]}")
         lam = self.config.forgetting
-        m = A.shape[0]
+        m = X.shape[0]
         if averaged is not None:
             if tuple(averaged.columns) != self.avg_columns_:
                 raise SudsDataError(f"averaged.columns: expected {self.avg_columns_} as on the first call, "
                                     f"got {tuple(averaged.columns)}")
-            Aa = np.asarray(averaged.weights @ self._design(averaged.X))
-            ya = self._targets(averaged.y, Aa.shape[0], "averaged.y")
-            q = Aa.shape[0]
-            wa = lam ** ((q - 1 - np.arange(q)) * (m / max(q, 1))) if lam < 1.0 else None
-            self.normal_avg_.add(Aa, ya, wa, decay=lam**m)  # type: ignore[union-attr]
+            q = averaged.y.shape[0] if np.ndim(averaged.y) == 2 else np.size(averaged.y)
+            ya = self._targets(averaged.y, q, "averaged.y")
+            split_regressor_input(self._check_input(averaged.X), self.n_actuated)
+            if lam < 1.0:
+                Aa = np.asarray(averaged.weights @ self._design(averaged.X))
+                wa = lam ** ((q - 1 - np.arange(q)) * (m / max(q, 1)))
+                self.normal_avg_.add(Aa, ya, wa, decay=lam**m)  # type: ignore[union-attr]
+            else:
+                for a, b in self._blocks(q):
+                    self.normal_avg_.add(self._averaged_design(averaged, a, b), ya[a:b])  # type: ignore[union-attr]
         elif self.normal_avg_ is not None and lam < 1.0 and m:
             self.normal_avg_.decay(lam**m)
         if lam < 1.0:
-            self.normal_.add(A, y, lam ** np.arange(m - 1, -1, -1, dtype=float), decay=lam**m)
+            self.normal_.add(self._design(X), y, lam ** np.arange(m - 1, -1, -1, dtype=float), decay=lam**m)
         else:
-            self.normal_.add(A, y)
+            for a, b in self._blocks(m):  # the design a block of rows at a time: memory bounded
+                self.normal_.add(self._design(X[a:b]), y[a:b])
         self.n_samples_seen_ = self.normal_.n
         self._solve()
         return self
+
+    def _blocks(self, n: int) -> list[tuple[int, int]]:
+        """Row ranges whose designs hold at most :data:`BLOCK_ELEMENTS` values (one range if none)."""
+        step = max(1, BLOCK_ELEMENTS // max(self.layout_.n_columns, 1))
+        return [(a, min(a + step, n)) for a in range(0, n, step)] or [(0, 0)]
+
+    def _averaged_design(self, averaged: AveragedTargets, a: int, b: int) -> FloatArray:
+        """Rows a … b − 1 of the averaged design W·A, from the segments those rows use."""
+        import scipy.sparse
+
+        W = scipy.sparse.csr_matrix(averaged.weights)
+        if (a, b) == (0, W.shape[0]):
+            return np.asarray(W @ self._design(averaged.X))
+        used = W.indices[W.indptr[a]:W.indptr[b]]
+        if not used.size:
+            return np.zeros((b - a, self.layout_.n_columns))
+        s0, s1 = int(used.min()), int(used.max()) + 1
+        return np.asarray(W[a:b, s0:s1] @ self._design(np.asarray(averaged.X)[s0:s1]))
 
     @staticmethod
     def _targets(y: FloatArray, rows: int, name: str) -> FloatArray:
@@ -473,9 +505,13 @@ class SudsRegressor(BaseEstimator):
         self.coef_ = coef
 
     def predict(self, X: FloatArray) -> FloatArray:
-        """Predicted outputs (n, n_out)."""
+        """Predicted outputs (n, n_out), the design built a block of rows at a time."""
         check_is_fitted(self)
-        return self._design(X) @ self.coef_
+        X = np.asarray(X, dtype=float)
+        blocks = self._blocks(X.shape[0]) if X.ndim == 2 else [(0, 0)]
+        if len(blocks) == 1:
+            return self._design(X) @ self.coef_
+        return np.concatenate([self._design(X[a:b]) @ self.coef_ for a, b in blocks])
 
     def score(self, X: FloatArray, y: FloatArray) -> float:
         """Coefficient of determination R², averaged over outputs."""

@@ -156,3 +156,31 @@ def test_kernel_model_streams_like_batch_and_round_trips(purcell3_run) -> None:
     back = SudsModel.from_dict(a.to_dict())
     pa, pb = evaluate_model(a, test), evaluate_model(back, test)
     np.testing.assert_allclose(pb.model, pa.model)
+
+
+@pytest.mark.parametrize("lab", [False, True])
+def test_streamed_selection_equals_the_dense_one(purcell3_run, monkeypatch, lab: bool) -> None:
+    """Designs too large to build whole are streamed in blocks: the same scores, the same choice.
+
+    The block size is set to split folds and pose intervals at odd places; ``lab`` adds an
+    asynchronous pose stream (averaged rows).
+    """
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+
+    rec = (simulate_lab(make_system("purcell3"), SimConfig(cycles=12, seed=3), LabConditions()) if lab
+           else purcell3_run.slice(0, 1200))
+    cfg = IdentifyConfig(order_grid=((1, 0), (4, 2)), ridge_grid=(1e-7, 1e-4), kernel_grid=())
+    dense = SudsIdentifier(cfg).fit(rec)
+    monkeypatch.setattr(ms, "DENSE_LIMIT", 0)
+    monkeypatch.setattr(ms, "BLOCK_ROWS", 97)
+    calls = []
+    streamed_errors = ms._streamed_errors
+    monkeypatch.setattr(ms, "_streamed_errors", lambda *a: calls.append(1) or streamed_errors(*a))
+    streamed = SudsIdentifier(cfg).fit(rec)
+    assert calls  # the streamed path ran
+    assert streamed.cv_scores_.keys() == dense.cv_scores_.keys()
+    for k, v in dense.cv_scores_.items():
+        assert streamed.cv_scores_[k] == pytest.approx(v, rel=1e-9), k
+    assert streamed.regressor_.config == dense.regressor_.config

@@ -116,3 +116,31 @@ def test_gamma() -> None:
     assert gamma(truth + 0.5, truth - 1, truth) == pytest.approx(0.5)
     with pytest.raises(SudsDataError, match="undefined"):
         gamma(truth, truth, truth)
+
+
+def test_large_fits_and_predictions_build_the_design_in_blocks(monkeypatch) -> None:
+    """Memory is bounded by a block of rows; the fit and the predictions are those of one block."""
+    import scipy.sparse
+
+    from suds_ros.core.ident import sysid
+    from suds_ros.core.ident.sysid import AveragedTargets
+
+    X, y = _data(n=900)
+    q = 300  # averaged targets: each the mean of three consecutive rows' first two outputs
+    W = scipy.sparse.csr_matrix((np.full(900, 1 / 3), (np.repeat(np.arange(q), 3), np.arange(900))), shape=(q, 900))
+    avg = AveragedTargets(X=X, weights=W, y=np.asarray(W @ y[:, :2]), columns=(0, 1))
+    cfg = SudsConfig(regressors=2)
+    whole = SudsRegressor(cfg, n_actuated=2).fit(X, y[:, 2:], avg)
+    seen = []
+    design = sysid.regressor_design
+    monkeypatch.setattr(sysid, "regressor_design", lambda c, Xb, *a: seen.append(len(Xb)) or design(c, Xb, *a))
+    monkeypatch.setattr(sysid, "BLOCK_ELEMENTS", 64 * feature_layout(cfg, 4, 2).n_columns)
+    blocks = SudsRegressor(cfg, n_actuated=2).fit(X, y[:, 2:], avg)
+    assert max(seen) <= 3 * 64 and len(seen) > 900 // 64  # an averaged row spans 3 rows
+    np.testing.assert_allclose(blocks.coef_, whole.coef_, rtol=0, atol=1e-9 * np.abs(whole.coef_).max())
+    np.testing.assert_allclose(blocks.predict(X), whole.predict(X), rtol=0, atol=1e-9)
+    with pytest.raises(SudsDataError, match="NaN or Inf"):  # a bad row anywhere: nothing is added
+        bad = X.copy()
+        bad[-1, 1] = np.nan
+        blocks.partial_fit(bad, y[:, 2:])
+    assert blocks.n_samples_seen_ == 900
