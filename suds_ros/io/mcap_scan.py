@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -77,14 +77,18 @@ class _Skip:
     read: dict[int, int] = field(default_factory=dict)  # read per channel (chunk cut short)
 
 
+#: takes one message: its channel, log time (ns) and CDR payload
+MessageSink = Callable[[ChannelInfo, int, bytes], None]
+
+
 class _Walker:
     """One pass over a file; see the module docstring for the rules."""
 
     def __init__(self, src: Source, topics: frozenset[str] | None, keep: bool,
-                 chunks: bool) -> None:
+                 chunks: bool, sink: MessageSink | None = None) -> None:
         self.src, self.n = src, src.size
         self.r = ScanResult(path=src.path)
-        self.topics, self.keep, self.chunks = topics, keep, chunks
+        self.topics, self.keep, self.chunks, self.sink = topics, keep, chunks, sink
         self.skips: list[_Skip] = []
         self.times: dict[int, list[int]] = {}
         self.read_keys: dict[tuple[int, int, int, int], int] = {}
@@ -135,7 +139,10 @@ class _Walker:
         if self.keep:
             ch = r.channels.get(cid)
             if ch is None or self.topics is None or ch.topic in self.topics:
-                r.messages.append((cid, log_time, pub_time, data))
+                if self.sink is not None and ch is not None:
+                    self.sink(ch, log_time, data)  # handed over as read: nothing kept here
+                else:  # (a channel record may come after its messages in a damaged file)
+                    r.messages.append((cid, log_time, pub_time, data))
 
     def message_index(self, index: rec.MessageIndex, pos: int) -> None:
         """Check a message index against the chunk before it, or count what a damaged one held."""
@@ -501,6 +508,10 @@ class _Walker:
         r.messages = [m for m in r.messages if m[0] in known and
                       (self.topics is None or r.channels[m[0]].topic in self.topics)]
         r.messages.sort(key=lambda m: m[1])
+        if self.sink is not None:  # the messages whose channel record came after them
+            for cid, log_time, _, data in r.messages:
+                self.sink(r.channels[cid], log_time, data)
+            r.messages = []
         self.fill_from_statistics()
         topic = {c: ch.topic for c, ch in r.channels.items()}
         for s in self.skips:
@@ -536,7 +547,7 @@ class _Walker:
 
 
 def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_messages: bool = True,
-         chunks: bool = True) -> ScanResult:
+         chunks: bool = True, sink: MessageSink | None = None) -> ScanResult:
     """Read every intact record of an MCAP file; report what was damaged.
 
     Parameters
@@ -549,6 +560,10 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
         Keep message payloads (False: only count them).
     chunks : bool
         Unpack chunks (False: skip them; channels and messages inside are not seen).
+    sink : callable (channel, log time ns, data), optional
+        Takes each kept message as it is read (in file order; a message read before its
+        channel record comes at the end), instead of ``ScanResult.messages``: memory then does
+        not grow with the file.  The damage report is the same.
 
     Returns
     -------
@@ -563,7 +578,7 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
     src = open_file(path)
     try:
         header_length = check_start(src)
-        walker = _Walker(src, topics, keep_messages, chunks)
+        walker = _Walker(src, topics, keep_messages, chunks, sink)
         try:
             walker.record(Opcode.HEADER, file_stream(src, 8 + RECORD_HEAD, header_length), 8)
         except (RecordError, UnicodeDecodeError) as exc:

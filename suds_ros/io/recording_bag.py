@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import struct
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ from suds_ros.core.errors import (
     SudsBagError,
     SudsConfigError,
     SudsDataError,
+    SudsError,
 )
 from suds_ros.core.recording import Recording
 from suds_ros.io import cdr
@@ -116,8 +118,8 @@ def namespaced(namespace: str, topic: str) -> str:
     return namespace + topic
 
 
-def _select(res: ScanResult, topic: str, type_name: str) -> list[tuple[int, bytes, bytes]]:
-    """``(sample index, data, schema)`` list of ``topic``'s messages of ``type_name``."""
+def _check_topic(res: ScanResult, topic: str, type_name: str, n_messages: int) -> None:
+    """Raise unless ``topic`` is in the bag with ``type_name``, CDR, and ``n_messages`` > 0 were read."""
     present = sorted({ch.topic for ch in res.channels.values()})
     chans = {cid: ch for cid, ch in res.channels.items() if ch.topic == topic}
     if not chans:
@@ -135,11 +137,8 @@ def _select(res: ScanResult, topic: str, type_name: str) -> list[tuple[int, byte
         if ch.message_encoding != "cdr":
             raise SudsBagError(f"{res.path}: topic {topic!r} has message encoding "
                                f"{ch.message_encoding!r}, expected 'cdr'")
-    out = [(k, data, good[cid].schema_data) for k, (cid, _, _, data)
-           in enumerate(m for m in res.messages if m[0] in good)]
-    if not out:
+    if not n_messages:
         raise SudsBagError(f"{res.path}: topic {topic!r} has no messages", code=MISSING_TOPIC)
-    return out
 
 
 def _decode(type_name: str, schema: bytes, data: bytes, where: str) -> Any:
@@ -150,62 +149,139 @@ def _decode(type_name: str, schema: bytes, data: bytes, where: str) -> Any:
         raise SudsBagError(f"{where}: {exc}", code=exc.code) from None
 
 
-def _read_shape(res: ScanResult, topic: str) -> tuple[
-        np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
-    """Stamps (n,) int ns, joint names, positions (n, nj) and efforts (n, nj) or None."""
-    sec, nsec, pos, eff = [], [], [], []
-    first: tuple[str, ...] | None = None
-    for k, data, schema in _select(res, topic, SHAPE_TYPE):
+class _Topic:
+    """Decodes one topic's messages as the scan reads them (compact arrays, not payloads).
+
+    Messages of another type or encoding are not taken (:func:`_check_topic` then names the
+    problem).  The first message that cannot be decoded or breaks the contract is kept as
+    ``error`` (raised after the scan, with the bag's damage report); later ones are counted only.
+    """
+
+    type_name = ""
+
+    def __init__(self, path: Path, topic: str) -> None:
+        self.path, self.topic = path, topic
+        self.n = 0
+        self.log = array("q")
+        self.sec = array("q")
+        self.nsec = array("q")
+        self.error: SudsError | None = None
+
+    def take(self, ch: Any, log_time: int, data: bytes) -> None:
+        if ch.schema_name != self.type_name or ch.message_encoding != "cdr":
+            return
+        k, self.n = self.n, self.n + 1
+        if self.error is not None:
+            return
+        try:
+            self.add(k, ch.schema_data, data)
+        except SudsError as exc:
+            self.error = exc
+            return
+        self.log.append(log_time)
+
+    def add(self, k: int, schema: bytes, data: bytes) -> None:
+        raise NotImplementedError
+
+    def order(self) -> np.ndarray:
+        """Indices that put the messages in log-time order (stable)."""
+        return np.argsort(np.frombuffer(self.log, dtype=np.int64), kind="stable")
+
+    def stamps(self, order: np.ndarray) -> np.ndarray:
+        return join_ns(np.frombuffer(self.sec, dtype=np.int64)[order], np.frombuffer(self.nsec, dtype=np.int64)[order])
+
+
+class _ShapeTopic(_Topic):
+    """JointState: stamps, joint names (one set), positions and efforts."""
+
+    type_name = SHAPE_TYPE
+
+    def __init__(self, path: Path, topic: str) -> None:
+        super().__init__(path, topic)
+        self.names: tuple[str, ...] | None = None
+        self.pos = array("d")
+        self.eff = array("d")
+        self.all_effort = True
+
+    def add(self, k: int, schema: bytes, data: bytes) -> None:
         try:
             s, ns, names, p, v, e = cdr.parse_joint_state(data)
         except (ValueError, struct.error, UnicodeDecodeError):
-            m = _decode(SHAPE_TYPE, schema, data, f"{res.path}: {topic}: sample {k}")
+            m = _decode(SHAPE_TYPE, schema, data, f"{self.path}: {self.topic}: sample {k}")
             s, ns = m.header.stamp.sec, m.header.stamp.nanosec
-            names, p, v, e = (tuple(m.name), tuple(m.position), tuple(m.velocity),
-                              tuple(m.effort))
-        stamp = format_ns(join_ns(s, ns))
-        if first is None:
-            first = names
-        elif names != first:
-            raise SudsDataError(f"{res.path}: {topic}: sample {k} (stamp {stamp}) has "
-                                f"joints {list(names)}, but sample 0 has {list(first)}",
+            names, p, v, e = (tuple(m.name), tuple(m.position), tuple(m.velocity), tuple(m.effort))
+        if self.names is None:
+            self.names = names
+        elif names != self.names:
+            raise SudsDataError(f"{self.path}: {self.topic}: sample {k} (stamp {format_ns(join_ns(s, ns))}) has "
+                                f"joints {list(names)}, but sample 0 has {list(self.names)}",
                                 code=WRONG_JOINT_NAMES)
-        nj = len(first)
+        nj = len(self.names)
         for field, vals in (("position", p), ("velocity", v), ("effort", e)):
             if len(vals) != nj and (field == "position" or len(vals) != 0):
                 raise SudsDataError(
-                    f"{res.path}: {topic}: sample {k} (stamp {stamp}): {field} has "
-                    f"{len(vals)} values for {nj} joints {list(first)}",
-                    code=WRONG_JOINT_COUNT)
-        sec.append(s)
-        nsec.append(ns)
-        pos.append(p)
-        eff.append(e)
-    assert first is not None
-    r = np.asarray(pos, dtype=float).reshape(len(pos), len(first))
-    effort = None
-    if first and all(len(e) == len(first) for e in eff):
-        effort = np.asarray(eff, dtype=float)
-    return join_ns(sec, nsec), first, r, effort
+                    f"{self.path}: {self.topic}: sample {k} (stamp {format_ns(join_ns(s, ns))}): {field} has "
+                    f"{len(vals)} values for {nj} joints {list(self.names)}", code=WRONG_JOINT_COUNT)
+        self.sec.append(s)
+        self.nsec.append(ns)
+        self.pos.extend(p)
+        if self.all_effort and nj and len(e) == nj:
+            self.eff.extend(e)
+        else:
+            self.all_effort = False
+
+    def result(self) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
+        """Stamps (n,) int ns, joint names, positions (n, nj) and efforts (n, nj) or None, by log time."""
+        assert self.names is not None
+        nj, o = len(self.names), self.order()
+        r = np.frombuffer(self.pos, dtype=float).reshape(-1, nj)[o] if nj else np.zeros((o.size, 0))
+        effort = np.frombuffer(self.eff, dtype=float).reshape(-1, nj)[o] if self.all_effort and nj else None
+        return self.stamps(o), self.names, r, effort
 
 
-def _read_pose(res: ScanResult, topic: str) -> tuple[np.ndarray, np.ndarray]:
-    """Pose stamps (m,) int ns and pose (m, 3): x (m), y (m), yaw (rad)."""
-    sec, nsec, vals = [], [], []
-    for k, data, schema in _select(res, topic, POSE_TYPE):
+class _PoseTopic(_Topic):
+    """PoseStamped: stamps, x, y and the quaternion (yaw taken at the end)."""
+
+    type_name = POSE_TYPE
+
+    def __init__(self, path: Path, topic: str) -> None:
+        super().__init__(path, topic)
+        self.vals = array("d")
+
+    def add(self, k: int, schema: bytes, data: bytes) -> None:
         try:
             s, ns, _, v = cdr.parse_pose_stamped(data)
         except (ValueError, struct.error, UnicodeDecodeError):
-            m = _decode(POSE_TYPE, schema, data, f"{res.path}: {topic}: sample {k}")
+            m = _decode(POSE_TYPE, schema, data, f"{self.path}: {self.topic}: sample {k}")
             s, ns = m.header.stamp.sec, m.header.stamp.nanosec
             p, o = m.pose.position, m.pose.orientation
             v = (p.x, p.y, p.z, o.x, o.y, o.z, o.w)
-        sec.append(s)
-        nsec.append(ns)
-        vals.append(v)
-    arr = np.asarray(vals, dtype=float).reshape(len(vals), 7)
-    pose = np.column_stack([arr[:, 0], arr[:, 1], quaternion_yaw(arr[:, 3:7])])
-    return join_ns(sec, nsec), pose
+        self.sec.append(s)
+        self.nsec.append(ns)
+        self.vals.extend(v)
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pose stamps (m,) int ns and pose (m, 3): x (m), y (m), yaw (rad), by log time."""
+        o = self.order()
+        arr = np.frombuffer(self.vals, dtype=float).reshape(-1, 7)[o]
+        return self.stamps(o), np.column_stack([arr[:, 0], arr[:, 1], quaternion_yaw(arr[:, 3:7])])
+
+
+class _RawTopic(_Topic):
+    """A few messages kept whole (the system description)."""
+
+    type_name = STRING_TYPE
+
+    def __init__(self, path: Path, topic: str) -> None:
+        super().__init__(path, topic)
+        self.raw: list[tuple[int, bytes, bytes]] = []
+
+    def add(self, k: int, schema: bytes, data: bytes) -> None:
+        self.raw.append((k, data, schema))
+
+    def last(self) -> tuple[int, bytes, bytes]:
+        """The last message by log time."""
+        return self.raw[int(self.order()[-1])]
 
 
 def _check_series(path: Path, topic: str, t_ns: np.ndarray, values: np.ndarray) -> None:
@@ -360,10 +436,14 @@ def read_recording_report(path: str | Path, *, system: str | None = None,
         ``namespace`` is not a ROS namespace.
     """
     shape_topic, pose_topic, system_topic = (namespaced(namespace, t) for t in (shape_topic, pose_topic, SYSTEM_TOPIC))
-    res = scan(path, frozenset({shape_topic, pose_topic, system_topic}))
+    path = Path(path)
+    topics = {shape_topic: _ShapeTopic(path, shape_topic), pose_topic: _PoseTopic(path, pose_topic),
+              system_topic: _RawTopic(path, system_topic)}
+    res = scan(path, frozenset(topics), sink=lambda ch, log_time, data: topics[ch.topic].take(ch, log_time, data))
     try:
-        meta = _description(res, system_topic, prefer_topic=bool(namespace))
-        rec = _to_recording(res, meta, system, actuated, passive, shape_topic, pose_topic)
+        meta = _description(res, topics[system_topic], prefer_topic=bool(namespace))  # type: ignore[arg-type]
+        rec = _to_recording(res, meta, system, actuated, passive, topics[shape_topic],  # type: ignore[arg-type]
+                            topics[pose_topic])  # type: ignore[arg-type]
     except (SudsBagError, SudsDataError) as exc:
         if not res.damage:
             raise
@@ -372,7 +452,7 @@ def read_recording_report(path: str | Path, *, system: str | None = None,
     return RecordingRead(rec, tuple(res.damage), res.truncated, str(res.path))
 
 
-def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict[str, str] | None:
+def _description(res: ScanResult, system: _RawTopic, prefer_topic: bool) -> dict[str, str] | None:
     """The robot's description as ``suds`` metadata keys: the metadata record or ``system_topic``.
 
     ``system_topic`` (:func:`parse_system_info`, as the simulator node publishes it) is used when
@@ -380,9 +460,11 @@ def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict
     counts.
     """
     meta = res.metadata.get(METADATA_NAME)
+    system_topic = system.topic
     if not (prefer_topic or meta is None) or not any(ch.topic == system_topic for ch in res.channels.values()):
         return meta
-    k, data, schema = _select(res, system_topic, STRING_TYPE)[-1]
+    _check_topic(res, system_topic, STRING_TYPE, len(system.raw))
+    k, data, schema = system.last()
     where = f"{res.path}: {system_topic}: message {k}"
     try:
         info = parse_system_info(_decode(STRING_TYPE, schema, data, where).data)
@@ -399,11 +481,16 @@ def _description(res: ScanResult, system_topic: str, prefer_topic: bool) -> dict
 
 
 def _to_recording(res: ScanResult, meta: dict[str, str] | None, system: str | None,
-                  actuated: Sequence[str] | None, passive: Sequence[str] | None, shape_topic: str,
-                  pose_topic: str) -> Recording:
+                  actuated: Sequence[str] | None, passive: Sequence[str] | None, shape: _ShapeTopic,
+                  pose_reader: _PoseTopic) -> Recording:
     """The body of :func:`read_recording` on a scanned file (``meta``: :func:`_description`)."""
-    t_ns, names, r, effort = _read_shape(res, shape_topic)
-    pose_ns, pose = _read_pose(res, pose_topic)
+    shape_topic, pose_topic = shape.topic, pose_reader.topic
+    for reader in (shape, pose_reader):
+        _check_topic(res, reader.topic, reader.type_name, reader.n)
+        if reader.error is not None:
+            raise reader.error
+    t_ns, names, r, effort = shape.result()
+    pose_ns, pose = pose_reader.result()
     _check_series(res.path, shape_topic, t_ns, r)
     _check_series(res.path, pose_topic, pose_ns, pose)
     t, pose_t = ns_to_float(t_ns), ns_to_float(pose_ns)

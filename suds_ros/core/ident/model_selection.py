@@ -38,8 +38,8 @@ from suds_ros.core.fourier import ridge_solve
 from suds_ros.core.ident.sysid import FeatureLayout, SudsConfig, feature_layout
 
 
-#: designs with at most this many elements are built whole (about 320 MB of float64)
-DENSE_LIMIT = 40_000_000
+#: designs with at most this many elements are built whole (80 MB of float64)
+DENSE_LIMIT = 10_000_000
 #: rows per block when a design is streamed
 BLOCK_ROWS = 20_000
 
