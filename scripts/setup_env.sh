@@ -14,12 +14,12 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 VPY="$VENV/bin/python"
 
-DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap
+DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy threadpoolctl mcap
       mcap-ros2-support matplotlib pytest rosbags flake8 pydocstyle foxglove-sdk)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 
-if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
+if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, threadpoolctl, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
   echo "setup_env: installing dependencies"
   "$VPY" -m pip install --quiet --disable-pip-version-check "${DEPS[@]}" "${BUILD[@]}"
 fi
