@@ -551,6 +551,10 @@ class RecordingWriter:
                 raise SudsDataError(f"`effort`: expected shape {r.shape}, got {effort.shape}")
         shape_ns = self._checked(0, t, r if effort is None else np.concatenate([r, effort], axis=1))
         pose_ns = self._checked(1, pose_t, pose)
+        for stream, ns in enumerate((shape_ns, pose_ns)):  # both checked: take them
+            if ns.size:
+                self._last[stream] = int(ns[-1])
+            self._counts[stream] += ns.size
         self._shape_ns = np.concatenate([self._shape_ns, shape_ns])
         self._r = np.concatenate([self._r, r])
         if effort is not None:
@@ -562,10 +566,10 @@ class RecordingWriter:
             self._emit(min(self._last))  # type: ignore[type-var]
 
     def _checked(self, stream: int, t: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """Stamps in ns of the next samples of ``stream`` (0 shape, 1 pose) after checking them."""
+        """Stamps in ns of the next samples of ``stream`` (0 shape, 1 pose), checked (nothing is kept)."""
         topic = self._topics[stream]
         first = self._counts[stream]
-        rows = ~np.all(np.isfinite(values.reshape(t.size, -1)), axis=1) | ~np.isfinite(t)
+        rows = ~np.all(np.isfinite(values), axis=1) | ~np.isfinite(t)
         if np.any(rows):
             k = int(np.flatnonzero(rows)[0])
             raise SudsDataError(f"{self.path}: {topic}: sample {first + k} (stamp {t[k]!r} s) "
@@ -576,9 +580,6 @@ class RecordingWriter:
             k = int(np.flatnonzero(np.diff(before) < 0)[0]) + (0 if self._last[stream] is None else -1)
             raise SudsDataError(f"{self.path}: {topic}: stamps are not sorted: sample {first + k + 1} "
                                 f"comes before sample {first + k}", code=OUT_OF_ORDER_STAMP)
-        if ns.size:
-            self._last[stream] = int(ns[-1])
-        self._counts[stream] += t.size
         return ns
 
     def _emit(self, upto: int | None) -> None:
