@@ -106,7 +106,7 @@ setup(
     version="0.1.0",
     packages=find_packages(include=[PACKAGE, PACKAGE + ".*"]),
     data_files=data_files,
-    install_requires=["setuptools", "numpy", "scipy", "mcap", "rosbags", "PyYAML"],
+    install_requires=["setuptools", "numpy", "scipy", "threadpoolctl", "mcap", "rosbags", "PyYAML"],
     extras_require={"plot": ["matplotlib"], "foxglove": ["foxglove-sdk"],
                     "test": ["pytest", "mcap-ros2-support", "flake8", "pydocstyle"]},
     python_requires=">=3.10",

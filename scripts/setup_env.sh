@@ -14,14 +14,14 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 VPY="$VENV/bin/python"
 
-# runtime: rclpy and the messages, numpy, scipy, mcap, rosbags (the CDR codec, io/cdr.py);
+# runtime: rclpy and the messages, numpy, scipy, threadpoolctl, mcap, rosbags (the CDR codec, io/cdr.py);
 # tests and extras: mcap-ros2-support (a second CDR decoder), matplotlib, pytest, linters, foxglove-sdk
-DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy mcap rosbags
+DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy threadpoolctl mcap rosbags
       mcap-ros2-support matplotlib pytest flake8 pydocstyle foxglove-sdk)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 
-if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
+if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, threadpoolctl, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
   echo "setup_env: installing dependencies"
   "$VPY" -m pip install --quiet --disable-pip-version-check "${DEPS[@]}" "${BUILD[@]}"
 fi

@@ -72,7 +72,8 @@ def test_ament_index_and_package_xml(venv_prefix):
     assert root.findtext("export/build_type") == "ament_python"
     deps = {e.text for e in root.findall("exec_depend")}
     assert {"rclpy", "sensor_msgs", "geometry_msgs", "diagnostic_msgs", "rosgraph_msgs",
-            "builtin_interfaces", "std_msgs", "python3-numpy", "python3-scipy"} <= deps
+            "builtin_interfaces", "std_msgs", "python3-numpy", "python3-scipy",
+            "python3-threadpoolctl"} <= deps
 
 
 def test_shared_files_and_msg_defs_package_data(venv_prefix):

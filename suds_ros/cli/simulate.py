@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -131,10 +130,16 @@ def lab_conditions(args: argparse.Namespace) -> object | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``suds simulate``; returns the exit code."""
-    from suds_ros.core.physics.sim import SimConfig, simulate
+    """Execute ``suds simulate``; returns the exit code.
+
+    The run is integrated a few cycles at a time and each block is written as it is made
+    (:func:`~suds_ros.core.physics.sim.simulate_blocks`, :class:`~suds_ros.io.recording_bag.RecordingWriter`),
+    so memory does not grow with ``--cycles``; the bag is the one the whole run written at once
+    would give.  A run that fails midway leaves no file behind.
+    """
+    from suds_ros.core.physics.sim import SimConfig, simulate_blocks
     from suds_ros.core.physics.systems import load_system
-    from suds_ros.io.recording_bag import write_recording
+    from suds_ros.io.recording_bag import RecordingWriter
 
     out = Path(args.output)
     if out.exists() and not args.overwrite:
@@ -156,18 +161,31 @@ def run(args: argparse.Namespace) -> int:
     cfg = SimConfig(cycles=args.cycles, seed=args.seed, noise_std=args.noise, ou_std=args.ou_std,
                     kappa=args.kappa, substeps=args.substeps, gait_hz=gait_hz,
                     pose_delay=pose_delay)
+    progress = progress_bar(f"simulating {system.name}")
     if lab is None:
-        rec = simulate(system, cfg, progress=progress_bar(f"simulating {system.name}"))
+        blocks = simulate_blocks(system, cfg, progress=progress)
     else:
-        from suds_ros.core.physics.lab import simulate_lab
+        from suds_ros.core.physics.lab import simulate_lab_blocks
 
-        rec = simulate_lab(system, cfg, lab)  # type: ignore[arg-type]
-    if args.effort:
-        eff = np.zeros_like(rec.r)
-        eff[:, rec.actuated_index] = rec.truth["effort"]
-        rec = replace(rec, effort=eff)
-    write_recording(out, rec, overwrite=args.overwrite, compression=args.compression)
-    poses = "" if lab is None else f", {rec.pose_t.size} poses"
-    print(f"wrote {out}: {system.name}, {args.cycles} cycles at {gait_hz:g} Hz, {rec.n_samples} samples"
+        blocks = simulate_lab_blocks(system, cfg, lab, progress=progress)  # type: ignore[arg-type]
+    names = system.joint_names
+    act = list(system.actuated)
+    writer = RecordingWriter(out, system=system.name, joint_names=names,
+                             actuated=[names[i] for i in act], passive=[names[i] for i in system.passive],
+                             gait_hz=gait_hz, overwrite=args.overwrite, compression=args.compression)
+    try:
+        with writer:
+            for b in blocks:
+                eff = None
+                if args.effort:
+                    eff = np.zeros_like(b.r)
+                    eff[:, act] = b.truth["effort"]
+                writer.write(b.t, b.r, b.pose_t, b.pose, eff)
+    except BaseException:
+        out.unlink(missing_ok=True)  # half a run is not the recording asked for
+        raise
+    n_shape, n_pose = writer.counts
+    poses = "" if lab is None else f", {n_pose} poses"
+    print(f"wrote {out}: {system.name}, {args.cycles} cycles at {gait_hz:g} Hz, {n_shape} samples"
           f"{poses}, seed {args.seed}")
     return 0

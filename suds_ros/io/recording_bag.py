@@ -528,28 +528,177 @@ def write_recording(path: str | Path, rec: Recording, *, overwrite: bool = False
     effort if ``rec.effort``), pose samples PoseStamped messages in frame
     ``world`` with a yaw-only quaternion; header stamps are the sample stamps and
     the log times equal them.  The ``suds`` metadata record holds system,
-    actuated, passive (comma-joined) and gait_hz (if known).
+    actuated, passive (comma-joined) and gait_hz (if known).  The same file as
+    :class:`RecordingWriter` given the recording in blocks.
     """
-    stamps = [int(ns) for ns in float_to_ns(rec.t)]
-    pose_stamps = [int(ns) for ns in float_to_ns(rec.pose_t)]
-    meta = {META_SYSTEM: rec.system, META_ACTUATED: ",".join(rec.actuated),
-            META_PASSIVE: ",".join(rec.passive)}
-    if rec.gait_hz is not None:
-        meta[META_GAIT_HZ] = repr(float(rec.gait_hz))
-    events: list[tuple[int, int, int]] = [(ns, 0, k) for k, ns in enumerate(stamps)]
-    events += [(ns, 1, k) for k, ns in enumerate(pose_stamps)]
-    events.sort()
-    quat = yaw_quaternion(rec.pose[:, 2])
-    with BagWriter(path, overwrite=overwrite, compression=compression) as w:
-        w.add_topic(shape_topic, SHAPE_TYPE)
-        w.add_topic(pose_topic, POSE_TYPE)
-        w.write_metadata(METADATA_NAME, meta)
-        for ns, kind, k in events:
-            if kind == 0:
-                eff = () if rec.effort is None else rec.effort[k]
-                data = cdr.joint_state(ns, rec.joint_names, rec.r[k], (), eff)
-                w.write_raw(shape_topic, data, ns, ns)
+    with RecordingWriter(path, system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated,
+                         passive=rec.passive, gait_hz=rec.gait_hz, overwrite=overwrite,
+                         compression=compression, shape_topic=shape_topic, pose_topic=pose_topic) as w:
+        w.write(rec.t, rec.r, rec.pose_t, rec.pose, rec.effort)
+
+
+class RecordingWriter:
+    """Write a contract bag block by block, as :func:`write_recording` writes a whole recording.
+
+    Each :meth:`write` takes the next samples of both streams; messages go to the bag in stamp
+    order (shape before pose at equal stamps) as soon as no later block can precede them, so
+    only the samples not yet past the other stream's newest stamp are held.  Blocks that
+    together make a :class:`Recording` give the file :func:`write_recording` writes for it,
+    byte for byte.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output ``.mcap``; never overwritten unless ``overwrite``.
+    system : str
+        System id (metadata).
+    joint_names, actuated, passive : sequence of str
+        Joint names, in the column order of the shape samples, and the joint roles.
+    gait_hz : float or None
+        Nominal gait frequency, Hz (metadata, if known).
+    overwrite, compression, shape_topic, pose_topic
+        As :func:`write_recording`.
+
+    Raises
+    ------
+    SudsBagError
+        The file exists (without ``overwrite``) or cannot be created.
+    """
+
+    def __init__(self, path: str | Path, *, system: str, joint_names: Sequence[str],
+                 actuated: Sequence[str], passive: Sequence[str], gait_hz: float | None = None,
+                 overwrite: bool = False, compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
+                 pose_topic: str = POSE_TOPIC) -> None:
+        self.joint_names = tuple(joint_names)
+        self._topics = (shape_topic, pose_topic)
+        meta = {META_SYSTEM: system, META_ACTUATED: ",".join(actuated), META_PASSIVE: ",".join(passive)}
+        if gait_hz is not None:
+            meta[META_GAIT_HZ] = repr(float(gait_hz))
+        self._writer = BagWriter(path, overwrite=overwrite, compression=compression)
+        self.path = self._writer.path
+        self._writer.add_topic(shape_topic, SHAPE_TYPE)
+        self._writer.add_topic(pose_topic, POSE_TYPE)
+        self._writer.write_metadata(METADATA_NAME, meta)
+        nj = len(self.joint_names)
+        # samples not yet written: stamps (ns) and values, per stream
+        self._shape_ns, self._r = np.empty(0, dtype=np.int64), np.empty((0, nj))
+        self._effort: np.ndarray | None = None
+        self._pose_ns, self._pose = np.empty(0, dtype=np.int64), np.empty((0, 3))
+        self._last = [None, None]  # newest stamp (ns) given per stream
+        self._counts = [0, 0]  # samples given per stream
+        self._closed = False
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def counts(self) -> tuple[int, int]:
+        """Shape and pose samples given so far."""
+        return self._counts[0], self._counts[1]
+
+    def write(self, t: np.ndarray, r: np.ndarray, pose_t: np.ndarray, pose: np.ndarray,
+              effort: np.ndarray | None = None) -> None:
+        """Add the next samples of each stream (either may be empty).
+
+        Parameters
+        ----------
+        t : (m,) float
+            Shape stamps, s, increasing and after the previous block's.
+        r : (m, nj) float
+            Joint values.
+        pose_t : (q,) float
+            Pose stamps, s, increasing and after the previous block's.
+        pose : (q, 3) float
+            x, y (m), yaw (rad).
+        effort : (m, nj) float or None
+            Joint efforts; given with every block or with none.
+
+        Raises
+        ------
+        SudsDataError
+            Wrong shapes, NaN or Inf, stamps out of order, effort given for some blocks only.
+        """
+        if self._closed:
+            raise SudsBagError(f"{self.path}: recording writer is closed")
+        t, pose_t = np.asarray(t, dtype=float).reshape(-1), np.asarray(pose_t, dtype=float).reshape(-1)
+        r, pose = np.asarray(r, dtype=float), np.asarray(pose, dtype=float)
+        nj = len(self.joint_names)
+        if r.shape != (t.size, nj):
+            raise SudsDataError(f"`r`: expected shape ({t.size}, {nj}), got {r.shape}")
+        if pose.shape != (pose_t.size, 3):
+            raise SudsDataError(f"`pose`: expected shape ({pose_t.size}, 3), got {pose.shape}")
+        if (effort is None) != (self._effort is None) and sum(self._counts):
+            raise SudsDataError("`effort`: expected it with every block or with none")
+        if effort is not None:
+            effort = np.asarray(effort, dtype=float)
+            if effort.shape != r.shape:
+                raise SudsDataError(f"`effort`: expected shape {r.shape}, got {effort.shape}")
+        shape_ns = self._checked(0, t, r if effort is None else np.concatenate([r, effort], axis=1))
+        pose_ns = self._checked(1, pose_t, pose)
+        for stream, ns in enumerate((shape_ns, pose_ns)):  # both checked: take them
+            if ns.size:
+                self._last[stream] = int(ns[-1])
+            self._counts[stream] += ns.size
+        self._shape_ns = np.concatenate([self._shape_ns, shape_ns])
+        self._r = np.concatenate([self._r, r])
+        if effort is not None:
+            self._effort = effort if self._effort is None else np.concatenate([self._effort, effort])
+        self._pose_ns = np.concatenate([self._pose_ns, pose_ns])
+        self._pose = np.concatenate([self._pose, pose])
+        if None not in self._last:
+            # every later stamp of a stream is ≥ its newest: what lies before both newest is final
+            self._emit(min(self._last))  # type: ignore[type-var]
+
+    def _checked(self, stream: int, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Stamps in ns of the next samples of ``stream`` (0 shape, 1 pose), checked (nothing is kept)."""
+        topic = self._topics[stream]
+        first = self._counts[stream]
+        rows = ~np.all(np.isfinite(values), axis=1) | ~np.isfinite(t)
+        if np.any(rows):
+            k = int(np.flatnonzero(rows)[0])
+            raise SudsDataError(f"{self.path}: {topic}: sample {first + k} (stamp {t[k]!r} s) "
+                                "contains NaN or Inf", code=NAN_OR_INF)
+        ns = float_to_ns(t) if t.size else np.empty(0, dtype=np.int64)
+        before = np.concatenate([[self._last[stream]], ns]) if self._last[stream] is not None else ns
+        if np.any(np.diff(before) < 0):
+            k = int(np.flatnonzero(np.diff(before) < 0)[0]) + (0 if self._last[stream] is None else -1)
+            raise SudsDataError(f"{self.path}: {topic}: stamps are not sorted: sample {first + k + 1} "
+                                f"comes before sample {first + k}", code=OUT_OF_ORDER_STAMP)
+        return ns
+
+    def _emit(self, upto: int | None) -> None:
+        """Write the held samples stamped before ``upto`` ns (None: all) in stamp order."""
+        a = self._shape_ns.size if upto is None else int(np.searchsorted(self._shape_ns, upto, side="left"))
+        b = self._pose_ns.size if upto is None else int(np.searchsorted(self._pose_ns, upto, side="left"))
+        shape_topic, pose_topic = self._topics
+        quat = yaw_quaternion(self._pose[:b, 2])
+        w = self._writer
+        i = j = 0
+        while i < a or j < b:
+            if j >= b or (i < a and self._shape_ns[i] <= self._pose_ns[j]):
+                ns = int(self._shape_ns[i])
+                eff = () if self._effort is None else self._effort[i]
+                w.write_raw(shape_topic, cdr.joint_state(ns, self.joint_names, self._r[i], (), eff), ns, ns)
+                i += 1
             else:
-                x, y = rec.pose[k, 0], rec.pose[k, 1]
-                data = cdr.pose_stamped(ns, (x, y, 0.0), quat[k], WORLD_FRAME)
-                w.write_raw(pose_topic, data, ns, ns)
+                ns = int(self._pose_ns[j])
+                x, y = self._pose[j, 0], self._pose[j, 1]
+                w.write_raw(pose_topic, cdr.pose_stamped(ns, (x, y, 0.0), quat[j], WORLD_FRAME), ns, ns)
+                j += 1
+        self._shape_ns, self._r = self._shape_ns[a:], self._r[a:]
+        if self._effort is not None:
+            self._effort = self._effort[a:]
+        self._pose_ns, self._pose = self._pose_ns[b:], self._pose[b:]
+
+    def close(self) -> None:
+        """Write what is held, then the bag's summary; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._emit(None)
+        finally:
+            self._writer.close()

@@ -137,3 +137,38 @@ def test_missing_metadata_gets_the_command_line_hint(tmp_path: Path, capsys) -> 
     write_recording(tmp_path / "meta.mcap", rec)
     assert main(["score", str(tmp_path / "meta.mcap")]) == 2
     assert "no live predictions recorded" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("lab", [[], ["--pose-rate", "120", "--jitter-ms", "0.4", "--drop", "0.01"]],
+                         ids=["aligned", "lab"])
+def test_simulate_streams_the_bag_the_whole_run_gives(tmp_path: Path, lab: list[str]) -> None:
+    """Written block by block (10 cycles each), the bag is that of the whole recording written at once."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.io.recording_bag import write_recording
+
+    out, whole = tmp_path / "streamed.mcap", tmp_path / "whole.mcap"
+    assert main(["simulate", "purcell3", "-o", str(out), "--cycles", "12", "--seed", "3", *lab]) == 0
+    cfg, p3 = SimConfig(cycles=12, seed=3), make_system("purcell3")
+    rec = (simulate(p3, cfg) if not lab else
+           simulate_lab(p3, cfg, LabConditions(pose_hz=120.0, pose_phase=0.0, jitter=4e-4, drop=0.01)))
+    write_recording(whole, rec)
+    assert out.read_bytes() == whole.read_bytes()
+
+
+def test_a_run_that_fails_midway_leaves_no_file(tmp_path: Path, monkeypatch, capsys) -> None:
+    from suds_ros.core.errors import SudsDataError
+    from suds_ros.core.physics import sim
+
+    def failing(*args, **kwargs):  # type: ignore[no-untyped-def]
+        blocks = real(*args, **kwargs)
+        yield next(blocks)
+        raise SudsDataError("integration diverged")
+
+    real = sim.simulate_blocks
+    monkeypatch.setattr(sim, "simulate_blocks", failing)
+    out = tmp_path / "half.mcap"
+    assert main(["simulate", "purcell3", "-o", str(out), "--cycles", "12"]) == 2
+    assert "ERROR: integration diverged" in capsys.readouterr().err
+    assert not out.exists()

@@ -24,7 +24,7 @@ from suds_ros.core.errors import (
 )
 from suds_ros.io import cdr
 from suds_ros.io.mcap import bag_info, iter_raw_messages
-from suds_ros.io.recording_bag import read_recording, write_recording
+from suds_ros.io.recording_bag import RecordingWriter, read_recording, write_recording
 
 
 @pytest.mark.parametrize("name", BAGS)
@@ -100,6 +100,52 @@ def test_roundtrip_unaligned_streams_and_truth_not_written(tmp_path: Path) -> No
     np.testing.assert_array_equal(back.r, rec.r)
     logs = [m.log_time_ns for m in iter_raw_messages(path)]
     assert logs == sorted(logs)
+
+
+# --------------------------------------------------------------------------- block by block
+def _write_in_blocks(path: Path, rec, shape_cuts: list[int], pose_cuts: list[int]) -> RecordingWriter:
+    w = RecordingWriter(path, system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated,
+                        passive=rec.passive, gait_hz=rec.gait_hz)
+    with w:
+        for (a, b), (c, d) in zip(zip(shape_cuts[:-1], shape_cuts[1:]), zip(pose_cuts[:-1], pose_cuts[1:])):
+            w.write(rec.t[a:b], rec.r[a:b], rec.pose_t[c:d], rec.pose[c:d],
+                    None if rec.effort is None else rec.effort[a:b])
+    return w
+
+
+@pytest.mark.parametrize("effort", [False, True])
+def test_blocks_write_the_bytes_of_the_whole_recording(tmp_path: Path, effort: bool) -> None:
+    # pose at its own stamps, some equal to shape stamps (shape first), blocks of uneven spans
+    pose_t = 1.7e9 + np.concatenate([0.01 * np.arange(0, 20), 0.2 + 0.0073 * np.arange(1, 70)])
+    rec = make_rec(n=80, effort=effort, pose_t=pose_t,
+                   pose=np.column_stack([np.sin(pose_t - 1.7e9), np.zeros(pose_t.size), np.zeros(pose_t.size)]))
+    whole, parts = tmp_path / "whole.mcap", tmp_path / "parts.mcap"
+    write_recording(whole, rec)
+    w = _write_in_blocks(parts, rec, [0, 1, 1, 30, 31, 80, 80], [0, 0, 40, 41, 41, 60, 89])
+    assert w.counts == (80, 89)
+    assert parts.read_bytes() == whole.read_bytes()
+
+
+def test_blocks_are_checked(tmp_path: Path) -> None:
+    rec = make_rec(n=20, effort=True)
+    kw = dict(system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated, passive=rec.passive)
+    with RecordingWriter(tmp_path / "a.mcap", **kw) as w:
+        w.write(rec.t[:10], rec.r[:10], rec.pose_t[:10], rec.pose[:10], rec.effort[:10])
+        with pytest.raises(SudsDataError, match="/suds/shape: stamps are not sorted: sample 10 comes before "
+                                                "sample 9"):
+            w.write(rec.t[5:8], rec.r[5:8], rec.pose_t[:0], rec.pose[:0], rec.effort[5:8])
+        with pytest.raises(SudsDataError, match="`effort`: expected it with every block or with none"):
+            w.write(rec.t[10:], rec.r[10:], rec.pose_t[10:], rec.pose[10:])
+        bad = rec.pose[10:].copy()
+        bad[3, 1] = np.nan
+        with pytest.raises(SudsDataError, match="/suds/body_pose: sample 13 .* contains NaN or Inf"):
+            w.write(rec.t[10:], rec.r[10:], rec.pose_t[10:], bad, rec.effort[10:])
+        with pytest.raises(SudsDataError, match=r"`r`: expected shape \(10, 3\), got \(10, 2\)"):
+            w.write(rec.t[10:], rec.r[10:, :2], rec.pose_t[10:], rec.pose[10:], rec.effort[10:])
+    with pytest.raises(SudsBagError, match="recording writer is closed"):
+        w.write(rec.t[10:], rec.r[10:], rec.pose_t[10:], rec.pose[10:], rec.effort[10:])
+    back = read_recording(tmp_path / "a.mcap")
+    assert back.n_samples == 10 and back.pose_t.size == 10
 
 
 def test_our_files_open_with_rosbags(tmp_path: Path) -> None:

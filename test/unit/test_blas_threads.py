@@ -1,4 +1,4 @@
-"""BLAS thread pinning (`SUDS_BLAS_THREADS`, default 1) in the entry points: the CLI, the nodes."""
+"""BLAS thread pinning (`SUDS_BLAS_THREADS`, default 1, through threadpoolctl) in the entry points."""
 
 from __future__ import annotations
 
@@ -71,6 +71,32 @@ def test_the_node_runner_pins_before_anything_else(tmp_path: Path) -> None:
     assert set(out["after"].values()) == {2}
 
 
+#: pin in a fresh process after numpy is loaded; print what was pinned and the environment
+PIN = """
+import json, os
+import numpy
+from suds_ros.core.blas import blas_thread_counts, pin_blas_threads
+p = pin_blas_threads(2)
+print(json.dumps({"threads": p.threads, "libraries": p.libraries, "counts": blas_thread_counts(),
+                  "env": [os.environ[v] for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")]}))
+"""
+
+
+def test_pin_limits_the_loaded_libraries_and_sets_the_variables_for_later_ones() -> None:
+    proc = subprocess.run([sys.executable, "-c", PIN], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["threads"] == 2 and out["env"] == ["2", "2", "2"]
+    assert set(out["counts"].values()) == {2} and set(out["counts"]) <= set(out["libraries"])
+
+
+def test_pin_refuses_a_count_below_one() -> None:
+    from suds_ros.core.blas import pin_blas_threads
+
+    with pytest.raises(SudsConfigError, match="`threads`: expected ≥ 1, got 0"):
+        pin_blas_threads(0)
+
+
 @pytest.mark.parametrize(("raw", "threads"), [("", 1), ("1", 1), (" 4 ", 4), ("0", None)])
 def test_threads_from_env(raw: str, threads: int | None) -> None:
     assert threads_from_env({ENV_VAR: raw}) == threads
@@ -98,7 +124,7 @@ print(repr(float(np.abs(x - np.linalg.lstsq(A, b, rcond=None)[0]).max())))
 
 
 def test_pinning_never_rebinds_lapack_for_libraries_loaded_later() -> None:
-    """A library set through its loaded handle must not have its symbols made global.
+    """Pinning must not make a loaded library's symbols global.
 
     Promoted, numpy's 64-bit-integer OpenBLAS would capture the LAPACK calls of scipy modules
     loaded afterwards (32-bit integers): wrong results or "Too large work array" errors.

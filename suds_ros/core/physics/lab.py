@@ -17,13 +17,29 @@ trajectory at their own jittered stamps (linear interpolation between points
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import copy
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.physics.sim import SimConfig, ou_path, simulate
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.physics.sim import (
+    BLOCK_CYCLES,
+    OUDrive,
+    SimBlock,
+    SimConfig,
+    Window,
+    YawUnwrap,
+    _rest_angles,
+    _still,
+    auto_substeps,
+    block_stops,
+    recording_from_blocks,
+    skip_normals,
+    trajectory,
+)
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording
 
@@ -67,31 +83,93 @@ class LabConditions:
             raise SudsConfigError(f"`oversample`: expected ≥ 1, got {self.oversample!r}")
 
 
-def _stamps(rng: np.random.Generator, start: float, period: float, end: float, jitter: float) -> FloatArray:
-    """Nominal grid start + i·period up to ``end`` with clipped Gaussian jitter."""
+#: stamps (and drop decisions) drawn per call
+_CHUNK = 4096
+
+
+def _stamp_chunks(rng: np.random.Generator, start: float, period: float, end: float, jitter: float,
+                  chunk: int = _CHUNK) -> Iterator[FloatArray]:
+    """Nominal grid start + i·period up to ``end`` with clipped Gaussian jitter, ``chunk`` stamps at a time."""
     n = int(np.floor((end - start) / period)) + 1
-    nominal = start + period * np.arange(n)
-    j = np.clip(jitter * rng.standard_normal(n), -0.4 * period, 0.4 * period)
-    return nominal + j
+    for a in range(0, n, chunk):
+        nominal = start + period * np.arange(a, min(n, a + chunk))
+        yield nominal + np.clip(jitter * rng.standard_normal(nominal.size), -0.4 * period, 0.4 * period)
 
 
-def _keep(rng: np.random.Generator, n: int, drop: float) -> np.ndarray:
-    keep = rng.random(n) >= drop
-    keep[0] = keep[-1] = True
+def _kept(rng: np.random.Generator, pos: int, m: int, n: int, drop: float) -> np.ndarray:
+    """Which of the stream's messages pos … pos + m − 1 (of n) arrive; the first and the last always do."""
+    keep = rng.random(m) >= drop
+    idx = pos + np.arange(m)
+    keep[(idx == 0) | (idx == n - 1)] = True
     return keep
 
 
-def _interp(t: FloatArray, tf: FloatArray, values: FloatArray) -> FloatArray:
-    return np.stack([np.interp(t, tf, values[:, i]) for i in range(values.shape[1])], axis=1)
+@dataclass
+class _Stream:
+    """One stream's stamps in order, a chunk at a time: jitter, the span it must lie in, drops."""
+
+    chunks: Iterator[FloatArray]
+    keep_rng: np.random.Generator
+    inside: Callable[[FloatArray], np.ndarray]
+    n_inside: int
+    drop: float
+    pos: int = 0
+    pending: FloatArray = field(default_factory=lambda: np.empty(0))
+    done: bool = False
+
+    def fill(self, last: float, lag: float) -> None:
+        """Draw stamps until one (less ``lag``) is past ``last`` or the stream ends."""
+        while not self.done and (self.pending.size == 0 or self.pending[-1] - lag <= last):
+            t = next(self.chunks, None)
+            if t is None:
+                self.done = True
+                break
+            t = t[self.inside(t)]
+            keep = _kept(self.keep_rng, self.pos, t.size, self.n_inside, self.drop)
+            self.pos += t.size
+            self.pending = np.concatenate([self.pending, t[keep]])
+
+    def take(self, last: float | None, lag: float) -> FloatArray:
+        """The pending stamps s with s − ``lag`` ≤ ``last`` (all of them for None)."""
+        k = self.pending.size if last is None else int(np.count_nonzero(self.pending - lag <= last))
+        out, self.pending = self.pending[:k], self.pending[k:]
+        return out
+
+    def next_needed(self, lag: float) -> float:
+        """The earliest time (less ``lag``) still to be read; inf when the stream is through."""
+        return float(self.pending[0] - lag) if self.pending.size else np.inf
 
 
-def simulate_lab(system: SudsSystem, config: SimConfig = SimConfig(), lab: LabConditions = LabConditions()
-                 ) -> Recording:
+class _FineDrive:
+    """The coarse drive linearly interpolated onto a grid ``f`` times finer, handed out in order."""
+
+    def __init__(self, coarse: OUDrive, f: int, k0: int) -> None:
+        self._coarse, self._f = coarse, f
+        self._j = k0 * f  # next fine index
+        self._k = k0  # next coarse index to take
+        self._window = Window(coarse.dim)
+
+    def take(self, m: int) -> FloatArray:
+        """The next ``m`` fine set-points, shape (m, na)."""
+        kf = np.arange(self._j, self._j + m) / self._f
+        self._j += m
+        need = int(np.ceil(kf[-1])) + 1
+        if need > self._k:
+            self._window.extend(np.arange(self._k, need).astype(float), self._coarse.take(need - self._k))
+            self._k = need
+        out = self._window.interp(kf)
+        self._window.drop_before(float(kf[-1]))
+        return out
+
+
+def simulate_lab(system: SudsSystem, config: SimConfig = SimConfig(), lab: LabConditions = LabConditions(),
+                 *, block_cycles: int = BLOCK_CYCLES) -> Recording:
     """Simulate a run recorded under lab conditions (see the module docstring).
 
     ``config`` is the aligned twin's: its ``cycles``, ``samples_per_cycle`` and ``gait_hz`` fix the
     nominal shape grid, ``seed`` the drive (identical to the twin's) and the noise, ``pose_delay``
     a sensor time offset of the pose stream (any value, not only multiples of the period).
+    The concatenation of :func:`simulate_lab_blocks`; the same for every ``block_cycles``.
 
     Returns
     -------
@@ -99,51 +177,117 @@ def simulate_lab(system: SudsSystem, config: SimConfig = SimConfig(), lab: LabCo
         Shape and pose at their own stamps.  ``truth`` holds ``"r"`` (n, nj) and ``"pose"`` (n, 3),
         noise free at the shape stamps, and ``"phase"`` (n,), the reference gait phase there.
     """
+    return recording_from_blocks(system, config.gait_hz,
+                                 simulate_lab_blocks(system, config, lab, block_cycles=block_cycles))
+
+
+def simulate_lab_blocks(system: SudsSystem, config: SimConfig = SimConfig(),
+                        lab: LabConditions = LabConditions(), *, block_cycles: int = BLOCK_CYCLES,
+                        progress: Callable[[int, int], None] | None = None) -> Iterator[SimBlock]:
+    """:func:`simulate_lab` ``block_cycles`` cycles at a time, memory independent of the run's length.
+
+    The dense run is integrated a block at a time (:func:`~suds_ros.core.physics.sim.trajectory`),
+    the stamps of each stream are drawn in chunks from the streams' random generators, each
+    positioned where the whole-run draws would reach it, and each stamp is read off the dense
+    rows around it: the blocks are exactly the samples of the whole-run recording.  Checked
+    before the first block is made.
+
+    Yields
+    ------
+    SimBlock
+        Shape and pose samples in stamp order; ``truth``: ``"r"``, ``"pose"`` and ``"phase"`` at
+        the shape stamps.
+
+    Raises
+    ------
+    SudsConfigError
+        ``block_cycles`` < 1, |``pose_delay``| ≥ half the span, a system without a gait.
+    """
+    if not (isinstance(block_cycles, (int, np.integer)) and block_cycles >= 1):
+        raise SudsConfigError(f"`block_cycles`: expected a whole number ≥ 1, got {block_cycles!r}")
     dt = config.dt
     f = lab.oversample
     n = config.cycles * config.samples_per_cycle + 1  # one set-point past the end covers late stamps
     nw = int(round(config.warmup / dt))
     ss = np.random.SeedSequence(config.seed)
     rng_ou, rng_noise = (np.random.default_rng(s) for s in ss.spawn(2))
-    k = np.arange(-nw, n)
-    ref = system.reference(k * dt * config.gait_hz)
-    r_a = ref + ou_path(rng_ou, k.size, ref.shape[1], dt, config.kappa, config.ou_std)
-    kf = np.arange(-nw * f, (n - 1) * f) / f
-    r_a_fine = _interp(kf, k.astype(float), r_a)
     # the same run on a grid f times finer: nw·f warm-up points, then (n − 1)·f recorded points
-    fine_cfg = replace(config, samples_per_cycle=config.samples_per_cycle * f, noise_std=0.0,
-                       pose_delay=0.0, warmup=nw * dt)
-    dense = simulate(system, fine_cfg, r_a=r_a_fine)
-    tf = dense.t - dense.t[0]  # fine grid, 0 at the first recorded sample
-    r_true_f, pose_true_f = dense.truth["r"], dense.truth["pose"]
-    span = tf[-1]
-    rng_streams = np.random.default_rng(rng_noise.integers(2**63))
-    t_shape = _stamps(rng_streams, 0.0, dt, span - 0.5 * dt, lab.jitter)
-    t_shape = t_shape[(t_shape >= 0) & (t_shape <= span)]
-    pose_period = dt if lab.pose_hz is None else 1.0 / lab.pose_hz
-    t_pose = _stamps(rng_streams, lab.pose_phase, pose_period, span - 0.5 * pose_period, lab.jitter)
-    late = t_pose - config.pose_delay  # the pose stamped s is the true pose at s − delay
-    t_pose = t_pose[(t_pose >= 0) & (t_pose <= span) & (late >= 0) & (late <= span)]
-    t_shape = t_shape[_keep(rng_streams, t_shape.size, lab.drop)]
-    t_pose = t_pose[_keep(rng_streams, t_pose.size, lab.drop)]
+    fine = replace(config, samples_per_cycle=config.samples_per_cycle * f, noise_std=0.0, pose_delay=0.0,
+                   warmup=nw * dt)
+    dt_f = fine.dt
+    n_f = fine.cycles * fine.samples_per_cycle
+    nw_f = int(round(fine.warmup / dt_f))
+    if nw_f + n_f != (nw + n - 1) * f:
+        raise SudsDataError(f"`r_a`: expected shape {(nw_f + n_f, len(system.actuated))}, "
+                            f"got {((nw + n - 1) * f, len(system.actuated))}")
+    drive = _FineDrive(OUDrive(system, config, rng_ou, -nw), f, -nw)
+    ends = config.t0 + dt_f * np.array([0, n_f - 1])
+    span = float(ends[1] - ends[0])  # the fine grid's last stamp, 0 at the first recorded sample
     if abs(config.pose_delay) > 0.5 * span:
         raise SudsConfigError(f"`pose_delay`: expected |delay| < {0.5 * span:g} s, got {config.pose_delay!r}")
-    r_true = _interp(t_shape, tf, r_true_f)
-    pose_true = _interp(t_pose - config.pose_delay, tf, pose_true_f)
-    sd = config.noise_std
-    r_meas = r_true + sd * rng_noise.standard_normal(r_true.shape)
-    pose_noise = sd * rng_noise.standard_normal(pose_true.shape)
-    if not getattr(system, "planar", True):
-        pose_noise[:, 1:] = 0.0
-    names = system.joint_names
-    truth = {
-        "r": r_true,
-        "pose": _interp(t_shape, tf, pose_true_f),
-        "phase": 2 * np.pi * config.gait_hz * t_shape,
-    }
-    return Recording(
-        t=config.t0 + t_shape, r=r_meas, joint_names=names,
-        actuated=tuple(names[i] for i in system.actuated), passive=tuple(names[i] for i in system.passive),
-        pose_t=config.t0 + t_pose, pose=pose_true + pose_noise, system=system.name, gait_hz=config.gait_hz,
-        effort=None, truth=truth,
-    )
+    still, flow = _still(system)
+    substeps = auto_substeps(still, dt_f) if fine.substeps is None else fine.substeps
+    stops = block_stops(nw_f, n_f, block_cycles * fine.samples_per_cycle)
+    pieces = trajectory(still, drive, dt_f, stops, _rest_angles(system), substeps, progress)
+    return _lab_blocks(system, config, lab, pieces, flow, rng_noise, span, nw_f, n_f, dt_f)
+
+
+def _lab_blocks(system: SudsSystem, config: SimConfig, lab: LabConditions,
+                pieces: Iterator[tuple[int, int, FloatArray, FloatArray, FloatArray]], flow: tuple[float, float],
+                rng_noise: np.random.Generator, span: float, nw_f: int, n_f: int, dt_f: float
+                ) -> Iterator[SimBlock]:
+    """The blocks of :func:`simulate_lab_blocks` from the dense pieces: stamps, reading, noise."""
+    dt, delay, sd = config.dt, config.pose_delay, config.noise_std
+    nj = len(system.joint_names)
+    # the stream generator's draws, in the whole-run order: shape jitter, pose jitter, shape drops,
+    # pose drops; one generator copy placed at the start of each, found by counting in a pre-pass
+    rng = np.random.default_rng(rng_noise.integers(2**63))
+    pose_period = dt if lab.pose_hz is None else 1.0 / lab.pose_hz
+    shape_grid = (0.0, dt, span - 0.5 * dt, lab.jitter)
+    pose_grid = (lab.pose_phase, pose_period, span - 0.5 * pose_period, lab.jitter)
+
+    def shape_inside(t: FloatArray) -> np.ndarray:
+        return (t >= 0) & (t <= span)
+
+    def pose_inside(t: FloatArray) -> np.ndarray:
+        late = t - delay  # the pose stamped s is the true pose at s − delay
+        return (t >= 0) & (t <= span) & (late >= 0) & (late <= span)
+
+    shape_jitter = copy.deepcopy(rng)
+    n_shape = sum(int(np.count_nonzero(shape_inside(t))) for t in _stamp_chunks(rng, *shape_grid))
+    pose_jitter = copy.deepcopy(rng)
+    n_pose = sum(int(np.count_nonzero(pose_inside(t))) for t in _stamp_chunks(rng, *pose_grid))
+    shape_keep = copy.deepcopy(rng)
+    n_kept = sum(int(np.count_nonzero(_kept(rng, a, min(_CHUNK, n_shape - a), n_shape, lab.drop)))
+                 for a in range(0, n_shape, _CHUNK))
+    shapes = _Stream(_stamp_chunks(shape_jitter, *shape_grid), shape_keep, shape_inside, n_shape, lab.drop)
+    poses = _Stream(_stamp_chunks(pose_jitter, *pose_grid), rng, pose_inside, n_pose, lab.drop)
+    noise_r, noise_pose = rng_noise, skip_normals(rng_noise, n_kept * nj)  # r's noise first, then the pose's
+    planar = getattr(system, "planar", True)
+    window = Window(nj + 3)  # the dense run's joints and pose
+    unwrap = YawUnwrap()
+    for g0, g1, _, R, P in pieces:
+        t_gait = (np.arange(g0, g1) - nw_f) * dt_f
+        P[:, 0] += flow[0] * t_gait
+        P[:, 1] += flow[1] * t_gait
+        if g1 <= nw_f:
+            continue  # warm-up only
+        lo = max(g0, nw_f) - g0
+        tf = (config.t0 + dt_f * np.arange(g0 + lo - nw_f, g1 - nw_f)) - config.t0
+        window.extend(tf, np.concatenate([R[lo:], P[lo:]], axis=1))
+        last = None if g1 - nw_f == n_f else float(window.t[-1])
+        shapes.fill(np.inf if last is None else last, 0.0)
+        poses.fill(np.inf if last is None else last, delay)
+        ts, tp = shapes.take(last, 0.0), poses.take(last, delay)
+        at_shape = window.interp(ts)
+        pose_true = window.interp(tp - delay, slice(nj, None))
+        window.drop_before(min(shapes.next_needed(0.0), poses.next_needed(delay)))
+        r_true = at_shape[:, :nj]
+        r_meas = r_true + sd * noise_r.standard_normal(r_true.shape)
+        pose_noise = sd * noise_pose.standard_normal(pose_true.shape)
+        if not planar:
+            pose_noise[:, 1:] = 0.0
+        pose_meas = pose_true + pose_noise
+        pose_meas[:, 2] = unwrap(pose_meas[:, 2])
+        truth = {"r": r_true, "pose": at_shape[:, nj:], "phase": 2 * np.pi * config.gait_hz * ts}
+        yield SimBlock(t=config.t0 + ts, r=r_meas, pose_t=config.t0 + tp, pose=pose_meas, truth=truth)

@@ -13,8 +13,10 @@ stationary law, independent per actuated joint.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import copy
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -89,13 +91,20 @@ class SimConfig:
         return 1.0 / (self.gait_hz * self.samples_per_cycle)
 
 
-def ou_path(rng: np.random.Generator, n: int, dim: int, dt: float, kappa: float, std: float) -> FloatArray:
-    """Exactly discretised stationary OU samples, shape (n, dim)."""
+def ou_path(rng: np.random.Generator, n: int, dim: int, dt: float, kappa: float, std: float,
+            prev: FloatArray | None = None) -> FloatArray:
+    """Exactly discretised stationary OU samples, shape (n, dim).
+
+    ``prev`` (dim,): the sample before the first, to continue a path (the same ``rng`` then gives
+    the values one longer call would); None starts from the stationary law.
+    """
     a = np.exp(-kappa * dt)
     b = std * np.sqrt(1.0 - a * a)
     z = rng.standard_normal((n, dim))
     eta = np.empty((n, dim))
-    eta[0] = std * z[0]
+    if n == 0:
+        return eta
+    eta[0] = std * z[0] if prev is None else a * prev + b * z[0]
     for k in range(1, n):
         eta[k] = a * eta[k - 1] + b * z[k]
     return eta
@@ -217,14 +226,74 @@ def _still(system: SudsSystem) -> tuple[SudsSystem, tuple[float, float]]:
     return still, flow
 
 
+#: gait cycles integrated, noised and handed on at a time (peak memory grows with this, not the run)
+BLOCK_CYCLES = 10
+#: random numbers drawn per call when a stream is advanced without keeping its values
+_SKIP_CHUNK = 1 << 16
+
+
+@dataclass(frozen=True)
+class SimBlock:
+    """Consecutive samples of a simulated run; the blocks of a run concatenated are its :class:`Recording`.
+
+    Attributes
+    ----------
+    t : (m,) float
+        Shape stamps, s.
+    r : (m, nj) float
+        Measured joint values (noisy).
+    pose_t : (q,) float
+        Pose stamps, s.  A block's poses need not span its shape samples: a pose that is read
+        ahead of its stamp (a negative sensor time offset) waits for the integration to pass it.
+    pose : (q, 3) float
+        Measured pose x, y (m), yaw (rad); the yaw unwrapped continuing the previous block, as
+        :class:`Recording` unwraps the whole run.
+    truth : dict
+        Noise-free values: ``"r"`` (m, nj), ``"phase"`` (m,) and, for aligned runs,
+        ``"effort"`` (m, na) at the shape stamps; ``"pose"`` at the pose stamps (aligned runs,
+        (q, 3)) or at the shape stamps (lab runs, (m, 3)).
+    """
+
+    t: FloatArray
+    r: FloatArray
+    pose_t: FloatArray
+    pose: FloatArray
+    truth: dict[str, FloatArray] = field(default_factory=dict)
+
+
+def recording_from_blocks(system: SudsSystem, gait_hz: float, blocks: Iterable[SimBlock]) -> Recording:
+    """Concatenate the blocks of one run into its :class:`Recording` (truth attached)."""
+    blocks = list(blocks)
+    if not blocks:
+        raise SudsDataError("`blocks`: expected at least one block of the run, got none")
+    truth = {key: np.concatenate([b.truth[key] for b in blocks]) for key in blocks[0].truth}
+    names = system.joint_names
+    return Recording(
+        t=np.concatenate([b.t for b in blocks]),
+        r=np.concatenate([b.r for b in blocks]),
+        joint_names=names,
+        actuated=tuple(names[i] for i in system.actuated),
+        passive=tuple(names[i] for i in system.passive),
+        pose_t=np.concatenate([b.pose_t for b in blocks]),
+        pose=np.concatenate([b.pose for b in blocks]),
+        system=system.name,
+        gait_hz=gait_hz,
+        effort=None,
+        truth=truth,
+    )
+
+
 def simulate(
     system: SudsSystem,
     config: SimConfig = SimConfig(),
     *,
     r_a: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    block_cycles: int = BLOCK_CYCLES,
 ) -> Recording:
     """Simulate a run and return it as a :class:`Recording` (noisy) with ground truth attached.
+
+    The concatenation of :func:`simulate_blocks`; the same for every ``block_cycles``.
 
     Parameters
     ----------
@@ -235,7 +304,9 @@ def simulate(
     r_a : (n_warm + n, na) float, optional
         Explicit actuated set-points (warm-up included) instead of reference + OU.
     progress : callable, optional
-        Progress callback ``progress(done, total)`` passed to :func:`integrate`.
+        Progress callback ``progress(done, total)`` over the run's sample intervals.
+    block_cycles : int
+        Cycles integrated at a time (:func:`simulate_blocks`).
 
     Returns
     -------
@@ -244,65 +315,340 @@ def simulate(
         ``"phase"`` (n,) gait phase 2π·f·t of the reference, rad, and ``"effort"`` (n, na): the
         actuator effort averaged over the sample period ending at each sample, N·m.
     """
+    blocks = simulate_blocks(system, config, r_a=r_a, progress=progress, block_cycles=block_cycles)
+    return recording_from_blocks(system, config.gait_hz, blocks)
+
+
+class OUDrive:
+    """The drive r_ref(k·dt) + η_k at sample indices k = k0, k0 + 1, …, handed out in order.
+
+    η is the exactly discretised stationary OU process of :func:`ou_path`, drawn from ``rng``;
+    taking the samples in pieces gives the same values as one :func:`ou_path` call.
+    """
+
+    def __init__(self, system: SudsSystem, config: SimConfig, rng: np.random.Generator, k0: int) -> None:
+        self._system, self._config, self._rng = system, config, rng
+        self._k = k0
+        self._eta: FloatArray | None = None
+        # evaluated now, so that a system without a gait is refused before anything is written
+        self.dim = int(system.reference(np.array([k0 * config.dt * config.gait_hz])).shape[1])
+
+    def take(self, m: int) -> FloatArray:
+        """The next ``m`` set-points, shape (m, na)."""
+        cfg = self._config
+        k = np.arange(self._k, self._k + m)
+        self._k += m
+        ref = self._system.reference(k * cfg.dt * cfg.gait_hz)
+        eta = ou_path(self._rng, m, self.dim, cfg.dt, cfg.kappa, cfg.ou_std, prev=self._eta)
+        if m:
+            self._eta = eta[-1]
+        return ref + eta
+
+
+class ArrayDrive:
+    """Set-points given as one array, handed out in order (the interface of :class:`OUDrive`)."""
+
+    def __init__(self, r_a: FloatArray) -> None:
+        self._r_a, self._k = r_a, 0
+
+    def take(self, m: int) -> FloatArray:
+        """The next ``m`` set-points, shape (m, na)."""
+        out = self._r_a[self._k:self._k + m]
+        self._k += m
+        return out
+
+
+class Drive(Protocol):
+    """Actuated set-points at consecutive samples (:class:`OUDrive`, :class:`ArrayDrive`)."""
+
+    def take(self, m: int) -> FloatArray:
+        """The next ``m`` set-points, shape (m, na)."""
+
+
+def block_stops(n_warm: int, n: int, block: int) -> list[int]:
+    """Ends of the pieces integrated at a time: the warm-up, then the run, ``block`` samples each."""
+    warm = [min(n_warm, s) for s in range(block, n_warm + block, block)] if n_warm else []
+    return warm + [n_warm + min(n, s) for s in range(block, n + block, block)]
+
+
+def trajectory(
+    still: SudsSystem,
+    drive: Drive,
+    dt: float,
+    stops: list[int],
+    r_p0: FloatArray,
+    substeps: int,
+    progress: Callable[[int, int], None] | None = None,
+) -> Iterator[tuple[int, int, FloatArray, FloatArray, FloatArray]]:
+    """Integrate a run piece by piece (:func:`~suds_ros.core.physics.integrate.integrate_batch`).
+
+    The passive joints, the pose and the last set-point are carried from piece to piece, so the
+    pieces are exactly the samples of one integration of the whole run.
+
+    Parameters
+    ----------
+    still : SudsSystem
+        Still-fluid physics.
+    drive : Drive
+        Set-points at the samples 0, 1, ….
+    dt : float
+        Sample interval, s.
+    stops : list of int
+        Increasing sample indices: the pieces are [0, stops[0]), [stops[0], stops[1]), ….
+    r_p0 : (np,) float
+        Passive joints at sample 0 (the pose starts at zero).
+    substeps : int
+        RK4 steps per sample interval.
+    progress : callable, optional
+        ``progress(done, total)`` over the sample intervals, about every 1 %.
+
+    Yields
+    ------
+    g0, g1 : int
+        The piece's samples [g0, g1).
+    r_a : (g1 − g0, na) float
+        Set-points.
+    r : (g1 − g0, nj) float
+        Joint values.
+    pose : (g1 − g0, 3) float
+        Still-fluid world pose (x, y, yaw).
+    """
+    act = np.asarray(still.actuated, dtype=int)
+    pas = np.asarray(still.passive, dtype=int)
+    rp = np.asarray(r_p0, dtype=float).reshape(1, -1)
+    if rp.shape[1] != pas.size:
+        raise SudsDataError(f"`r_p0`: expected {pas.size} values, got {rp.shape[1]}")
+    pose = np.zeros((1, 3))
+    total = max(stops[-1] - 1, 0)
+    report = _Progress(progress, total)
+    last_ra: FloatArray | None = None
+    g0 = 0
+    for g1 in stops:
+        new = np.asarray(drive.take(g1 - g0), dtype=float)
+        ra = new if last_ra is None else np.concatenate([last_ra[None], new])
+        offset = max(g0 - 1, 0)
+        RP, PP = integrate_batch(still.velocities, act, pas, ra[None], rp, pose, dt, substeps,
+                                 None if progress is None else (lambda k, _m: report(offset + k)))
+        skip = 0 if last_ra is None else 1
+        R = np.empty((new.shape[0], act.size + pas.size))
+        R[:, act] = new
+        R[:, pas] = RP[0, skip:]
+        # carried as copies: the caller may change the yielded arrays in place
+        last_ra, rp, pose = ra[-1].copy(), RP[:, -1].copy(), PP[:, -1].copy()
+        yield g0, g1, new, R, PP[0, skip:]
+        g0 = g1
+
+
+class _Progress:
+    """Forwards ``done`` to ``progress(done, total)`` at most about every 1 % (and at the end)."""
+
+    def __init__(self, progress: Callable[[int, int], None] | None, total: int) -> None:
+        self._progress, self._total = progress, total
+        self._step = max(1, total // 100)
+        self._next = 0
+
+    def __call__(self, done: int) -> None:
+        if self._progress is not None and (done >= self._next or done >= self._total):
+            self._progress(done, self._total)
+            self._next = done + self._step
+
+
+class YawUnwrap:
+    """``np.unwrap`` (period 2π) continued across blocks: equal to unwrapping their concatenation."""
+
+    def __init__(self) -> None:
+        self._last: float | None = None
+        self._offset = 0.0
+
+    def __call__(self, yaw: FloatArray) -> FloatArray:
+        """The next block of raw yaws (q,) → unwrapped (q,), rad."""
+        yaw = np.asarray(yaw, dtype=float)
+        if yaw.size == 0:
+            return yaw
+        first = self._last is None
+        p = yaw if first else np.concatenate([[self._last], yaw])
+        dd = np.diff(p)
+        ddmod = np.mod(dd + np.pi, 2 * np.pi) - np.pi  # numpy's unwrap, step by step
+        np.copyto(ddmod, np.pi, where=(ddmod == -np.pi) & (dd > 0))
+        corr = ddmod - dd
+        np.copyto(corr, 0, where=np.abs(dd) < np.pi)
+        offsets = np.cumsum(np.concatenate([[self._offset], corr]))[1:]
+        out = yaw.copy()
+        if first:
+            out[1:] = yaw[1:] + offsets
+        else:
+            out = yaw + offsets
+        self._last = float(yaw[-1])
+        if offsets.size:
+            self._offset = float(offsets[-1])
+        return out
+
+
+class Window:
+    """The newest rows of a dense series (times, values), interpolated at increasing times.
+
+    Interpolation on the rows kept gives exactly what :func:`numpy.interp` gives on the
+    whole series, as long as each time asked for lies at or after the row before it
+    (:meth:`drop_before` keeps that row) and, unless the series is complete, at or before the
+    last row.
+    """
+
+    def __init__(self, width: int) -> None:
+        self.t = np.empty(0)
+        self.v = np.empty((0, width))
+
+    def extend(self, t: FloatArray, v: FloatArray) -> None:
+        """Append rows: times (m,) increasing past the last, values (m, width)."""
+        self.t = np.concatenate([self.t, t])
+        self.v = np.concatenate([self.v, v])
+
+    def interp(self, x: FloatArray, cols: slice = slice(None)) -> FloatArray:
+        """Linear interpolation of the columns ``cols`` at the times x (q,) → (q, ncols)."""
+        v = self.v[:, cols]
+        return np.stack([np.interp(x, self.t, v[:, i]) for i in range(v.shape[1])], axis=1)
+
+    def drop_before(self, x: float) -> None:
+        """Forget the rows no later time ≥ ``x`` needs (the row at or before x stays)."""
+        j = max(int(np.searchsorted(self.t, x, side="right")) - 1, 0)
+        self.t, self.v = self.t[j:], self.v[j:]
+
+
+def skip_normals(rng: np.random.Generator, count: int) -> np.random.Generator:
+    """A copy of ``rng`` advanced past ``count`` standard normals (drawn in chunks, not kept)."""
+    out = copy.deepcopy(rng)
+    for a in range(0, count, _SKIP_CHUNK):
+        out.standard_normal(min(_SKIP_CHUNK, count - a))
+    return out
+
+
+def simulate_blocks(
+    system: SudsSystem,
+    config: SimConfig = SimConfig(),
+    *,
+    r_a: FloatArray | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    block_cycles: int = BLOCK_CYCLES,
+) -> Iterator[SimBlock]:
+    """Simulate a run ``block_cycles`` cycles at a time; the blocks are those of :func:`simulate`.
+
+    The integrator state, the OU drive and the random streams are carried from block to block,
+    so the run is the same for every ``block_cycles`` (bit for bit), and memory does not grow
+    with the run.  The arguments are checked before the first block is made.
+
+    Parameters
+    ----------
+    system, config, r_a, progress
+        As :func:`simulate`.
+    block_cycles : int
+        Recorded gait cycles per block (≥ 1).
+
+    Yields
+    ------
+    SimBlock
+        The run's samples in order.
+
+    Raises
+    ------
+    SudsConfigError
+        ``block_cycles`` < 1, a pose delay longer than the simulated span, a system without a gait.
+    SudsDataError
+        ``r_a`` of the wrong shape.
+    """
+    if not (isinstance(block_cycles, (int, np.integer)) and block_cycles >= 1):
+        raise SudsConfigError(f"`block_cycles`: expected a whole number ≥ 1, got {block_cycles!r}")
     dt = config.dt
     n = config.cycles * config.samples_per_cycle
     nw = int(round(config.warmup / dt))
     ss = np.random.SeedSequence(config.seed)
     rng_ou, rng_noise = (np.random.default_rng(s) for s in ss.spawn(2))
-    k = np.arange(-nw, n)
-    t_gait = k * dt
+    drive: Drive
     if r_a is None:
-        ref = system.reference(t_gait * config.gait_hz)
-        eta = ou_path(rng_ou, k.size, ref.shape[1], dt, config.kappa, config.ou_std)
-        r_a = ref + eta
+        drive = OUDrive(system, config, rng_ou, -nw)
     else:
         r_a = np.asarray(r_a, dtype=float)
-        if r_a.shape != (k.size, len(system.actuated)):
-            raise SudsDataError(f"`r_a`: expected shape {(k.size, len(system.actuated))}, got {r_a.shape}")
+        if r_a.shape != (nw + n, len(system.actuated)):
+            raise SudsDataError(f"`r_a`: expected shape {(nw + n, len(system.actuated))}, got {r_a.shape}")
+        drive = ArrayDrive(r_a)
+    ends = np.array([-nw, n - 1]) * dt
+    if config.pose_delay > ends[1] - ends[0]:
+        raise SudsConfigError(f"`pose_delay`: {config.pose_delay} s exceeds the simulated span")
     still, flow = _still(system)
-    rest = _rest_angles(system)
-    traj = integrate(still, r_a, dt, rest, substeps=config.substeps, progress=progress)
-    r_true = traj.r[nw:]
-    pose_all = traj.pose.copy()
-    pose_all[:, 0] += flow[0] * t_gait  # uniform flow drifts the chain by U·t (t = 0 at the first sample)
-    pose_all[:, 1] += flow[1] * t_gait
-    tt = dt * np.arange(n)
-    stamps = config.t0 + tt
-    pose_stamps = stamps
-    if config.pose_delay != 0.0:
-        pose_true = _delay_pose(pose_all, t_gait, tt, config.pose_delay)
-    else:
-        pose_true = pose_all[nw:]
-    sd = config.noise_std
-    r_meas = r_true + sd * rng_noise.standard_normal(r_true.shape)
-    pose_noise = sd * rng_noise.standard_normal(pose_true.shape)
-    if not getattr(system, "planar", True):  # motion along x only: y and yaw are not measured, stay 0
-        pose_noise[:, 1:] = 0.0
-    pose_meas = pose_true + pose_noise
-    names = system.joint_names
-    lo = max(nw - 1, 0)
-    effort = _effort_at_samples(still, r_a[lo:], traj.r[lo:], dt)
-    if nw == 0:  # no set-point before the first sample: repeat the first period's effort
-        effort = np.concatenate([effort[:1], effort], axis=0)
-    truth = {
-        "r": r_true,
-        "pose": pose_true,
-        "phase": 2 * np.pi * config.gait_hz * tt,
-        "effort": effort,
-    }
-    return Recording(
-        t=stamps,
-        r=r_meas,
-        joint_names=names,
-        actuated=tuple(names[i] for i in system.actuated),
-        passive=tuple(names[i] for i in system.passive),
-        pose_t=pose_stamps,
-        pose=pose_meas,
-        system=system.name,
-        gait_hz=config.gait_hz,
-        effort=None,
-        truth=truth,
-    )
+    substeps = auto_substeps(still, dt) if config.substeps is None else config.substeps
+    stops = block_stops(nw, n, block_cycles * config.samples_per_cycle)
+    pieces = trajectory(still, drive, dt, stops, _rest_angles(system), substeps, progress)
+    return _aligned_blocks(system, still, flow, config, pieces, rng_noise, nw, n)
+
+
+def _aligned_blocks(system: SudsSystem, still: SudsSystem, flow: tuple[float, float], config: SimConfig,
+                    pieces: Iterator[tuple[int, int, FloatArray, FloatArray, FloatArray]],
+                    rng_noise: np.random.Generator, nw: int, n: int) -> Iterator[SimBlock]:
+    """The blocks of :func:`simulate_blocks` from the integrated pieces (noise, delay, effort)."""
+    dt, sd, delay, spc = config.dt, config.noise_std, config.pose_delay, config.samples_per_cycle
+    nj = len(system.joint_names)
+    noise_r, noise_pose = rng_noise, skip_normals(rng_noise, n * nj)  # r's noise first, then the pose's
+    planar = getattr(system, "planar", True)
+    window = Window(3)
+    next_pose = 0  # the next pose sample to produce (a delayed pose waits for the integration)
+    unwrap = YawUnwrap()
+    prev: tuple[FloatArray, FloatArray] | None = None  # set-point and joints of the sample before
+    for g0, g1, ra, R, P in pieces:
+        t_gait = (np.arange(g0, g1) - nw) * dt
+        P[:, 0] += flow[0] * t_gait  # uniform flow drifts the chain by U·t (t = 0 at the first sample)
+        P[:, 1] += flow[1] * t_gait
+        lo = max(g0, nw) - g0  # the piece's first recorded row
+        i = np.arange(g0 + lo - nw, g1 - nw)  # recorded sample numbers
+        if delay != 0.0:
+            window.extend(t_gait, P)
+        if i.size == 0:
+            prev = (ra[-1], R[-1])
+            continue
+        tt = dt * i
+        r_true = R[lo:]
+        effort = _effort_by_cycle(still, ra, R, lo, prev, i[0], spc, dt)
+        if delay == 0.0:
+            pose_i, pose_true = i, P[lo:]
+        else:
+            x = dt * np.arange(next_pose, g1 - nw) - delay  # the pose stamped s is the true pose at s − delay
+            if g1 - nw < n:
+                x = x[x <= window.t[-1]]
+            pose_i = np.arange(next_pose, next_pose + x.size)
+            pose_true = window.interp(x)
+            next_pose += x.size
+            window.drop_before(dt * next_pose - delay)
+        prev = (ra[-1], R[-1])
+        r_meas = r_true + sd * noise_r.standard_normal(r_true.shape)
+        pose_noise = sd * noise_pose.standard_normal(pose_true.shape)
+        if not planar:  # motion along x only: y and yaw are not measured, stay 0
+            pose_noise[:, 1:] = 0.0
+        pose_meas = pose_true + pose_noise
+        pose_meas[:, 2] = unwrap(pose_meas[:, 2])
+        truth = {"r": r_true, "pose": pose_true, "phase": 2 * np.pi * config.gait_hz * tt, "effort": effort}
+        yield SimBlock(t=config.t0 + tt, r=r_meas, pose_t=config.t0 + dt * pose_i, pose=pose_meas, truth=truth)
+
+
+def _effort_by_cycle(still: SudsSystem, ra: FloatArray, R: FloatArray, lo: int,
+                     prev: tuple[FloatArray, FloatArray] | None, i0: int, spc: int, dt: float) -> FloatArray:
+    """Effort at the recorded rows ``lo:`` of a piece (sample numbers from ``i0``), one cycle per call.
+
+    One call per gait cycle whatever the block size: batched BLAS may round a row differently
+    in batches of other sizes, and blocks hold whole cycles.  ``prev``: set-point and joints of
+    the sample before the piece (None before the first sample of a run without warm-up, whose
+    first effort repeats the first period's).
+    """
+    out = []
+    for a in range(lo, R.shape[0], spc):
+        b = min(a + spc, R.shape[0])
+        if a > 0:
+            ra_c, r_c = ra[a - 1:b], R[a - 1:b]
+        elif prev is not None:
+            ra_c, r_c = np.concatenate([prev[0][None], ra[:b]]), np.concatenate([prev[1][None], R[:b]])
+        else:
+            ra_c, r_c = ra[:b], R[:b]
+        eff = _effort_at_samples(still, ra_c, r_c, dt)
+        if a == 0 and prev is None:
+            eff = np.concatenate([eff[:1], eff], axis=0)
+        out.append(eff)
+    return np.concatenate(out, axis=0)
 
 
 def _rest_angles(system: SudsSystem) -> FloatArray:
@@ -314,13 +660,6 @@ def _rest_angles(system: SudsSystem) -> FloatArray:
             return np.zeros(len(system.passive))
         return np.asarray(rest_fn(), dtype=float)
     return np.asarray(rest, dtype=float)[list(system.passive)]
-
-
-def _delay_pose(pose: FloatArray, t_all: FloatArray, tt: FloatArray, delay: float) -> FloatArray:
-    """Pose stamped s carries the true pose at s − delay (linear interpolation; warm-up covers s < delay)."""
-    if delay > t_all[-1] - t_all[0]:
-        raise SudsConfigError(f"`pose_delay`: {delay} s exceeds the simulated span")
-    return np.stack([np.interp(tt - delay, t_all, pose[:, i]) for i in range(3)], axis=1)
 
 
 def _effort_at_samples(system: SudsSystem, r_a: FloatArray, r: FloatArray, dt: float) -> FloatArray:
