@@ -47,6 +47,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--kappa", type=float, default=8.0, help="OU attraction rate κ, 1/s (default 8)")
     p.add_argument("--gait-hz", type=float, default=None,
                    help="gait frequency, Hz (default: the model file's gait_hz, else 1)")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="shape (encoder) sample rate, Hz: a whole number of samples per gait cycle "
+                        "(default 100 per cycle)")
     p.add_argument("--substeps", type=int, default=None,
                    help="RK4 steps per sample (default: from the stiffest passive mode)")
     p.add_argument("--effect", action="append", metavar="NAME[:JOINT][:P=V,...]",
@@ -158,9 +161,15 @@ def run(args: argparse.Namespace) -> int:
                                             [parse_effect(e) for e in args.effect])
         system = type(system)(model)  # type: ignore[call-arg]
         pose_delay += effect_delay
+    per_cycle = SimConfig.samples_per_cycle
+    if args.rate is not None:
+        per_cycle = int(round(args.rate / gait_hz))
+        if not (args.rate > 0 and per_cycle >= 4 and abs(per_cycle * gait_hz - args.rate) <= 1e-9 * args.rate):
+            raise SudsConfigError(f"--rate: expected a whole number (≥ 4) of samples per gait cycle of "
+                                  f"{gait_hz:g} Hz, got {args.rate:g} Hz")
     cfg = SimConfig(cycles=args.cycles, seed=args.seed, noise_std=args.noise, ou_std=args.ou_std,
                     kappa=args.kappa, substeps=args.substeps, gait_hz=gait_hz,
-                    pose_delay=pose_delay)
+                    pose_delay=pose_delay, samples_per_cycle=per_cycle)
     progress = progress_bar(f"simulating {system.name}")
     if lab is None:
         blocks = simulate_blocks(system, cfg, progress=progress)

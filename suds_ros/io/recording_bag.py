@@ -184,7 +184,7 @@ class _Topic:
         raise NotImplementedError
 
     def order(self) -> np.ndarray:
-        """Indices that put the messages in log-time order (stable)."""
+        """Indices that sort the messages by log time, stably."""
         return np.argsort(np.frombuffer(self.log, dtype=np.int64), kind="stable")
 
     def stamps(self, order: np.ndarray) -> np.ndarray:
