@@ -72,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--compare-cycles", type=int, nargs="+",
                    help="cycles to run with --compare (default: --cycles)")
     p.add_argument("--output", default="memory.md", help="file name under docs/results")
+    p.add_argument("--append", action="store_true",
+                   help="add the table to the file (e.g. a back-to-back speed check) instead of replacing it")
     args = p.parse_args(argv)
     gait_hz = 1.0  # every built-in system's gait; simulated seconds = cycles / gait_hz
     rows = []
@@ -104,7 +106,14 @@ def main(argv: list[str] | None = None) -> int:
     for label, n, rss, wall, speed, size, load in rows:
         lines.append(f"| {label} | {n} | {n * 100} | {rss:.0f} | {wall:.1f} | {speed:.2f} | {size:.1f} | "
                      f"{load:.1f} |")
-    write(args.output, "\n".join(lines + NOTES) + "\n")
+    if args.append:
+        from _common import RESULTS
+
+        head = (RESULTS / args.output).read_text()
+        lines[0] = "## Back to back" if args.compare else "## Again"
+        write(args.output, head + "\n" + "\n".join(lines) + "\n")
+    else:
+        write(args.output, "\n".join(lines + NOTES) + "\n")
     return 0
 
 

@@ -13,6 +13,7 @@ integrated on a grid ``oversample`` times finer than the shape grid, so every ki
 of the drive is a grid point, and both streams are read off that dense, noise-free
 trajectory at their own jittered stamps (linear interpolation between points
 0.8 ms apart at the default), then measurement noise is added and messages dropped.
+:func:`simulate_lab_blocks` does all of this a few cycles at a time, with the same result.
 """
 
 from __future__ import annotations
