@@ -123,10 +123,10 @@ def role_sub(a: argparse.Namespace) -> int:
 
 
 # ----------------------------------------------------------------- orchestration
-def _env(domain: int, tmp: str) -> dict[str, str]:
+def _env(domain: int, tmp: str, root: Path = ROOT) -> dict[str, str]:
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                ROS_LOG_DIR=os.path.join(tmp, "log"), PYTHONUNBUFFERED="1",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+               PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
     env.setdefault("AMENT_PREFIX_PATH", sys.prefix)
     return env
 
@@ -142,8 +142,10 @@ def _stop(p: subprocess.Popen) -> None:
             pass
 
 
-def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, domain: int) -> dict:
-    env = _env(domain, tmp)
+def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, domain: int,
+         root: Path = ROOT) -> dict:
+    """One run: publisher, the node (the package in ``root``) and subscriber processes."""
+    env = _env(domain, tmp, root)
     out = os.path.join(tmp, f"rows-{domain}.npy")
     status = kind == "estimator"
     me = str(Path(__file__).resolve())
@@ -290,6 +292,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="fewer samples and rates")
     p.add_argument("--seconds", type=float, default=60.0, help="with --json: seconds of stream")
     p.add_argument("--json", action="store_true", help="one rate (--rate) for --seconds: print one JSON object")
+    p.add_argument("--baseline", default="", help="another checkout whose nodes are also run at 1 kHz")
+    p.add_argument("--baseline-label", default="baseline", help="its name in the table")
     a = p.parse_args(argv)
     if a.role == "pub":
         return role_pub(a)
@@ -316,10 +320,11 @@ def main(argv: list[str] | None = None) -> int:
             domain += 1
             est.append(_run("estimator", rate, int(rate * dur), "single", model, tmp, domain))
         long_s = 10.0 if a.quick else 60.0
-        domain += 1
-        long_pred = _run("predictor", 1000.0, int(1000 * long_s), "events", model, tmp, domain)
-        domain += 1
-        long_est = _run("estimator", 1000.0, int(1000 * long_s), "single", model, tmp, domain)
+        long = {}
+        for label, root in [("this code", ROOT)] + ([(a.baseline_label, Path(a.baseline))] if a.baseline else []):
+            domain += 2
+            long[label] = (_run("predictor", 1000.0, int(1000 * long_s), "events", model, tmp, domain, root),
+                           _run("estimator", 1000.0, int(1000 * long_s), "single", model, tmp, domain + 1, root))
     thr = throughput(10.0 if a.quick else 60.0, 1000.0)
 
     def ok_pred(r: dict) -> bool:
@@ -351,15 +356,16 @@ def main(argv: list[str] | None = None) -> int:
     lines += ["", f"Highest rate the estimator sustained (every sample taken within 0.5 s of the last "
               f"publish): **{best_e:g} Hz** of the rates tried.", "",
               f"## At 1 kHz for {long_s:g} s", "",
-              "| node | samples | predicted / taken | dropped | p50 (ms) | p99 (ms) | estimator lag (s) |",
-              "|---|---|---|---|---|---|---|",
-              f"| predictor | {long_pred['n'] - 1} | {long_pred['received']} | "
-              f"{long_pred['n'] - 1 - long_pred['received']} | {long_pred['p50_ms']:.2f} | "
-              f"{long_pred['p99_ms']:.2f} | |",
-              f"| estimator | {long_est['n']} | {long_est['taken']} | {long_est['dropped']} | | | "
-              f"{long_est['lag_s']:.2f} |", "",
-              "The estimator's lag is the time from the last publish until /suds/status (20 Hz) "
-              "reports every sample taken.", "",
+              "| code | node | samples | predicted / taken | dropped | p50 (ms) | p99 (ms) | estimator lag (s) |",
+              "|---|---|---|---|---|---|---|---|"]
+    for label, (lp, le) in long.items():
+        lines += [f"| {label} | predictor | {lp['n'] - 1} | {lp['received']} | {lp['n'] - 1 - lp['received']} | "
+                  f"{lp['p50_ms']:.2f} | {lp['p99_ms']:.2f} | |",
+                  f"| {label} | estimator | {le['n']} | {le['taken']} | {le['dropped']} | | | {le['lag_s']:.2f} |"]
+    lines += ["", "The estimator's lag is the time from the last publish until /suds/status (20 Hz) "
+              "reports every sample taken"
+              + (f"; `{a.baseline_label}` is the package in another checkout, run in the same session "
+                 "for comparison" if a.baseline else "") + ".", "",
               "## Estimator throughput (one core, in-process)", "",
               f"The estimator node's work per message pair (JointState → sample, PoseStamped → pose, "
               f"checks, pairing, phase tracking, rows, regression, the final model) on {thr['samples']} "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gc
 import signal
 import sys
 import threading
@@ -71,10 +70,6 @@ def run_node(
     node = None
     try:
         node = make()
-        # what start-up made (imports, rclpy, the node) lives to the end: out of the collector's way,
-        # so a full collection never walks it between two samples of a 1 kHz stream
-        gc.collect()
-        gc.freeze()
         run(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
