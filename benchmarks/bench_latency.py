@@ -109,13 +109,23 @@ def role_sub(a: argparse.Namespace) -> int:
                                  ESTIMATE_QOS)
     print("ready", flush=True)
     deadline = time.monotonic() + a.timeout
+    # one executor for the whole run (rclpy.spin_once builds the global executor's wait set anew
+    # each call, which made this probe, not the node under test, the bottleneck at 1 kHz)
+    try:
+        from rclpy.experimental import EventsExecutor
+
+        executor = EventsExecutor()
+    except ImportError:  # pragma: no cover - older rclpy
+        executor = rclpy.executors.SingleThreadedExecutor()
+    executor.add_node(node)
     try:
         while rclpy.ok() and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
+            executor.spin_once(timeout_sec=0.1)
             if not a.status and len(rows) >= a.n:
                 break
     except KeyboardInterrupt:
         pass
+    executor.shutdown()
     np.save(a.out, np.array(rows).reshape(-1, 5 if a.status else 2))
     node.destroy_node()
     rclpy.try_shutdown()
