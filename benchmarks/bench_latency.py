@@ -87,6 +87,8 @@ def role_pub(a: argparse.Namespace) -> int:
 
 
 def role_sub(a: argparse.Namespace) -> int:
+    import gc
+
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import TwistStamped
@@ -108,6 +110,9 @@ def role_sub(a: argparse.Namespace) -> int:
                                  lambda m: rows.append((time.time(), time_to_float(m.header.stamp))),
                                  ESTIMATE_QOS)
     print("ready", flush=True)
+    # no collector pauses in the probe: its list of receipts grows to tens of thousands of rows,
+    # and a full collection walking them held it up long enough to lose messages in 60 s runs
+    gc.disable()
     deadline = time.monotonic() + a.timeout
     # one executor for the whole run (rclpy.spin_once builds the global executor's wait set anew
     # each call, which made this probe, not the node under test, the bottleneck at 1 kHz)
@@ -162,7 +167,7 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
     procs = []
     try:
         sub = subprocess.Popen([PY, me, "--role", "sub", "--n", str(n - 1), "--out", out,
-                                "--timeout", str(n / rate + 25)] + (["--status"] if status else []),
+                                "--timeout", str(n / rate + 60)] + (["--status"] if status else []),
                                env=env, stdout=subprocess.PIPE, text=True)
         procs.append(sub)
         if kind == "predictor":
