@@ -167,7 +167,7 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
     procs = []
     try:
         sub = subprocess.Popen([PY, me, "--role", "sub", "--n", str(n - 1), "--out", out,
-                                "--timeout", str(n / rate + 60)] + (["--status"] if status else []),
+                                "--timeout", str(2 * n / rate + 180)] + (["--status"] if status else []),
                                env=env, stdout=subprocess.PIPE, text=True)
         procs.append(sub)
         if kind == "predictor":
@@ -181,7 +181,7 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
         pub_cmd += ["--pose"] if status else ["--model", model]
         pub = subprocess.Popen(pub_cmd, env=env, stdout=subprocess.PIPE, text=True)
         procs.append(pub)
-        info = json.loads(pub.communicate(timeout=n / rate + 90)[0].strip().splitlines()[-1])
+        info = json.loads(pub.communicate(timeout=2 * n / rate + 180)[0].strip().splitlines()[-1])
         if status:
             time.sleep(3.0)
             _stop(sub)
