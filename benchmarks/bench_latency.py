@@ -185,7 +185,10 @@ def _run(kind: str, rate: float, n: int, executor: str, model: str, tmp: str, do
         if status:
             time.sleep(3.0)
             _stop(sub)
-        sub.wait(n / rate + 60)
+        try:  # the predictor's last predictions: what has not arrived 30 s after the last publish is lost
+            sub.wait(30)
+        except subprocess.TimeoutExpired:
+            _stop(sub)
     finally:
         for p in procs:
             _stop(p)
