@@ -362,8 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     best = max((r["rate"] for r in lat + sweep if r["executor"] == "events" and ok_pred(r)), default=0)
     lines += ["", f"Highest rate the predictor sustained (EventsExecutor, all samples predicted, "
               f"p99 < 50 ms): **{best:g} Hz** (of the rates tried; the publisher reached every "
-              "requested rate, so above this the predictor itself — about 0.5 ms of Python per sample — "
-              "is the limit).", "",
+              "requested rate, so above this the predictor itself is the limit).", "",
               "## Estimator throughput (shape + pose, purcell3)", "",
               "| rate (Hz) | achieved (Hz) | samples taken | all taken | lag after last publish (s) |",
               "|---|---|---|---|---|"]
