@@ -37,6 +37,7 @@ from suds_ros.core.ident.sysid import (
     AveragedTargets,
     SudsConfig,
     SudsRegressor,
+    averaged_design_rows,
     feature_layout,
     interval_state,
     regressor_design,
@@ -390,20 +391,12 @@ def _rows(config: SudsConfig, X: FloatArray, n_actuated: int, kernel_scale: obje
 
 def _averaged_rows(config: SudsConfig, Xs: FloatArray, W: object, n_actuated: int, kernel_scale: object,
                    n_columns: int) -> object:
-    """Rows a … b − 1 of the averaged design W·A(Xs), built from the segments those rows use only."""
+    """Rows a … b − 1 of the averaged design W·A(Xs), on demand (:func:`averaged_design_rows`)."""
     import scipy.sparse
 
     Wc = scipy.sparse.csr_matrix(W)
-
-    def rows(a: int, b: int) -> FloatArray:
-        used = Wc.indices[Wc.indptr[a]:Wc.indptr[b]]
-        if not used.size:
-            return np.zeros((b - a, n_columns))
-        s0, s1 = int(used.min()), int(used.max()) + 1
-        A = regressor_design(config, Xs[s0:s1], n_actuated, kernel_scale)  # type: ignore[arg-type]
-        return np.asarray(Wc[a:b, s0:s1] @ A)
-
-    return rows
+    return lambda a, b: averaged_design_rows(config, Xs, Wc, n_actuated, kernel_scale,  # type: ignore[arg-type]
+                                             n_columns, a, b)
 
 
 def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tuple[Recording, Recording]:

@@ -256,6 +256,19 @@ def regressor_design(config: SudsConfig, X: FloatArray, n_actuated: int,
     return design_matrix(config, *split_regressor_input(X, n_actuated), kernel_scale=kernel_scale)
 
 
+def averaged_design_rows(config: SudsConfig, X: FloatArray, weights: object, n_actuated: int,
+                         kernel_scale: KernelScale | None, n_columns: int, a: int, b: int) -> FloatArray:
+    """Rows a … b − 1 of the averaged design W·A(X), built from the segments those rows use only."""
+    import scipy.sparse
+
+    W = scipy.sparse.csr_matrix(weights)
+    used = W.indices[W.indptr[a]:W.indptr[b]]
+    if not used.size:
+        return np.zeros((b - a, n_columns))
+    s0, s1 = int(used.min()), int(used.max()) + 1
+    return np.asarray(W[a:b, s0:s1] @ regressor_design(config, X[s0:s1], n_actuated, kernel_scale))
+
+
 @dataclass(frozen=True)
 class AveragedTargets:
     """Outputs measured as time averages of the model's row predictions.
@@ -470,17 +483,9 @@ class SudsRegressor(BaseEstimator):
         return [(a, min(a + step, n)) for a in range(0, n, step)] or [(0, 0)]
 
     def _averaged_design(self, averaged: AveragedTargets, a: int, b: int) -> FloatArray:
-        """Rows a … b − 1 of the averaged design W·A, from the segments those rows use."""
-        import scipy.sparse
-
-        W = scipy.sparse.csr_matrix(averaged.weights)
-        if (a, b) == (0, W.shape[0]):
-            return np.asarray(W @ self._design(averaged.X))
-        used = W.indices[W.indptr[a]:W.indptr[b]]
-        if not used.size:
-            return np.zeros((b - a, self.layout_.n_columns))
-        s0, s1 = int(used.min()), int(used.max()) + 1
-        return np.asarray(W[a:b, s0:s1] @ self._design(np.asarray(averaged.X)[s0:s1]))
+        """Rows a … b − 1 of the averaged design W·A (:func:`averaged_design_rows`)."""
+        return averaged_design_rows(self.config, np.asarray(averaged.X), averaged.weights, self.n_actuated,
+                                    self.kernel_scale, self.layout_.n_columns, a, b)
 
     @staticmethod
     def _targets(y: FloatArray, rows: int, name: str) -> FloatArray:
