@@ -35,7 +35,8 @@ starts beside the simulator, so the stream does not run ahead while they are sti
 time at start for ``real_time_factor`` = 1 (stamps then track the wall clock)
 and 1.7e9 s otherwise.  ``cycles`` > 0 stops after that many gait cycles: the
 node waits (≤ 5 s) for reliable subscribers to acknowledge the tail and exits
-with code 0.
+with code 0; with ``linger`` true it stays up instead (until SIGINT), so a subscriber
+that joins or restarts late still gets the transient-local history of the stream.
 
 Effects at run time
 -------------------
@@ -106,6 +107,10 @@ class SimulatorConfig:
     cycles: int = field(default=0, metadata={
         "description": "gait cycles to publish, then exit with code 0 (0: run forever)",
         "range": (0, 2**31 - 1)})
+    linger: bool = field(default=False, metadata={
+        "description": "with cycles > 0: after the last cycle keep the publishers and their "
+                       "transient-local history up until interrupted (late or restarted subscribers "
+                       "still get the stream), instead of exiting"})
     t0: float | None = field(default=None, metadata={
         "description": "stamp of the first sample, s (unset: now in real time, 1.7e9 otherwise)"})
     wait_for_subscribers: int = field(default=0, metadata={
@@ -327,8 +332,10 @@ class SimulatorNode(Node):
             self._timer.cancel()
             for pub in (self._shape_pub, self._pose_pub):
                 pub.wait_for_all_acked(Duration(seconds=5.0))
-            self.get_logger().info(f"published {self._sent} samples ({self.config.cycles} cycles); done")
-            self.finished.set_result(self._sent)
+            self.get_logger().info(f"published {self._sent} samples ({self.config.cycles} cycles); done"
+                                   + ("; lingering until interrupted" if self.config.linger else ""))
+            if not self.config.linger:
+                self.finished.set_result(self._sent)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,7 +1,8 @@
 """A SIGKILLed estimator restarted on its checkpoint ends with the model of an uninterrupted run.
 
-The simulator keeps its samples (transient local, deep history), so the
-restarted estimator gets back what it missed; samples already in the
+The simulator keeps its samples (transient local, deep history) and lingers
+after its last cycle, so the restarted estimator gets back what it missed
+however late it comes up; samples already in the
 checkpoint are skipped as ``replayed``.  The reference is ``fit_streaming``
 on the recorded samples with the node's configuration.
 """
@@ -70,18 +71,19 @@ def test_killed_estimator_resumes_from_checkpoint(start_process, node_command, t
     wait_for(lambda: "recording [" in rec.output(), 60, "the recorder")
     wait_for(lambda: "ready: waiting for publishers" in est.output(), 60, "the estimator")
     sim = start_process(node_command("simulator_node", f"real_time_factor:={RTF}", f"seed:={SEED}",
-                                     f"cycles:={CYCLES}"), "simulator")
+                                     f"cycles:={CYCLES}", "linger:=true"), "simulator")
     wait_for(lambda: _checkpoint_rows(ckpt) > 0, 60, "a checkpoint with fitted rows")
     est.send_signal(signal.SIGKILL)
     assert est.wait(10) == -signal.SIGKILL
     killed_at = load_estimator(ckpt).n_shape
     est2 = start_process(est_cmd, "estimator-restarted")
-    assert sim.wait(120) == 0, sim.output()
+    wait_for(lambda: "cycles); done" in sim.output(), 120, lambda: f"the simulator's end\n{sim.output()}")
     wait_for(lambda: "resumed from checkpoint" in est2.output(), 60, "the resume message")
     # idle flush: the last partial chunk is fitted and the complete model published
     wait_for(lambda: f"published the model ({ref.n_samples} rows)" in est2.output(), 120,
              f"the final model\n{est2.output()}")
     assert stop(est2) == 0, est2.output()
+    assert stop(sim) == 0, sim.output()
     assert stop(rec) == 0, rec.output()
 
     recorded = read_recording(bag)  # the recorder may miss a few under load: check what it has
