@@ -64,6 +64,25 @@ class ChannelTable:
         rows = self.held if held else ~self.held
         return {c: float(np.nanmean(E[rows, i] ** 2) / floor[c] ** 2) for i, c in enumerate(self.channels)}
 
+    def evidence(self, E0: FloatArray, E1: FloatArray, n_params: int) -> float:
+        """Held-out output-error evidence of the residuals ``E1`` over ``E0``, nats.
+
+        Gaussian profile log-likelihood gain Σ_c (n_c/2)·log(RSS0_c/RSS1_c) over the channels,
+        minus the BIC penalty (n_params/2)·log(median n_c); n_c counts the finite held-out
+        residuals of a passive angle, and those of a body velocity over the window ``w`` (its
+        windowed estimate is correlated over a window).
+        """
+        held0, held1 = E0[self.held], E1[self.held]
+        ok = np.isfinite(held0) & np.isfinite(held1)
+        rss0 = np.sum(np.where(ok, held0, 0.0) ** 2, axis=0)
+        rss1 = np.sum(np.where(ok, held1, 0.0) ** 2, axis=0)
+        npas = self.data.pas.size
+        n = ok.sum(axis=0).astype(float)
+        n[npas:] /= self.w
+        use = (n > 0) & (rss0 > 0)
+        gain = 0.5 * np.sum(n[use] * np.log(rss0[use] / np.maximum(rss1[use], 1e-300)))
+        return float(gain - 0.5 * n_params * np.log(max(float(np.median(n[use])) if use.any() else 2.0, 2.0)))
+
     def floor(self, floors: Floors) -> dict[str, float]:
         """Noise floor per channel from :func:`~suds_ros.core.diagnosis.floor.noise_floor`'s output."""
         sig_rp, s_xy, s_th = floors

@@ -56,7 +56,13 @@ number in the report is computed on the held-out half.
    (scipy ``least_squares``, forward-difference Jacobian with absolute steps, :mod:`.lsq`), over
    one-cycle segments spread over the training half.  When the naming left alternative sets,
    each is refined too and the set whose replay leaves the least training residual over the
-   noise floor is reported (the equation error has biases of its own; a note says so).
+   noise floor is reported (the equation error has biases of its own; a note says so).  Sets that
+   swap a member of the selection for one it was confounded with in the equation error are refined
+   too (``swap_max``).  Ambiguity: every refined set whose held-out output-error evidence
+   (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) lies within ``ambiguity_band``
+   nats of the reported set's is reported with it, as ``alternatives`` of its first effect (the
+   finding is one, its explanation is not), and a confounded member whose swap the replay does
+   tell apart is no longer called confounded.
    Standard errors come from the cluster-robust sandwich (clusters = segments) with CR1
    and t(B − p) small-sample factors, floored by the model-based error (calibrated against
    seed-to-seed spread in the tests).  The whole-recording replays run each half as 3-cycle pieces
@@ -110,11 +116,11 @@ from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
 from suds_ros.core.diagnosis.replay import RecordingReplay, replay_recording
 from suds_ros.core.diagnosis.report import (
-    Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
+    Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
 )
 from suds_ros.core.diagnosis.selection import Naming, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
-from suds_ros.core.physics.effects import apply_effects
+from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import auto_substeps
 from suds_ros.core.recording import Recording
@@ -277,27 +283,35 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     conditions = channel_conditions([loc.channel for loc in located], nom.E0, table, model)
     if naming.chosen.score.score <= 0:
         return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
-    # the selection, and those started from the first step's runners-up: the simulator arbitrates
-    options = [(naming.chosen, naming.evidence, naming.confounded)]
-    options += [(a.cur, a.evidence, a.groups) for a in naming.alternatives]
+    # the selection, those started from the first step's runners-up, and swaps of confounded
+    # members: each is refined in the simulator, which arbitrates
     tried = []
-    for ranked, member_ev, groups in options:
-        cand, x, se, dropped = refine_choice(ranked.cand, ranked.x, model, data, config,
+    for opt in _options(naming, config):
+        cand, x, se, dropped = refine_choice(opt.cand, opt.x, model, data, config,
                                              nom.w, nom.substeps, nom.floors)
         fitted_model, delay = apply_effects(model, cand.effects(x))
         rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
         E1 = table.residuals(rep1.rp, rep1.xi)
         # the output error arbitration uses: Σ over channels of max(F − 1, 0) on the training half
         excess = sum(max(f - 1.0, 0.0) for f in table.fstats(E1, nom.floor, held=False).values())
-        tried.append((excess, ranked, member_ev, groups, cand, x, se, dropped, rep1, E1))
-    best = min(range(len(tried)), key=lambda i: tried[i][0])
-    excess, ranked, member_ev, groups, cand, x, se, dropped, rep1, E1 = tried[best]
+        tried.append(_Tried(opt, cand, x, se, dropped, rep1, E1, excess,
+                            table.evidence(nom.E0, E1, x.size)))
+    best = min(range(len(tried)), key=lambda i: tried[i].excess)
+    win = tried[best]
     notes = []
     if best:
-        diff = naming.chosen.score.score - ranked.score.score
-        notes.append(f"the simulator preferred {ranked.cand.label} (training excess over the floor "
-                     f"{excess:.3g}) to the forward selection's {naming.chosen.cand.label} ({tried[0][0]:.3g}; "
-                     f"equation-error evidence {abs(diff):.0f} nats {'higher' if diff > 0 else 'lower'})")
+        diff = naming.chosen.score.score - win.option.eq_score
+        eq = ("" if not np.isfinite(diff)
+              else f"; equation-error evidence {abs(diff):.0f} nats {'higher' if diff > 0 else 'lower'}")
+        notes.append(f"the simulator preferred {win.option.cand.label} (training excess over the floor "
+                     f"{win.excess:.3g}) to the forward selection's {naming.chosen.cand.label} "
+                     f"({tried[0].excess:.3g}{eq})")
+    alternatives = _ambiguous(win, tried, config.ambiguity_band)
+    if alternatives:
+        notes.append(f"ambiguous: {len(alternatives)} other explanation(s) within {config.ambiguity_band:g} nats "
+                     f"of held-out evidence after replay (see the first effect's alternatives)")
+    cand, x, se, dropped, rep1, E1 = win.cand, win.x, win.se, win.dropped, win.replay, win.E1
+    ranked, member_ev, groups = win.option, win.option.member_ev, win.option.groups
     clock.mark("refine")
     # floor with the better model (effects can leak into the fourth differences)
     better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt, xi_noise_gain(data, nom.w)))
@@ -308,9 +322,105 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     conditions.update(channel_conditions(new, nom.E0, table, model))
     evidence = {Candidate((p,)).label: e for p, e in zip(ranked.cand.parts, member_ev)}
     kept = {Candidate((p,)).label for p in cand.parts}
-    confounded = tuple(g for g in groups if g[0] not in dropped and g[0] in kept)
-    return _Fit(fitted_effects(cand, x, se, evidence), rep1, E1, floor, F0,
+    # a confounded member whose swap the replay tells apart (outside the band) is not confounded
+    told_apart = {lab for t in tried if t.option.swap and t is not win
+                  and win.evidence - t.evidence > config.ambiguity_band
+                  for lab in ({Candidate((q,)).label for q in t.cand.parts} - kept)}
+    confounded = tuple(kept_g for g in groups if g[0] not in dropped and g[0] in kept
+                       for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
+                       if len(kept_g) > 1)
+    effects = fitted_effects(cand, x, se, evidence)
+    if effects and alternatives:
+        effects[0] = dataclasses.replace(effects[0], alternatives=alternatives)
+    return _Fit(effects, rep1, E1, floor, F0,
                 located, conditions, confounded, False, tuple(notes))
+
+
+@dataclass(frozen=True)
+class _Option:
+    """A set of effects to refine in the simulator: start values, members' evidence, its origin."""
+
+    cand: Candidate
+    x: FloatArray
+    member_ev: tuple[float, ...]
+    groups: tuple[tuple[str, ...], ...]
+    eq_score: float  # equation-error evidence of the set (nats; NaN if never scored as a whole)
+    swap: bool = False  # a confounded member swapped in for one of the selection's
+
+
+@dataclass(frozen=True)
+class _Tried:
+    """An option refined and replayed: the refined set, its residuals and its two figures of merit."""
+
+    option: _Option
+    cand: Candidate
+    x: FloatArray
+    se: FloatArray
+    dropped: tuple[str, ...]
+    replay: RecordingReplay
+    E1: FloatArray
+    excess: float  # training-half Σ max(F − 1, 0): the arbitration
+    evidence: float  # held-out output-error evidence, nats: the ambiguity band
+
+
+def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
+    """The selection, the selections from the first step's runners-up, and confounded swaps.
+
+    A swap replaces one member of the chosen set by a candidate it was confounded with in the
+    equation error (within the confounding margin at its step), started from the chosen set's
+    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
+    """
+    chosen = naming.chosen
+    out = [_Option(chosen.cand, chosen.x, naming.evidence, naming.confounded, chosen.score.score)]
+    out += [_Option(a.cur.cand, a.cur.x, a.evidence, a.groups, a.cur.score.score) for a in naming.alternatives]
+    seen = {frozenset(o.cand.parts) for o in out}
+    slices, i = {}, 0
+    for part in chosen.cand.parts:
+        n = len(EFFECTS[part[0]].params)
+        slices[Candidate((part,)).label] = (part, chosen.x[i:i + n])
+        i += n
+    swaps: list[_Option] = []
+    for group in naming.confounded:
+        if group[0] not in slices:
+            continue
+        for label in group[1:]:
+            single = naming.fits.get(label)
+            if single is None or len(single.cand.parts) != 1 or len(swaps) >= config.swap_max:
+                continue
+            parts, xs = [], []
+            for lab, (part, xp) in slices.items():
+                parts.append(single.cand.parts[0] if lab == group[0] else part)
+                xs.append(single.x if lab == group[0] else xp)
+            if len(set(parts)) < len(parts) or frozenset(parts) in seen:
+                continue
+            cand = Candidate(tuple(parts))
+            seen.add(frozenset(parts))
+            whole = naming.fits.get(cand.label)
+            swaps.append(_Option(cand, np.concatenate(xs), (), (),
+                                 whole.score.score if whole is not None else float("nan"), swap=True))
+    return out + swaps
+
+
+def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternative, ...]:
+    """The refined sets other than ``win`` within ``band`` nats of its held-out evidence (closest first)."""
+    mine = {Candidate((p,)).label for p in win.cand.parts}
+    out: list[tuple[float, Alternative]] = []
+    seen = {frozenset(win.cand.parts)}
+    for t in tried:
+        key = frozenset(t.cand.parts)
+        gap = win.evidence - t.evidence
+        if key in seen or not t.cand.parts or gap > band:
+            continue
+        seen.add(key)
+        new = [(e.name, e.target, e.parameters)
+               for e in fitted_effects(t.cand, t.x, t.se) if Candidate(((e.name, e.target),)).label not in mine]
+        if not new:
+            continue
+        theirs = {Candidate((p,)).label for p in t.cand.parts}
+        (name, target, params), rest = new[0], tuple(new[1:])
+        out.append((gap, Alternative(name, target, params, float(gap), rest,
+                                     tuple(sorted(mine - theirs)))))
+    return tuple(a for _, a in sorted(out, key=lambda ga: ga[0]))
 
 
 def _show(

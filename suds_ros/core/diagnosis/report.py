@@ -60,6 +60,13 @@ class DiagnoseConfig:
         once.
     arbitrate_max : int
         Most alternative selections refined (0: no arbitration).
+    swap_max : int
+        Most sets refined in the simulator that swap a member of the chosen set for one it was
+        confounded with in the equation error (0: none).
+    ambiguity_band : float
+        Every set refined in the simulator whose held-out output-error evidence (replay log
+        likelihood gain over the nominal model after the BIC penalty, nats) is within this band of
+        the reported set's is reported with it as an alternative explanation of the same finding.
     unexplained_fraction : float
         Maximum fraction of the excess residual power (over the floor) that may remain after the
         fit for the mismatch to count as explained.
@@ -96,6 +103,8 @@ class DiagnoseConfig:
     arbitrate_rel: float = 0.1
     arbitrate_margin: float = 20.0
     arbitrate_max: int = 2
+    swap_max: int = 3
+    ambiguity_band: float = 10.0
     unexplained_fraction: float = 0.25
     segment_cycles: int = 1
     refine_cycles: int = 30
@@ -120,6 +129,8 @@ class DiagnoseConfig:
             ("arbitrate_rel", self.arbitrate_rel >= 0),
             ("arbitrate_margin", self.arbitrate_margin >= 0),
             ("arbitrate_max", self.arbitrate_max >= 0),
+            ("swap_max", self.swap_max >= 0),
+            ("ambiguity_band", self.ambiguity_band >= 0),
             ("unexplained_fraction", 0 < self.unexplained_fraction < 1),
             ("segment_cycles", self.segment_cycles >= 1),
             ("refine_nfev", self.refine_nfev >= 1),
@@ -147,11 +158,51 @@ class Located:
 
 
 @dataclass(frozen=True)
+class Alternative:
+    """Another explanation that fits the recording about as well as the reported effects.
+
+    The alternative set, refined in the simulator like the reported one, differs from it by the
+    effects listed: ``name``, ``target`` and ``parameters`` of its first differing effect,
+    ``with_effects`` the other effects it adds, each as (name, target, parameters), and
+    ``instead_of`` the labels of the reported effects it does without.  ``evidence_gap``: the
+    reported set's held-out output-error evidence minus the alternative's, nats (negative: the
+    alternative has more held-out evidence, but the simulator's training-half arbitration chose
+    the reported set).
+    """
+
+    name: str
+    target: str | None
+    parameters: Mapping[str, float]
+    evidence_gap: float
+    with_effects: tuple[tuple[str, str | None, Mapping[str, float]], ...] = ()
+    instead_of: tuple[str, ...] = ()
+
+    @property
+    def label(self) -> str:
+        """``name:target + …`` of the effects the alternative adds."""
+        parts = [(self.name, self.target)] + [(n, t) for n, t, _ in self.with_effects]
+        return " + ".join(n if t is None else f"{n}:{t}" for n, t in parts)
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "name": self.name,
+            "target": self.target,
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "evidence_gap": float(self.evidence_gap),
+            "with": [{"name": n, "target": t, "parameters": {k: float(v) for k, v in p.items()}}
+                     for n, t, p in self.with_effects],
+            "instead_of": list(self.instead_of),
+        }
+
+
+@dataclass(frozen=True)
 class FittedEffect:
     """A catalogue effect with fitted parameters, standard errors and its evidence.
 
     ``evidence`` is the held-out log-likelihood (nats, after the BIC penalty) lost when this effect
-    is left out of the named set (equation error; None when not measured).
+    is left out of the named set (equation error; None when not measured).  ``alternatives`` (on
+    the effect reported first only): the explanations within ``ambiguity_band`` of the reported
+    set's held-out evidence after replay — the finding is ambiguous between them.
     """
 
     name: str
@@ -159,6 +210,7 @@ class FittedEffect:
     parameters: Mapping[str, float]
     stderr: Mapping[str, float]
     evidence: float | None = None
+    alternatives: tuple[Alternative, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -167,6 +219,7 @@ class FittedEffect:
             "parameters": {k: float(v) for k, v in self.parameters.items()},
             "stderr": {k: float(v) for k, v in self.stderr.items()},
             "evidence": None if self.evidence is None else float(self.evidence),
+            "alternatives": [a.as_dict() for a in self.alternatives],
         }
 
 
@@ -273,8 +326,8 @@ class DiagnosisReport:
     def to_dict(self) -> dict[str, object]:
         """The JSON schema of ``suds diagnose --json`` (exactly these keys).
 
-        ``discovered`` and each effect's ``evidence`` were added by the stepwise selection; nothing
-        was removed.
+        ``discovered`` and each effect's ``evidence`` were added by the stepwise selection, each
+        effect's ``alternatives`` by the ambiguity report; nothing was removed.
         """
         return {
             "mismatch": bool(self.mismatch),

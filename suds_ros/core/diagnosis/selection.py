@@ -16,8 +16,8 @@ gain; its calibration on null recordings is in ``docs/results/evidence_threshold
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,7 +48,8 @@ class Naming:
     evidence lost when that member is left out, nats; ``steps``: a log of the selection;
     ``gains``: the best evidence gain found at each forward step tried (the last one may have
     failed the threshold), nats; ``alternatives``: the selections started from the first step's
-    runners-up (:func:`_alternatives`), for the simulator to arbitrate.
+    runners-up (:func:`_alternatives`), for the simulator to arbitrate; ``fits``: every candidate
+    fitted on the way, by label (its best fit), e.g. to start a swap of confounded members from.
     """
 
     ranking: tuple[CandidateScore, ...]
@@ -58,6 +59,7 @@ class Naming:
     steps: tuple[str, ...] = ()
     gains: tuple[float, ...] = ()
     alternatives: tuple["_Path", ...] = ()
+    fits: Mapping[str, Ranked] = field(default_factory=dict)
 
 
 class _Selector:
@@ -132,7 +134,8 @@ def name_mismatch(
     main = _forward(sel, singles, None)
     alternatives = _alternatives(sel, singles, main) if main.cur.score.score > 0 else ()
     ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
-    return Naming(ranking, main.cur, main.groups, main.evidence, main.log, main.gains, alternatives)
+    return Naming(ranking, main.cur, main.groups, main.evidence, main.log, main.gains, alternatives,
+                  dict(sel.fitted))
 
 
 @dataclass(frozen=True)
