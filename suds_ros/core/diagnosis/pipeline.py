@@ -114,7 +114,8 @@ from suds_ros.core.diagnosis.locate import (
 from suds_ros.core.diagnosis.discovery import discover, formula
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
-from suds_ros.core.diagnosis.replay import RecordingReplay, replay_recording
+from suds_ros.core.diagnosis.null import null_recording
+from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay_recording
 from suds_ros.core.diagnosis.report import (
     Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
 )
@@ -145,6 +146,7 @@ class _Nominal:
     E0: FloatArray
     rms0: dict[str, float]
     F0: dict[str, float]
+    referenced: bool = False  # ``replay`` is a reference recording's, not the nominal model's replay
 
 
 @dataclass
@@ -204,7 +206,7 @@ def diagnose(
     if not located:
         return _report(nom, nom.replay, clock.timings, coefficients=coeffs)
     say("ranking catalogue candidates (equation error)")
-    naming = name_mismatch(data, model, config, nom.floors[0])
+    naming = name_mismatch(data, model, config, nom.floors[0], null=_null_maker(nom))
     clock.mark("name")
     say(f"fitting {naming.chosen.cand.label} inside the simulator")
     fit = _refine(nom, naming, located, clock)
@@ -222,7 +224,31 @@ def rank_effects(
     data = prepare(rec, model)
     nom = replay_nominal(data, model, config, None)
     located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
-    return name_mismatch(data, model, config, nom.floors[0]), tuple(located)
+    return name_mismatch(data, model, config, nom.floors[0], null=_null_maker(nom)), tuple(located)
+
+
+def _null_maker(nom: _Nominal) -> Callable[[Candidate, FloatArray], Data] | None:
+    """Null recordings of sets of effects for the selection's calibration (None: not calibrated).
+
+    The noise is seeded by ``calibration_seed`` and the set, so a diagnosis is reproducible.
+    """
+    config, data = nom.config, nom.data
+    if not config.calibrate:
+        return None
+    starts = piece_starts(data, nom.w, nom.chunk, nom.warm)
+    gain = xi_noise_gain(data, nom.w)
+
+    def make(cand: Candidate, x: FloatArray) -> Data:
+        fitted, delay = apply_effects(nom.model, cand.effects(x))
+        rep = (nom.replay if not cand.parts and not nom.referenced
+               else replay_recording(data, fitted, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm))
+        # the floors with this set's replay (a mismatch left in the nominal residual inflates them)
+        sig_rp, s_xy, s_th = noise_floor(*rep.floor_arrays, nom.w, data.dt, gain)
+        floors = (np.fmin(sig_rp, nom.floors[0]), min(s_xy, nom.floors[1]), min(s_th, nom.floors[2]))
+        seed = [config.calibration_seed] + [ord(ch) for ch in cand.label]
+        return null_recording(data, rep, starts, floors, nom.w, gain, np.random.default_rng(seed))
+
+    return make
 
 
 def discover_formulas(
@@ -258,6 +284,7 @@ def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refere
         data=data, model=model, config=config, w=w, substeps=substeps, chunk=chunk, warm=warm,
         table=table, cycle=np.floor(data.phase[:data.n_used] / (2 * np.pi)), replay=rep,
         floors=floors, floor=floor, E0=E0, rms0=table.rms(E0), F0=table.fstats(E0, floor),
+        referenced=reference is not None,
     )
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.diagnosis.data import Data, prepare
 from suds_ros.core.diagnosis.floor import FloorArrays, floor_arrays
@@ -160,6 +160,13 @@ def replay_recording(
             seg_rp.append(rep.rp[b])
             seg_pose.append(rep.pose[b])
     return RecordingReplay(rp, xi, pose, floor_arrays(data, segs, seg_rp, seg_pose))
+
+
+def piece_starts(data: Data, w: int, chunk: int, warm: int) -> IntArray:
+    """Sorted output starts of the pieces :func:`replay_recording` replays (0 and the held-out start
+    among them): where its replayed pose restarts from the recorded one."""
+    return np.array(sorted(c for group in _pieces(data, w, chunk, warm).values() for _, c, _ in group),
+                    dtype=np.intp)
 
 
 def _pieces(data: Data, w: int, chunk: int, warm: int) -> dict[int, list[tuple[int, int, int]]]:

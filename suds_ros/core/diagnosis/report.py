@@ -67,6 +67,15 @@ class DiagnoseConfig:
         Every set refined in the simulator whose held-out output-error evidence (replay log
         likelihood gain over the nominal model after the BIC penalty, nats) is within this band of
         the reported set's is reported with it as an alternative explanation of the same finding.
+    calibrate : bool
+        Calibrate every selection step's evidence on this recording (:mod:`.null`): a candidate's
+        evidence is lowered by what it gains on a null recording simulated with the effects chosen
+        so far (this recording's drive, grid, gaps and noise floors), its equation-error bias here.
+    calibration_max : int
+        Most candidates calibrated per step (best raw evidence first; calibration stops early once
+        no raw score left can beat the best calibrated one).
+    calibration_seed : int
+        Seed of the null recordings' noise.
     unexplained_fraction : float
         Maximum fraction of the excess residual power (over the floor) that may remain after the
         fit for the mismatch to count as explained.
@@ -105,6 +114,9 @@ class DiagnoseConfig:
     arbitrate_max: int = 2
     swap_max: int = 3
     ambiguity_band: float = 10.0
+    calibrate: bool = True
+    calibration_max: int = 8
+    calibration_seed: int = 0
     unexplained_fraction: float = 0.25
     segment_cycles: int = 1
     refine_cycles: int = 30
@@ -131,6 +143,7 @@ class DiagnoseConfig:
             ("arbitrate_max", self.arbitrate_max >= 0),
             ("swap_max", self.swap_max >= 0),
             ("ambiguity_band", self.ambiguity_band >= 0),
+            ("calibration_max", self.calibration_max >= 1),
             ("unexplained_fraction", 0 < self.unexplained_fraction < 1),
             ("segment_cycles", self.segment_cycles >= 1),
             ("refine_nfev", self.refine_nfev >= 1),

@@ -16,7 +16,7 @@ gain; its calibration on null recordings is in ``docs/results/evidence_threshold
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,6 +70,7 @@ class _Selector:
         self.config = config
         self.pen_unit = 0.5 * np.log(max(float(np.median(scorer.n_eff_train)), 2.0))
         self.fitted: dict[str, Ranked] = {}
+        self.calibration: _Calibration | None = None
 
     def ranked(self, cand: Candidate, x: FloatArray, g_te: float) -> Ranked:
         r = Ranked(CandidateScore(cand.label, tuple(cand.effects(x)), x.size, g_te, self.pen_unit * x.size), cand, x)
@@ -80,6 +81,11 @@ class _Selector:
 
     def fit(self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None) -> Ranked:
         x, _, g_te = self.scorer.fit(cand, x0, fixed)
+        return self.ranked(cand, x, g_te)
+
+    def fit_quick(self, cand: Candidate, x0: FloatArray) -> Ranked:
+        """One short least-squares run of ``cand`` from ``x0`` (no multi-start)."""
+        x, _, g_te = self.scorer.fit(cand, x0, quick=True)
         return self.ranked(cand, x, g_te)
 
     def extend(self, cur: Ranked, singles: Sequence[Ranked]) -> list[Ranked]:
@@ -119,22 +125,92 @@ def _compatible(cand: Candidate, part: tuple[str, str | None]) -> bool:
     return all(p != part and not (p[0] == part[0] and part[1] is None) for p in cand.parts)
 
 
+NullMaker = Callable[[Candidate, FloatArray], Data]
+
+
+class _Calibration:
+    """Per-recording bias of the equation-error evidence (:mod:`.null`).
+
+    For the set S chosen so far, a null recording is simulated with S at its fitted parameters
+    (``make_null``); a candidate set S + c is fitted on that null as on the data, and its evidence
+    gain over S there is what c gains without being present.  Nulls and fits are cached by set.
+    """
+
+    def __init__(self, make_null: NullMaker, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray) -> None:
+        self.make_null = make_null
+        self.model = model
+        self.config = config
+        self.sig_rp = sig_rp
+        self._nulls: dict[frozenset[tuple[str, str | None]], tuple[_Selector, Ranked]] = {}
+        self._gains: dict[tuple[frozenset[tuple[str, str | None]], str], float] = {}
+        self.log: list[str] = []
+
+    def null_gain(self, cur: Ranked, option: Ranked) -> float:
+        """Evidence ``option`` (a superset of ``cur``) gains over ``cur`` on ``cur``'s null, nats."""
+        key = frozenset(cur.cand.parts)
+        hit = self._gains.get((key, option.cand.label))
+        if hit is not None:
+            return hit
+        if key not in self._nulls:
+            sel = _Selector(Scorer(self.make_null(cur.cand, cur.x), self.model, self.config.eq_window,
+                                   self.sig_rp), self.config)
+            base = (sel.fit_quick(cur.cand, cur.x) if cur.cand.parts
+                    else sel.ranked(Candidate(()), np.zeros(0), 0.0))
+            self._nulls[key] = (sel, base)
+        sel, base = self._nulls[key]
+        # a short run from the recording's fit: the null's optimum of a biased candidate is near it
+        gain = sel.fit_quick(option.cand, option.x).score.score - base.score.score
+        self._gains[(key, option.cand.label)] = gain
+        return gain
+
+    def adjusted(self, cur: Ranked, options: Sequence[Ranked]) -> dict[str, float]:
+        """Options' scores less their null gains over ``cur`` (when positive), by label.
+
+        Options are taken best raw score first; the calibration stops once no raw score left can
+        beat the best adjusted one (an adjustment only lowers a score), or after
+        ``config.calibration_max`` candidates (the rest keep their raw scores, noted).
+        """
+        out = {o.cand.label: o.score.score for o in options}
+        best = -np.inf
+        done = 0
+        for o in sorted(options, key=lambda r: -r.score.score):
+            if o.score.score <= best:
+                break
+            if done >= self.config.calibration_max:
+                self.log.append(f"calibration stopped after {done} candidates (calibration_max)")
+                break
+            bias = max(self.null_gain(cur, o), 0.0)
+            out[o.cand.label] = o.score.score - bias
+            done += 1
+            if bias > 0:
+                self.log.append(f"null of {cur.cand.label or 'the nominal model'}: "
+                                f"{_added(o.cand, cur.cand)} gains {bias:.1f} nats without being there "
+                                f"({o.score.score - cur.score.score:.1f} on the recording)")
+            best = max(best, out[o.cand.label])
+        return out
+
+
 def name_mismatch(
     data: Data, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray,
-    candidates: Sequence[Candidate] | None = None,
+    candidates: Sequence[Candidate] | None = None, null: NullMaker | None = None,
 ) -> Naming:
     """Select the set of effects that explains the mismatch (module docstring).
 
     ``sig_rp`` is the noise floor of the passive angles (sets the stick threshold on |ṙ_p|);
-    ``candidates`` default to :func:`~suds_ros.core.diagnosis.naming.catalogue_candidates`.
+    ``candidates`` default to :func:`~suds_ros.core.diagnosis.naming.catalogue_candidates`;
+    ``null`` makes the null recording of a set of effects (:mod:`.null`): with it every step's
+    evidence is calibrated on this recording (:class:`_Calibration`).
     """
     sel = _Selector(Scorer(data, model, config.eq_window, sig_rp), config)
+    if null is not None:
+        sel.calibration = _Calibration(null, model, config, sig_rp)
     pool = list(candidates) if candidates is not None else catalogue_candidates(model, config.model_suspects)
     singles = sorted((sel.fit(c) for c in pool), key=lambda r: -r.score.score)
     main = _forward(sel, singles, None)
     alternatives = _alternatives(sel, singles, main) if main.cur.score.score > 0 else ()
     ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
-    return Naming(ranking, main.cur, main.groups, main.evidence, main.log, main.gains, alternatives,
+    log = main.log + (tuple(sel.calibration.log) if sel.calibration is not None else ())
+    return Naming(ranking, main.cur, main.groups, main.evidence, log, main.gains, alternatives,
                   dict(sel.fitted))
 
 
@@ -165,17 +241,26 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
             options = [first] + [o for o in options if o.cand != first.cand]
         if not options:
             break
+        score = {o.cand.label: o.score.score for o in options}
+        if sel.calibration is not None:
+            score = sel.calibration.adjusted(cur, options)
+            options = sorted(options, key=lambda o: -score[o.cand.label])
+            if step == 0 and first is not None:
+                options = [first] + [o for o in options if o.cand != first.cand]
         best = options[0]
-        gain = best.score.score - cur.score.score
+        gain = score[best.cand.label] - cur.score.score
         gains.append(float(gain))
         need = 0.0 if step == 0 else config.evidence_threshold
-        log.append(f"step {step + 1}: best {best.cand.label} gains {gain:.1f} nats (needs > {need:g})")
+        raw = best.score.score - cur.score.score
+        cal = f" ({raw:.1f} before calibration)" if abs(raw - gain) > 1e-9 else ""
+        log.append(f"step {step + 1}: best {best.cand.label} gains {gain:.1f} nats{cal} (needs > {need:g})")
         if gain <= need:
             if step == 0:
                 cur = best  # nothing has positive evidence; the pipeline reports it unexplained
             break
         margin = max(config.confound_margin, config.confound_rel * gain)
-        close = [o for o in options if abs(best.score.score - o.score.score) <= margin and o.cand != best.cand]
+        close = [o for o in options
+                 if abs(score[best.cand.label] - score[o.cand.label]) <= margin and o.cand != best.cand]
         chosen = min([best] + close, key=_preference) if close else best
         if close:
             others = [c for c in [best] + close if c is not chosen]
