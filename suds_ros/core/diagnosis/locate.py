@@ -64,15 +64,17 @@ class ChannelTable:
         rows = self.held if held else ~self.held
         return {c: float(np.nanmean(E[rows, i] ** 2) / floor[c] ** 2) for i, c in enumerate(self.channels)}
 
-    def evidence(self, E0: FloatArray, E1: FloatArray, n_params: int) -> float:
-        """Held-out output-error evidence of the residuals ``E1`` over ``E0``, nats.
+    def evidence(self, E0: FloatArray, E1: FloatArray, n_params: int, held: bool = True) -> float:
+        """Output-error evidence of the residuals ``E1`` over ``E0`` on the held-out (``held``) or
+        the training half, nats.
 
         Gaussian profile log-likelihood gain Σ_c (n_c/2)·log(RSS0_c/RSS1_c) over the channels,
-        minus the BIC penalty (n_params/2)·log(median n_c); n_c counts the finite held-out
-        residuals of a passive angle, and those of a body velocity over the window ``w`` (its
-        windowed estimate is correlated over a window).
+        minus the BIC penalty (n_params/2)·log(median n_c); n_c counts the finite residuals of a
+        passive angle, and those of a body velocity over the window ``w`` (its windowed estimate
+        is correlated over a window).
         """
-        held0, held1 = E0[self.held], E1[self.held]
+        rows = self.held if held else ~self.held
+        held0, held1 = E0[rows], E1[rows]
         ok = np.isfinite(held0) & np.isfinite(held1)
         rss0 = np.sum(np.where(ok, held0, 0.0) ** 2, axis=0)
         rss1 = np.sum(np.where(ok, held1, 0.0) ** 2, axis=0)

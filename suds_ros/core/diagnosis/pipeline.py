@@ -55,8 +55,9 @@ number in the report is computed on the held-out half.
    least squares of the noise-floor-weighted replay residuals over short training segments
    (scipy ``least_squares``, forward-difference Jacobian with absolute steps, :mod:`.lsq`), over
    one-cycle segments spread over the training half.  When the naming left alternative sets,
-   each is refined too and the set whose replay leaves the least training residual over the
-   noise floor is reported (the equation error has biases of its own; a note says so).  Sets that
+   each is refined too and the set whose replay has the most evidence on the training half
+   (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) is reported (the equation
+   error has biases of its own; a note says so).  Sets that
    swap a member of the selection for one it was confounded with in the equation error are refined
    too (``swap_max``).  Ambiguity: every refined set whose held-out output-error evidence
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) lies within ``ambiguity_band``
@@ -319,20 +320,19 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         fitted_model, delay = apply_effects(model, cand.effects(x))
         rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
         E1 = table.residuals(rep1.rp, rep1.xi)
-        # the output error arbitration uses: Σ over channels of max(F − 1, 0) on the training half
-        excess = sum(max(f - 1.0, 0.0) for f in table.fstats(E1, nom.floor, held=False).values())
-        tried.append(_Tried(opt, cand, x, se, dropped, rep1, E1, excess,
-                            table.evidence(nom.E0, E1, x.size)))
-    best = min(range(len(tried)), key=lambda i: tried[i].excess)
+        # the output error arbitrates: replay evidence on the training half
+        tried.append(_Tried(opt, cand, x, se, dropped, rep1, E1,
+                            table.evidence(nom.E0, E1, x.size, held=False), table.evidence(nom.E0, E1, x.size)))
+    best = max(range(len(tried)), key=lambda i: tried[i].train_evidence)
     win = tried[best]
     notes = []
     if best:
         diff = naming.chosen.score.score - win.option.eq_score
         eq = ("" if not np.isfinite(diff)
               else f"; equation-error evidence {abs(diff):.0f} nats {'higher' if diff > 0 else 'lower'}")
-        notes.append(f"the simulator preferred {win.option.cand.label} (training excess over the floor "
-                     f"{win.excess:.3g}) to the forward selection's {naming.chosen.cand.label} "
-                     f"({tried[0].excess:.3g}{eq})")
+        notes.append(f"the simulator preferred {win.option.cand.label} (replay evidence on the training half "
+                     f"{win.train_evidence:.1f} nats) to the forward selection's {naming.chosen.cand.label} "
+                     f"({tried[0].train_evidence:.1f}{eq})")
     alternatives = _ambiguous(win, tried, config.ambiguity_band)
     if alternatives:
         notes.append(f"ambiguous: {len(alternatives)} other explanation(s) within {config.ambiguity_band:g} nats "
@@ -386,8 +386,8 @@ class _Tried:
     dropped: tuple[str, ...]
     replay: RecordingReplay
     E1: FloatArray
-    excess: float  # training-half Σ max(F − 1, 0): the arbitration
-    evidence: float  # held-out output-error evidence, nats: the ambiguity band
+    train_evidence: float  # output-error evidence on the training half, nats: the arbitration
+    evidence: float  # output-error evidence on the held-out half, nats: the ambiguity band
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
@@ -436,7 +436,7 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
     for t in tried:
         key = frozenset(t.cand.parts)
         gap = win.evidence - t.evidence
-        if key in seen or not t.cand.parts or gap > band:
+        if key in seen or not t.cand.parts or abs(gap) > band:
             continue
         seen.add(key)
         new = [(e.name, e.target, e.parameters)

@@ -178,9 +178,9 @@ class Alternative:
     effects listed: ``name``, ``target`` and ``parameters`` of its first differing effect,
     ``with_effects`` the other effects it adds, each as (name, target, parameters), and
     ``instead_of`` the labels of the reported effects it does without.  ``evidence_gap``: the
-    reported set's held-out output-error evidence minus the alternative's, nats (negative: the
-    alternative has more held-out evidence, but the simulator's training-half arbitration chose
-    the reported set).
+    reported set's held-out output-error evidence minus the alternative's, nats (within
+    ± ``ambiguity_band``; negative: the alternative has a little more held-out evidence, the
+    reported set more on the training half, which arbitrates).
     """
 
     name: str
