@@ -222,9 +222,9 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     Pb, Mb, Tb = _body_over_pose_intervals(rec, mid, pred, template_order, cut)
     if Pb is None:
         Pb, Mb, Tb = P[:, b], M[:, b], T[:, b]
-    streams = (body_ns, pas_ns) if rec.passive else (body_ns,)
+    has_p = bool(rec.passive)  # a fully actuated chain has no passive group to score
+    streams = (body_ns, pas_ns) if has_p else (body_ns,)
     first = ns_to_float(min(int(s.min()) for s in streams)) - rec.t[0]
-    has_p = bool(rec.passive)
     return LiveScore(
         gamma_body=gamma(Pb, Tb, Mb),
         gamma_passive=gamma(P[:, p], T[:, p], M[:, p]) if has_p else None,
