@@ -59,3 +59,24 @@ def swimmer9_run():
     from suds_ros.core.physics.systems import make_system
 
     return simulate(make_system("swimmer9"), SimConfig(cycles=20, seed=12))
+
+
+#: a fully actuated robot model file (8 links, all 7 joints driven, c⊥/c∥ = 2)
+WORM8 = Path(__file__).resolve().parent / "data" / "robots" / "worm8.yaml"
+
+
+@pytest.fixture(scope="session")
+def worm8_model():
+    """The fully actuated test robot of ``test/data/robots/worm8.yaml``."""
+    from suds_ros.core.physics.robot_model import load_model
+
+    return load_model(WORM8)
+
+
+@pytest.fixture(scope="session")
+def worm8_run(worm8_model):
+    """worm8 (fully actuated), 20 cycles, seed 13, default noise."""
+    from suds_ros.core.physics.rft import RFTChain
+    from suds_ros.core.physics.sim import SimConfig, simulate
+
+    return simulate(RFTChain(worm8_model), SimConfig(cycles=20, seed=13))

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
+import math
 from pathlib import Path
 from typing import Any
 
 from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording
 from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.json_text import dumps
 from suds_ros.core.recording import Recording
 
 EPILOG = """\
@@ -113,22 +114,41 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
                         title=f"{rec.system}: {Path(args.bag).name}")
         result["figure"] = str(args.figure)
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(dumps(result, indent=2))
         return 0
     print(f"{rec.system}: {args.bag}")
     print(f"  train {args.train_cycles} cycles, test {result['test_cycles']} cycles, regressor set "
           f"{result['regressors']}, {ident.n_parameters} parameters per output")
     print(f"  {'':<14}{'Γ':>8}")
-    print(f"  {'body':<14}{sc.gamma_body:>8.3f}")
-    print(f"  {'passive':<14}{sc.gamma_passive:>8.3f}")
+    print(f"  {'body':<14}{_gamma_text(sc.gamma_body)}")
+    if sc.gamma_passive is None:
+        print(f"  {'passive':<14}{'none':>8} (fully actuated: no passive joint)")
+    else:
+        print(f"  {'passive':<14}{_gamma_text(sc.gamma_passive)}")
     if sc.gamma_torque is not None:
-        print(f"  {'torque':<14}{sc.gamma_torque:>8.3f}")
+        print(f"  {'torque':<14}{_gamma_text(sc.gamma_torque)}")
     print(f"  {'channel':<16}{'RMS model':>12}{'RMS template':>14}")
     for c in pred.channels:
         print(f"  {c:<16}{sc.rms_model[c]:>12.4g}{sc.rms_template[c]:>14.4g}")
     if args.figure:
         print(f"  figure: {args.figure}")
     return 0
+
+
+def _plain(v: object) -> str:
+    """A value of the streaming summary as text: a score that does not apply is "none"."""
+    if v is None:
+        return "none"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {_plain(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, float) and not math.isfinite(v):
+        return "undefined"
+    return str(v)
+
+
+def _gamma_text(g: float) -> str:
+    """A Γ for the table, right-aligned in 8 columns ("undefined" when it is not finite)."""
+    return f"{g:>8.3f}" if math.isfinite(g) else f"{'undefined':>8}"
 
 
 def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
@@ -153,18 +173,18 @@ def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
         "system": rec.system,
         "mode": "streaming",
         "samples": model.n_samples,
-        "running_gamma": est.running_gamma(),
+        "running_gamma": est.running_gamma(),  # a group without channels: None
         "parameters_per_output": int(model.coef.shape[0]),
     }
     if test is not None:
         result.update(score_prediction(evaluate_model(model, test)).as_dict())
     if args.model_out:
-        Path(args.model_out).write_text(json.dumps(model.to_dict()))
+        Path(args.model_out).write_text(dumps(model.to_dict()))
         result["model"] = str(args.model_out)
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(dumps(result, indent=2))
     else:
         for k, v in result.items():
             if k not in ("rms_model", "rms_template"):
-                print(f"{k}: {v}")
+                print(f"{k}: {_plain(v)}")
     return 0

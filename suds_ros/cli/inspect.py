@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from suds_ros.cli.common import add_bag_argument, add_recording_options, existing_bag, load_recording
+from suds_ros.core.json_text import dumps
 
 SCORE_DESCRIPTION = (
     "Γ of the predictor's recorded /suds/predicted/* messages against the velocities measured "
@@ -43,7 +43,7 @@ def run_info(args: argparse.Namespace) -> int:
     bag = bag_info(existing_bag(args.bag))
     info = bag.as_dict()
     if args.json:
-        print(json.dumps(info, indent=2, default=str))
+        print(dumps(info, indent=2, default=str))
         return 0
     for key, value in info.items():
         if key == "damage":
@@ -72,9 +72,10 @@ def run_score(args: argparse.Namespace) -> int:
     rec = load_recording(args.bag, args)
     score = score_live_predictions(args.bag, args.train_cycles, recording=rec, namespace=args.namespace)
     if args.json:
-        print(json.dumps(score.as_dict(), indent=2))
+        print(dumps(score.as_dict(), indent=2))
     else:
         print(score.summary())
+        passive = "none" if score.rms_passive is None else f"{score.rms_passive:.4g} rad/s"
         print(f"RMS error: body velocity {score.rms_body:.4g} (m/s and rad/s pooled), "
-              f"passive velocity {score.rms_passive:.4g} rad/s")
+              f"passive velocity {passive}")
     return 0

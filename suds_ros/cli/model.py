@@ -10,12 +10,12 @@ nominal drive and summarises it, so a wrong sign or unit shows before any record
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from suds_ros.core.errors import EXISTS, SudsConfigError
+from suds_ros.core.json_text import dumps
 
 if TYPE_CHECKING:
     from suds_ros.core.physics.rft import ChainModel
@@ -144,7 +144,7 @@ def describe(model: ChainModel, source: str, summary: dict[str, Any]) -> str:
     lines.append(f"  mean forward speed {summary['speed']:.4g} m/s")
     amps = ", ".join(f"{n} ±{a:.3g} rad (mean {summary['passive_mean'][n]:.3f})"
                      for n, a in summary["passive_amplitude"].items())
-    lines.append(f"  passive joint amplitudes: {amps or 'none'}")
+    lines.append(f"  passive joint amplitudes: {amps or 'none (fully actuated)'}")
     return "\n".join(lines)
 
 
@@ -155,7 +155,7 @@ def run_check(args: argparse.Namespace) -> int:
     model = load_model(args.file)
     summary = cycle_summary(model)
     if args.json:
-        print(json.dumps({"file": args.file, "model": model_to_dict(model), "cycle": summary}, indent=2))
+        print(dumps({"file": args.file, "model": model_to_dict(model), "cycle": summary}, indent=2))
     else:
         print(describe(model, args.file, summary))
     return 0

@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from suds_ros.core.diagnosis import DiagnosisReport
+from suds_ros.core.diagnosis.report import BODY
+
+
+def _num(v: float, width: int, fmt: str) -> str:
+    """``v`` formatted right-aligned in ``width`` columns; "n/a" when it is not finite (never "nan")."""
+    return f"{v:>{width}{fmt}}" if math.isfinite(v) else f"{'n/a':>{width}}"
 
 
 def summary_text(rep: DiagnosisReport, source: str = "") -> str:
@@ -15,8 +22,14 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
     head = f"{rep.system}: {source}" if source else rep.system
     lines.append(head)
     lines.append(f"  train {rep.train_cycles} cycles, held out {rep.heldout_cycles} cycles (all numbers held out)")
+    if rep.heldout_rms_before and set(rep.heldout_rms_before) <= set(BODY):
+        lines.append("  fully actuated (no passive joint): body-velocity channels only; no joint effect "
+                     "applies")
     if not rep.mismatch:
-        lines.append("  no significant mismatch: every channel is at the noise floor")
+        if all(math.isfinite(v) for v in rep.statistics.values()):
+            lines.append("  no significant mismatch: every channel is at the noise floor")
+        else:
+            lines.append("  no significant mismatch on the channels tested (see the notes for the others)")
     lines.append(f"  {'channel':<10}{'floor':>10}{'RMS before':>12}{'RMS after':>12}{'F before':>10}{'F after':>9}")
     for c, b in rep.heldout_rms_before.items():
         a = rep.heldout_rms_after.get(c, b)
@@ -24,7 +37,8 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
         fa = rep.statistics_after.get(c, fb)
         flag = " *" if any(loc.channel == c for loc in rep.located) else ""
         lines.append(
-            f"  {c:<10}{rep.noise_floor.get(c, float('nan')):>10.3g}{b:>12.4g}{a:>12.4g}{fb:>10.1f}{fa:>9.1f}{flag}"
+            f"  {c:<10}{_num(rep.noise_floor.get(c, float('nan')), 10, '.3g')}{_num(b, 12, '.4g')}"
+            f"{_num(a, 12, '.4g')}{_num(fb, 10, '.1f')}{_num(fa, 9, '.1f')}{flag}"
         )
     if rep.phase_source == "phaser":
         lines.append("  phase: the phaser's gait phase of the recorded shape (rad, zero at the upward crossing")

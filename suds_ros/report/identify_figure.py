@@ -22,7 +22,8 @@ def identify_figure(
     """Write a four-panel figure of gait data, residuals and predicted vs true velocities.
 
     The panels: gait data (train/test) with the phase average, residuals of the data-driven model
-    vs the template for body and passive velocity, and predicted vs true velocities.
+    vs the template for body and passive velocity, and predicted vs true velocities.  A fully
+    actuated chain has no passive panel (three panels; its gait is shown in two actuated joints).
 
     Returns the path written (PNG or any format matplotlib infers from the suffix).
     """
@@ -32,11 +33,15 @@ def identify_figure(
     import matplotlib.pyplot as plt
 
     path = Path(path)
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    groups = [(p, lab) for p, lab in (("xi_", "body velocity"), ("rdot_", "passive velocity")) if pred.columns(p)]
+    fig, axes = plt.subplots(1, 2 + len(groups), figsize=(4.5 * (2 + len(groups)), 4.2))
     ax = axes[0]
     ph_te = np.mod(pred.phase, 2 * np.pi)
     j0 = int(train.actuated_index[0])
-    jp = int(train.passive_index[0]) if train.passive else j0
+    if train.passive:
+        jp = int(train.passive_index[0])
+    else:  # fully actuated: the gait in two driven joints (the same one if there is only one)
+        jp = int(train.actuated_index[min(1, len(train.actuated) - 1)])
     ax.plot(train.r[:, j0], train.r[:, jp], ".", ms=1, color="tab:red", alpha=0.3, label="train")
     ax.plot(test.r[:, j0], test.r[:, jp], ".", ms=1, color="tab:blue", alpha=0.3, label="test")
     grid = np.linspace(0, 2 * np.pi, 200)
@@ -47,11 +52,8 @@ def identify_figure(
     ax.set_title("gait data")
     ax.legend(loc="best", fontsize=7, markerscale=8)
 
-    for ax, prefix, label in ((axes[1], "xi_", "body velocity"), (axes[2], "rdot_", "passive velocity")):
+    for ax, (prefix, label) in zip(axes[1:], groups):
         cols = pred.columns(prefix)
-        if not cols:
-            ax.set_visible(False)
-            continue
         res_t = np.linalg.norm(pred.template[:, cols] - pred.truth[:, cols], axis=1)
         res_m = np.linalg.norm(pred.model[:, cols] - pred.truth[:, cols], axis=1)
         ax.plot(ph_te, res_t, ".", ms=1.5, color="0.6", label="template residual")
@@ -62,7 +64,7 @@ def identify_figure(
         ax.set_title(f"{label}: residuals (test)")
         ax.legend(loc="upper right", fontsize=7, markerscale=6)
 
-    ax = axes[3]
+    ax = axes[-1]
     n = min(300, pred.t.size)
     tt = pred.t[:n] - pred.t[0]
     for i, c in enumerate(pred.channels[:4]):

@@ -41,8 +41,10 @@ class LiveScore:
 
     Attributes
     ----------
-    gamma_body, gamma_passive : Γ of the live predictions against the phase-only template.
-    rms_body, rms_passive : RMS prediction error (m/s and rad/s mixed for the body; rad/s).
+    gamma_body, gamma_passive : Γ of the live predictions against the phase-only template
+        (``gamma_passive`` None for a fully actuated chain: no passive joint to score).
+    rms_body, rms_passive : RMS prediction error (m/s and rad/s mixed for the body; rad/s; None
+        like ``gamma_passive``).
     n_scored : intervals scored (after ``train_cycles`` and with both predictions).
     n_intervals : intervals after ``train_cycles``.
     n_predictions : predicted intervals in the whole bag.
@@ -51,9 +53,9 @@ class LiveScore:
     """
 
     gamma_body: float
-    gamma_passive: float
+    gamma_passive: float | None
     rms_body: float
-    rms_passive: float
+    rms_passive: float | None
     n_scored: int
     n_intervals: int
     n_predictions: int
@@ -66,17 +68,19 @@ class LiveScore:
         """Fraction of the scored cycles' intervals that have a live prediction."""
         return self.n_scored / self.n_intervals if self.n_intervals else 0.0
 
-    def as_dict(self) -> dict[str, float]:
-        """JSON-ready dictionary (with ``coverage``)."""
-        out = {k: float(v) for k, v in self.__dict__.items()}
+    def as_dict(self) -> dict[str, float | None]:
+        """JSON-ready dictionary (with ``coverage``; None for a score that does not apply)."""
+        out = {k: None if v is None else float(v) for k, v in self.__dict__.items()}
         out["coverage"] = self.coverage
         return out
 
     def summary(self) -> str:
         """One line for a terminal."""
+        passive = ("none (fully actuated: no passive joint)" if self.gamma_passive is None
+                   else f"{self.gamma_passive:.3f}")
         return (f"live predictions on cycles {self.train_cycles:g}–"
                 f"{self.train_cycles + self.test_cycles:g} (out of sample): Γ body "
-                f"{self.gamma_body:.3f}, Γ passive {self.gamma_passive:.3f}; "
+                f"{self.gamma_body:.3f}, Γ passive {passive}; "
                 f"{self.n_scored} of {self.n_intervals} intervals predicted; first prediction "
                 f"{self.first_prediction_s:.1f} s into the run")
 
@@ -98,7 +102,8 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...], namespace: str =
     Raises
     ------
     SudsDataError
-        No predictions, or predicted passive joints other than ``passive``.
+        No predictions, or predicted passive joints other than ``passive``.  With no passive
+        joint (a fully actuated chain) the passive topic may be absent or carry empty messages.
     """
     body_topic = namespaced(namespace, PREDICTED_BODY_TOPIC)
     passive_topic = namespaced(namespace, PREDICTED_PASSIVE_TOPIC)
@@ -115,11 +120,12 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...], namespace: str =
                                     f"{list(passive)}", code=WRONG_JOINT_NAMES)
             pas_ns.append(_stamp_ns(msg))
             pas.append(tuple(msg.velocity))
-    if not body_ns or not pas_ns:
-        missing = [t for t, v in ((body_topic, body_ns), (passive_topic, pas_ns)) if not v]
+    if not body_ns or (passive and not pas_ns):
+        wanted = ((body_topic, body_ns), (passive_topic, pas_ns)) if passive else ((body_topic, body_ns),)
+        missing = [t for t, v in wanted if not v]
         raise SudsDataError(f"{bag}: no live predictions recorded on {missing}", code=MISSING_TOPIC)
     return (np.asarray(body_ns, dtype=np.int64), np.asarray(body, dtype=float).reshape(-1, 3),
-            np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), -1))
+            np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), len(passive)))
 
 
 def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -192,7 +198,8 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     k = iv.k.astype(np.int64)
     end_ns = float_to_ns(rec.t[k + 1])  # a prediction is stamped t_{k+1}
     meas = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
-    pred = np.concatenate([_lookup(end_ns, body_ns, body), _lookup(end_ns, pas_ns, pas)], axis=1)
+    pred_p = _lookup(end_ns, pas_ns, pas) if rec.passive else np.empty((end_ns.size, 0))
+    pred = np.concatenate([_lookup(end_ns, body_ns, body), pred_p], axis=1)
 
     cut = rec.t[0] + train_cycles / hz
     train_s = rec.t < cut
@@ -215,15 +222,17 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
     Pb, Mb, Tb = _body_over_pose_intervals(rec, mid, pred, template_order, cut)
     if Pb is None:
         Pb, Mb, Tb = P[:, b], M[:, b], T[:, b]
-    first = ns_to_float(min(int(body_ns.min()), int(pas_ns.min()))) - rec.t[0]
+    has_p = bool(rec.passive)  # a fully actuated chain has no passive group to score
+    streams = (body_ns, pas_ns) if has_p else (body_ns,)
+    first = ns_to_float(min(int(s.min()) for s in streams)) - rec.t[0]
     return LiveScore(
         gamma_body=gamma(Pb, Tb, Mb),
-        gamma_passive=gamma(P[:, p], T[:, p], M[:, p]),
+        gamma_passive=gamma(P[:, p], T[:, p], M[:, p]) if has_p else None,
         rms_body=float(np.sqrt(np.mean((Pb - Mb) ** 2))),
-        rms_passive=float(np.sqrt(np.mean((P[:, p] - M[:, p]) ** 2))),
+        rms_passive=float(np.sqrt(np.mean((P[:, p] - M[:, p]) ** 2))) if has_p else None,
         n_scored=int(scored.sum()),
         n_intervals=int(test.sum()),
-        n_predictions=int(min(body_ns.size, pas_ns.size)),
+        n_predictions=int(min(s.size for s in streams)),
         first_prediction_s=float(first),
         train_cycles=float(train_cycles),
         test_cycles=float(cycles - train_cycles),

@@ -37,6 +37,7 @@ from suds_ros.core.errors import (
     SudsDataError,
 )
 from suds_ros.core.ident.model import SudsModel
+from suds_ros.core.json_text import dumps
 from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME, parse_system_info
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float, quaternion_yaw, split_ns, yaw_quaternion
 
@@ -421,7 +422,7 @@ def model_to_msg(model: SudsModel) -> Any:
     """``std_msgs/String`` with the model's JSON (:meth:`SudsModel.to_dict`)."""
     from std_msgs.msg import String
 
-    return String(data=json.dumps(model.to_dict()))
+    return String(data=dumps(model.to_dict()))
 
 
 def model_from_msg(msg: Any) -> SudsModel:
@@ -436,7 +437,7 @@ def system_info_to_msg(info: dict[str, Any]) -> Any:
     """``std_msgs/String`` holding the JSON system description."""
     from std_msgs.msg import String
 
-    return String(data=json.dumps(info, sort_keys=True))
+    return String(data=dumps(info, sort_keys=True))
 
 
 def system_info_from_msg(msg: Any) -> dict[str, Any]:

@@ -44,10 +44,12 @@ def _header(ns: int) -> dict:
     return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": "body"}
 
 
-def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace="") -> None:
+def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace="", passive_topic=True) -> None:
     """Shape, pose and predictions (stamp s → (ξ (3,), ṙ_p)) of ``rec`` into ``path``.
 
     ``pose_from``: no pose message before this time (s; motion capture started late).
+    ``passive_topic``: False leaves the passive predictions out (a fully actuated robot's recorder
+    may not record the topic of its empty messages).
     ``namespace``: every topic under it, and the system on ``<namespace>/suds/system`` (as a
     namespaced pipeline records it) instead of the metadata record.
     """
@@ -80,7 +82,8 @@ def write_bag(path, rec, preds, passive_names=None, pose_from=-np.inf, namespace
                     "linear": {"x": xi[0], "y": xi[1], "z": 0.0},
                     "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
                 w.write_raw(body, cdr.encode(TWIST_TYPE, twist), ns, ns)
-                w.write_raw(passive, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
+                if passive_topic:
+                    w.write_raw(passive, cdr.joint_state(ns, passive_names, (), rp, ()), ns, ns)
 
 
 @pytest.fixture(scope="module")
@@ -205,3 +208,28 @@ def test_with_model_continues_the_stream(live):
     assert not a.shares_phase_with(other)
     d = a.with_model(other)  # a different template: starts afresh
     assert d.update(rec.t[50], rec.joint_names, rec.r[50]) is None
+
+
+def test_a_fully_actuated_robot_has_no_passive_score(worm8_run, tmp_path, capsys):
+    """No passive joint: Γ and RMS of the passive group are None (null in JSON, "none" in text),
+    whether the predictor's empty passive messages were recorded or not."""
+    train, _ = split_cycles(worm8_run, TRAIN)
+    pred = StreamingPredictor(fit_streaming(train).model())
+    preds = {}
+    for k in range(train.n_samples - 1, worm8_run.n_samples):
+        out = pred.update(worm8_run.t[k], worm8_run.joint_names, worm8_run.r[k])
+        if out is not None:
+            assert out[1].shape == (0,)
+            preds[worm8_run.t[k]] = out
+    write_bag(tmp_path / "empty.mcap", worm8_run, preds)
+    write_bag(tmp_path / "absent.mcap", worm8_run, preds, passive_topic=False)
+    s = score_live_predictions(tmp_path / "empty.mcap", TRAIN)
+    assert s.gamma_passive is None and s.rms_passive is None
+    assert np.isfinite(s.gamma_body) and s.gamma_body > 0.5 and s.coverage == 1.0, s
+    assert score_live_predictions(tmp_path / "absent.mcap", TRAIN) == s
+    assert suds_main(["score", str(tmp_path / "absent.mcap"), "--train-cycles", str(TRAIN), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(c))
+    assert d["gamma_passive"] is None and d["rms_passive"] is None and d["gamma_body"] == pytest.approx(s.gamma_body)
+    assert suds_main(["score", str(tmp_path / "empty.mcap"), "--train-cycles", str(TRAIN)]) == 0
+    text = capsys.readouterr().out
+    assert "Γ passive none" in text and "passive velocity none" in text and "nan" not in text.lower(), text

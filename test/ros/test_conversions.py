@@ -82,6 +82,13 @@ def test_joint_velocity_roundtrip(build):
     np.testing.assert_array_equal(vel, [0.7, -0.7])
 
 
+def test_joint_velocity_of_no_joint_roundtrip(build):
+    """A fully actuated robot's passive predictions: an empty velocity-only JointState."""
+    msg = build(cv.joint_velocity_to_msg, 3.0, (), np.empty(0))
+    stamp, names, vel = cv.joint_velocity_from_msg(msg)
+    assert (stamp, names, vel.shape) == (3.0, (), (0,))
+
+
 @pytest.mark.parametrize("yaw", [0.0, 0.5, -3.0, math.pi - 1e-9])
 def test_pose_roundtrip(build, yaw):
     p = cv.pose_from_msg(build(cv.pose_to_msg, 1.7e9, 1.25, -2.5, yaw))
@@ -190,3 +197,19 @@ def test_select_joints_by_name_ignores_extra_joints_and_order():
     with _pytest.raises(SudsDataError, match=r"joint_3") as err:
         select_joints(s, ("joint_1", "joint_3"))
     assert err.value.code == WRONG_JOINT_NAMES
+
+
+def test_model_of_a_fully_actuated_robot_roundtrips_as_strict_json(worm8_run):
+    """suds/model of a robot with no passive joint: strict JSON (no NaN), every field back."""
+    import json
+
+    from suds_ros.core.ident.identify import split_cycles
+    from suds_ros.core.ident.online import fit_streaming
+
+    model = fit_streaming(split_cycles(worm8_run, 8)[0]).model()
+    msg = cv.model_to_msg(model)
+    d = json.loads(msg.data, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert d["passive"] == [] and d["channels"] == ["xi_x", "xi_y", "xi_theta"]
+    back = cv.model_from_msg(msg)
+    assert back.passive == () and back.channels == model.channels
+    np.testing.assert_array_equal(back.coef, model.coef)

@@ -92,8 +92,8 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         n_train=n_train,
         n_used=n_used,
         phase=phase,
-        act=np.asarray(model.actuated),
-        pas=np.asarray(model.passive),
+        act=np.asarray(model.actuated, dtype=np.intp),
+        pas=np.asarray(model.passive, dtype=np.intp),  # empty (0,) for a fully actuated chain
         names=names,
         phase_source=source,
         phase_note=note,

@@ -127,7 +127,12 @@ def discover(
     data: Data, model: ChainModel, config: DiagnoseConfig, sig_rp: FloatArray,
     cand: Candidate = Candidate(()), x: FloatArray | None = None,
 ) -> tuple[Discovered, ...]:
-    """Candidate formulas for the torque missing from each passive joint (module docstring)."""
+    """Candidate formulas for the torque missing from each passive joint (module docstring).
+
+    None on a fully actuated chain: with no passive joint there is no torque balance to complete.
+    """
+    if data.pas.size == 0:
+        return ()
     scorer = Scorer(data, model, config.eq_window, sig_rp)
     p = equation_terms(cand, np.zeros(0) if x is None else np.asarray(x, dtype=float), data, model)
     # with a named Coulomb friction on a joint, its intervals that may be stuck carry any torque in

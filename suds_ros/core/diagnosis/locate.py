@@ -56,13 +56,20 @@ class ChannelTable:
         return e
 
     def rms(self, E: FloatArray) -> dict[str, float]:
-        """Held-out RMS of each channel's residual."""
-        return {c: float(np.sqrt(np.nanmean(E[self.held, i] ** 2))) for i, c in enumerate(self.channels)}
+        """Held-out RMS of each channel's residual (NaN for a channel without a usable sample)."""
+        return {c: float(np.sqrt(_mean_square(E[self.held, i]))) for i, c in enumerate(self.channels)}
 
     def fstats(self, E: FloatArray, floor: Mapping[str, float], held: bool = True) -> dict[str, float]:
-        """F = mean(residual²) / floor² per channel, on the held-out half (``held``) or the training half."""
+        """F = mean(residual²) / floor² per channel, on the held-out half (``held``) or the training half.
+
+        NaN for a channel without a usable sample there (never located; the report says so).
+        """
         rows = self.held if held else ~self.held
-        return {c: float(np.nanmean(E[rows, i] ** 2) / floor[c] ** 2) for i, c in enumerate(self.channels)}
+        return {c: float(_mean_square(E[rows, i]) / floor[c] ** 2) for i, c in enumerate(self.channels)}
+
+    def untested(self, E: FloatArray) -> list[str]:
+        """The channels without a usable held-out sample in ``E`` (every one left out at a gap)."""
+        return [c for i, c in enumerate(self.channels) if not np.isfinite(E[self.held, i]).any()]
 
     def evidence(self, E0: FloatArray, E1: FloatArray, n_params: int, held: bool = True) -> float:
         """Output-error evidence of the residuals ``E1`` over ``E0`` on the held-out (``held``) or
@@ -89,6 +96,12 @@ class ChannelTable:
         """Noise floor per channel from :func:`~suds_ros.core.diagnosis.floor.noise_floor`'s output."""
         sig_rp, s_xy, s_th = floors
         return dict(zip(self.channels, list(sig_rp) + [s_xy, s_xy, s_th]))
+
+
+def _mean_square(x: FloatArray) -> float:
+    """Mean of x² over the finite values (NaN, without a warning, when there is none)."""
+    x = x[np.isfinite(x)]
+    return float(np.mean(x**2)) if x.size else float("nan")
 
 
 def _window_touches(gap: BoolArray, w: int) -> BoolArray:

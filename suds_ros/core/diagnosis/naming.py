@@ -218,11 +218,15 @@ def catalogue_candidates(model: ChainModel, model_suspects: bool = False) -> lis
 
     With ``model_suspects`` the robot model's own parameters are suspects too (effects whose
     ``kind`` is ``"model"``: per link, per passive joint or global); test-only effects never are.
+    A fully actuated chain (no passive joint) has no candidate that acts through passive joints
+    (``EffectSpec.needs_passive``): only the global effects and the model's parameters.
     """
     names = model.joint_names
     out: list[Candidate] = []
     for eid, spec in EFFECTS.items():
         if spec.kind == "test" or (spec.kind == "model" and not model_suspects):
+            continue
+        if spec.needs_passive and not model.passive:
             continue
         if spec.needs_link:
             out.extend(Candidate(((eid, f"link_{i + 1}"),)) for i in range(model.n_links))

@@ -14,7 +14,10 @@ number in the report is computed on the held-out half.
    passive angle r_j (rad) and the body velocity ξx, ξy (m/s), ξθ (rad/s), the latter estimated
    from the pose by the exact SE(2) logarithm of g_k⁻¹g_{k+w} over ``window`` seconds, with the
    *same* estimator applied to the simulated pose.  With ``reference=`` a simulated recording of
-   the same actuated trajectory replaces the replay.
+   the same actuated trajectory replaces the replay.  A fully actuated chain (every joint driven,
+   the paper's kinematic connection) has the body-velocity channels only; its suspects are the
+   global effects and the model's parameters (joint effects and ``stiffness_to_drag_error`` act
+   through passive joints), and there is no torque formula to discover (step 5).
 
 2. Locate.  The noise floor is estimated from the data, not assumed: the fourth difference of the
    replay residual removes everything smooth (gait-correlated errors) and keeps the white part
@@ -516,6 +519,11 @@ def _discover(
     the simulator does not (stick-slip transitions inside an interval), and a formula that cannot
     be re-simulated (on a joint with Coulomb friction) is not checked, so not reported.
     """
+    if nom.data.pas.size == 0:
+        if explained is None:
+            notes.append("no formula discovery: the chain is fully actuated (no passive joint whose "
+                         "torque balance a formula could complete)")
+        return ()
     cand = Candidate(tuple((e.name, e.target) for e in effects))
     x = np.array([v for e in effects for v in e.parameters.values()])
     found = discover(nom.data, nom.model, nom.config, nom.floors[0], cand, x)
@@ -574,13 +582,18 @@ def _report(nom: _Nominal, rep1: RecordingReplay, timings: dict[str, float], **f
     nominal replay and of ``rep1`` included, for the figures).
     """
     data = nom.data
+    notes = tuple(fields.pop("notes", (data.phase_note,) if data.phase_note else ()))  # type: ignore[call-overload]
+    untested = nom.table.untested(nom.E0)
+    if untested:
+        notes += (f"not tested: {', '.join(untested)} (no usable held-out sample: every one is at or next "
+                  "to a gap of the shape or pose stream, or every body-velocity window touches one)",)
     base: dict[str, object] = dict(
         mismatch=False, located=(), effects=(), confounded_with=(), unexplained=False,
         heldout_rms_before=nom.rms0, heldout_rms_after=dict(nom.rms0), improvement=0.0,
         system=nom.model.name, noise_floor=nom.floor, statistics=nom.F0, statistics_after=nom.F0,
         series=_series(nom, rep1), train_cycles=data.n_train // data.spc,
         heldout_cycles=(data.n_used - data.n_train) // data.spc, timings=timings,
-        phase_source=data.phase_source, notes=(data.phase_note,) if data.phase_note else (),
+        phase_source=data.phase_source, notes=notes,
     )
     return DiagnosisReport(**{**base, **fields})  # type: ignore[arg-type]
 

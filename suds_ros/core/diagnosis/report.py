@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.json_text import dumps
 
 BODY = ("xi_x", "xi_y", "xi_theta")
 
@@ -364,5 +364,5 @@ class DiagnosisReport:
         }
 
     def to_json(self, indent: int | None = 2) -> str:
-        """JSON text of :meth:`to_dict`."""
-        return json.dumps(self.to_dict(), indent=indent)
+        """Strict JSON text of :meth:`to_dict` (a non-finite number is written as null)."""
+        return dumps(self.to_dict(), indent=indent)

@@ -75,7 +75,7 @@ class DiscoveredTorqueChain:
         self.chain = RFTChain(model)
         names = model.joint_names
         pas = list(model.passive)
-        self.pas = np.array(pas)
+        self.pas = np.asarray(pas, dtype=np.intp)
         self.rest = np.asarray(model.rest, dtype=float)
         self.damping = np.broadcast_to(np.asarray(model.damping, dtype=float), (len(names),))[self.pas]
         self.act_index = {names[a]: (a, k) for k, a in enumerate(model.actuated)}

@@ -337,11 +337,18 @@ class OnlineSudsEstimator:
             return float((self.phase - self._phase0) / (2 * np.pi))
         return self.initialiser.cycles_buffered
 
-    def running_gamma(self) -> dict[str, float]:
-        """Prequential Γ over body and passive channels (NaN before two chunks)."""
-        out = {}
+    def running_gamma(self) -> dict[str, float | None]:
+        """Prequential Γ over body and passive channels.
+
+        NaN before two chunks; None for a group without channels (``passive`` of a fully
+        actuated chain: the score does not apply).
+        """
+        out: dict[str, float | None] = {}
         for name, pfx in (("body", "xi_"), ("passive", "rdot_")):
             cols = [i for i, c in enumerate(self.channels) if c.startswith(pfx)]
+            if not cols:
+                out[name] = None
+                continue
             den = self.sum_err_template[cols].sum()
             out[name] = float(1 - self.sum_err_model[cols].sum() / den) if den > 0 else float("nan")
         return out

@@ -106,19 +106,25 @@ class Prediction:
 class Scores:
     """Held-out accuracy.
 
-    ``gamma_body``/``gamma_passive``: Γ over the body-velocity / passive-velocity channels;
+    ``gamma_body``/``gamma_passive``: Γ over the body-velocity / passive-velocity channels
+    (``gamma_passive`` None for a fully actuated chain: no passive channel, the score does not
+    apply); ``gamma_torque`` likewise None without effort channels;
     ``rms_model``/``rms_template``: per-channel RMS errors.
     """
 
     gamma_body: float
-    gamma_passive: float
+    gamma_passive: float | None
     gamma_torque: float | None
     rms_model: dict[str, float]
     rms_template: dict[str, float]
     n_samples: int
 
     def as_dict(self) -> dict[str, object]:
-        """JSON-ready dictionary."""
+        """JSON-ready dictionary.
+
+        None stands for a score that does not apply; write it with
+        :func:`~suds_ros.core.json_text.dumps`, which also turns a non-finite Γ into null.
+        """
         return {
             "gamma_body": self.gamma_body,
             "gamma_passive": self.gamma_passive,
@@ -166,7 +172,7 @@ def score_prediction(p: Prediction) -> Scores:
             rms_t[p.channels[i]] = _rms(b.template, b.truth, j)
     return Scores(
         gamma_body=gamma_body,
-        gamma_passive=g(pas, p.model, p.template, p.truth),
+        gamma_passive=g(pas, p.model, p.template, p.truth) if pas else None,
         gamma_torque=g(tor, p.model, p.template, p.truth) if tor else None,
         rms_model=rms_m,
         rms_template=rms_t,

@@ -67,6 +67,11 @@ class CheckpointIO(Protocol):
         """Write ``est`` to ``path`` atomically."""
 
 
+def _gamma_value(g: float | None) -> str:
+    """A running Γ as a status value: 4 decimals ("nan" before two chunks), "none" where it does not apply."""
+    return "none" if g is None else f"{g:.4f}"
+
+
 def _no_log(level: str, text: str) -> None:
     pass
 
@@ -360,7 +365,7 @@ class EstimatorSession:
                 "phase": f"{est.phase:.6g}", "cycles_seen": f"{est.cycles_seen:.3f}",
                 "initialised": str(est.initialised).lower(), "samples": str(est.n_shape),
                 "poses": str(est.n_pose), "rows": str(est.n_rows),
-                "gamma_body": f"{g['body']:.4f}", "gamma_passive": f"{g['passive']:.4f}",
+                "gamma_body": _gamma_value(g["body"]), "gamma_passive": _gamma_value(g["passive"]),
                 "dropped_no_pose": str(est.dropped_no_pose),
             })
             v.update({f"residual.{c}": f"{r:.6g}" for c, r in zip(est.channels, est.last_residual)})

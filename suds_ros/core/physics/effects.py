@@ -170,6 +170,10 @@ class EffectSpec:
         robot model's own parameters) or ``"test"`` (for tests only: never a diagnosis suspect).
     target : str
         ``"joint"`` (a passive joint), ``"link"`` (a link, ``link_k``) or ``""`` (the whole chain).
+    needs_passive : bool
+        The effect acts only through the passive joints (joint effects, and
+        ``stiffness_to_drag_error``, which scales their springs): it does not exist on a fully
+        actuated chain, so it is refused there and never a diagnosis suspect.
     """
 
     id: str
@@ -181,10 +185,13 @@ class EffectSpec:
     specified: bool = True
     kind: str = "catalogue"
     target: str = ""
+    needs_passive: bool = False
 
     def __post_init__(self) -> None:
         if self.needs_joint and not self.target:
             object.__setattr__(self, "target", "joint")
+        if self.needs_joint:
+            object.__setattr__(self, "needs_passive", True)
 
     @property
     def needs_link(self) -> bool:
@@ -354,6 +361,7 @@ EFFECTS: dict[str, EffectSpec] = {
             "every passive k_j (and k3) × scale ⇔ every drag coefficient / scale",
             _stiffness_scale,
             _stiffness_scale_eq,
+            needs_passive=True,
         ),
         EffectSpec(
             "drag_anisotropy_error",
@@ -461,6 +469,12 @@ def _apply(model: ChainModel, name: str, joint: object, params: Mapping[str, obj
     if missing:
         raise SudsConfigError(f"effect {name!r}: missing parameter(s) {missing}")
     values = {p.name: p.check(name, params[p.name]) for p in spec.params}  # type: ignore[arg-type]
+    if spec.needs_passive and not model.passive:
+        raise SudsConfigError(
+            f"effect {name!r} acts through the passive joints; {model.name!r} has none (every joint "
+            "is actuated): on a fully actuated chain use the global effects (background_flow, "
+            "drag_anisotropy_error, sensor_time_offset) or the model parameters"
+        )
     if spec.needs_link:
         j: int | None = link_index(model, joint, name)
     elif spec.needs_joint:

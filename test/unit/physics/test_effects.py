@@ -127,6 +127,24 @@ def _flat(t: EquationTerms) -> np.ndarray:
     return np.concatenate([t.mu, t.d, t.offset, t.k3, t.kscale, [t.scale, t.ratio, *t.flow, t.delay]])
 
 
+def test_a_fully_actuated_chain_takes_only_effects_that_need_no_passive_joint(  # type: ignore[no-untyped-def]
+        worm8_model) -> None:
+    """Joint effects and the spring scale act through passive joints: refused, never a silent no-op."""
+    assert {n for n, s in EFFECTS.items() if s.needs_passive} == {
+        n for n, s in EFFECTS.items() if s.needs_joint} | {"stiffness_to_drag_error"}
+    with pytest.raises(SudsConfigError, match="'stiffness_to_drag_error' acts through the passive joints; "
+                                              "'worm8' has none"):
+        apply_effect(worm8_model, "stiffness_to_drag_error", scale=2.0)
+    with pytest.raises(SudsConfigError, match="'joint_viscous_damping' acts through the passive joints"):
+        apply_effect(worm8_model, "joint_viscous_damping", joint="j3", d=1.0)
+    m, delay = apply_effects(worm8_model, [{"name": "drag_anisotropy_error", "ratio": 3.0},
+                                           {"name": "background_flow", "vx": 0.1, "vy": 0.0},
+                                           {"name": "sensor_time_offset", "dt": 0.02}])
+    assert m.drag_ratio == pytest.approx(3.0) and m.flow == (0.1, 0.0) and delay == 0.02
+    # still allowed where a passive joint exists
+    assert apply_effect(purcell3_model(), "stiffness_to_drag_error", scale=2.0).stiffness_scale == 2.0
+
+
 def test_every_effect_has_both_parts_and_they_agree() -> None:
     """One registry entry carries the simulator change (``apply``) and the equation-error form
     (``equation``); for every effect, at a non-neutral value, both describe the same physics."""
