@@ -72,9 +72,9 @@ class ChannelTable:
         return [c for i, c in enumerate(self.channels) if not np.isfinite(E[self.held, i]).any()]
 
     def evidence(self, E0: FloatArray, E1: FloatArray, n_params: int, held: bool = True) -> float:
-        """Output-error evidence of the residuals ``E1`` over ``E0`` on the held-out (``held``) or
-        the training half, nats.
+        """Output-error evidence of the residuals ``E1`` over ``E0``, nats.
 
+        On the held-out half (``held``) or the training half.
         Gaussian profile log-likelihood gain Σ_c (n_c/2)·log(RSS0_c/RSS1_c) over the channels,
         minus the BIC penalty (n_params/2)·log(median n_c); n_c counts the finite residuals of a
         passive angle, and those of a body velocity over the window ``w`` (its windowed estimate

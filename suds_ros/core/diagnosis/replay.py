@@ -163,8 +163,10 @@ def replay_recording(
 
 
 def piece_starts(data: Data, w: int, chunk: int, warm: int) -> IntArray:
-    """Sorted output starts of the pieces :func:`replay_recording` replays (0 and the held-out start
-    among them): where its replayed pose restarts from the recorded one."""
+    """Sorted output starts of the pieces :func:`replay_recording` replays.
+
+    0 and the held-out start are among them: where the replayed pose restarts from the recorded one.
+    """
     return np.array(sorted(c for group in _pieces(data, w, chunk, warm).values() for _, c, _ in group),
                     dtype=np.intp)
 
