@@ -88,7 +88,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
@@ -106,6 +106,8 @@ SYNTHETIC_NOISE = 1e-6
 #: RK4 steps of the interval replays: h·λ_max ≤ this (λ the fastest passive relaxation; ≈1e-4 of the
 #: passive motion in one interval, far below the sensor noise)
 REPLAY_ACCURACY = 0.5
+#: statistics updates between two renewals of the noise floor (it spans ``floor_cycles``: it changes slowly)
+FLOOR_EVERY = 5
 #: weight of the pull of the fitted noise levels toward one common level (relative to one channel's fit)
 LEVEL_PRIOR = 1e-2
 #: the floor's fourth differences are clipped at this many robust standard deviations before their mean square
@@ -530,7 +532,8 @@ class _Sample(NamedTuple):
     ``r`` (1 + groups, nj) and ``pose`` (1 + groups, 3): row 0 the data, row 1 + g the data plus
     the synthetic noise on group g's signals.  ``pose`` is interpolated between the pose samples
     at ``bracket`` = (τa, τb) (equal: a pose at this very stamp), ``yaw_a`` the yaw at τa;
-    ``pose_ok`` False when that bracket spans a lost pose message.
+    ``pose_ok`` (one element, set when the pose is read) False when that bracket spans a lost
+    pose message or a lost shape sample, or lies before the first replay.
     """
 
     t: float
@@ -538,15 +541,15 @@ class _Sample(NamedTuple):
     pose: FloatArray
     bracket: tuple[float, float]
     yaw_a: float
-    pose_ok: bool
+    pose_ok: BoolArray
 
 
 class _Interval(NamedTuple):
-    """The data's replay over one interval: its whole motion, and the motion up to pose stamps inside it."""
+    """The replays over one interval (data and twins): the whole motion, and the motion up to pose stamps inside."""
 
-    motion: FloatArray  # (3,) relative pose at the interval's end
+    motion: FloatArray  # (versions, 3) relative pose at the interval's end
     stamps: FloatArray  # (M,) pose stamps inside (NaN: none)
-    at: FloatArray  # (M, 3) relative pose at them
+    at: FloatArray  # (versions, M, 3) relative pose at them
 
 
 def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -597,6 +600,7 @@ class MismatchMonitor:
         self._rng_r, self._rng_pose = (np.random.default_rng(sq)
                                        for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
         self._since_update = 0
+        self._floor: FloatArray | None = None  # the channels' noise floors, renewed every FLOOR_EVERY updates
         self.statuses: tuple[ChannelStatus, ...] = ()
         self.record = MonitorRecord(tuple(ChannelRecord(c) for c in self.channels))
         self.updated = 0  # number of statistic updates
@@ -667,7 +671,7 @@ class MismatchMonitor:
         r_noise = SYNTHETIC_NOISE * self._rng_r.standard_normal(r.size)
         rs = np.concatenate([r[None], r + self._joint_masks * r_noise])
         poses = np.concatenate([pose[None], pose + self._pose_masks * pose_noise])
-        self._hist.append(_Sample(t, rs, poses, bracket, yaw_a, pose_ok))
+        self._hist.append(_Sample(t, rs, poses, bracket, yaw_a, np.array([pose_ok])))
         self._rates.append(np.full((rs.shape[0], 3 + len(self.system.passive)), np.nan))
         self._replays.append(None)
         self.paired += 1
@@ -681,10 +685,19 @@ class MismatchMonitor:
         """Position in the history of the sample counted ``index`` from the first."""
         return index - (self.paired - len(self._hist))
 
-    def _arrays(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        last = list(self._hist)[-n:]
-        return (np.array([h.t for h in last]), np.array([h.r[0] for h in last]),
-                np.array([h.pose[0] for h in last]))
+    def samples(self, n: int | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The newest ``n`` (all when None) paired samples whose pose is final: stamps, joints, poses.
+
+        Stamps (m,) s; joints (m, nj) in the system's order; poses (m, 3) x, y, unwrapped yaw at
+        the shape stamps (read as the module docstring says).  A sample's pose is final once the
+        replay reaches the pose sample after it: the newest one or two samples are not yet.
+        """
+        ready = len(self._hist) - (self.paired - min(self._read, self._rated))
+        last = list(self._hist)[:max(ready, 0)]
+        if n is not None:
+            last = last[-n:] if n > 0 else []
+        return (np.array([h.t for h in last]), np.array([h.r[0] for h in last]).reshape(len(last), len(self.names)),
+                np.array([h.pose[0] for h in last]).reshape(len(last), 3))
 
     def _grid(self) -> tuple[float, FloatArray]:
         """The set-point grid point next to every sample in the history: (reference time, points − it)."""
@@ -697,8 +710,8 @@ class MismatchMonitor:
         """Predict the intervals that ended since the last update, but the newest (its end needs the next sample).
 
         Data and twins in one batch; the drive bends where the grid says (:func:`drive_kinks`).  The
-        data's replay also gives the motion up to the pose stamps inside each interval (for
-        :meth:`_read_poses`).
+        replays also give the motion up to the pose stamps inside each interval (for
+        :meth:`_read_poses`: each twin reads its pose with its own replay, as the data does).
         """
         m = len(self._hist)
         first = max(self._pos(self._rated), 1)  # the first interval to predict ends at this position
@@ -731,17 +744,16 @@ class MismatchMonitor:
         dt = t1 - t0
         mid_yaw = 0.5 * (yaw[:, 1:-2] + yaw[:, 2:-1])
         both = Kinks(*(np.concatenate(parts) for parts in zip(*kinks)))
-        xi, rp, _ = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
-                                         R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both)
+        xi, rp, at = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
+                                          R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
+                                          np.tile(outputs, (V, 1)) if inside.any() else None)
         rates = np.concatenate([xi, rp], axis=1).reshape(V, k, -1)  # (V, k, 3 + np)
-        motion = se2.exp_step(np.zeros((k, 3)), (xi[:k] - (0.0 if self.physics.flow == (0.0, 0.0) else flow_in_body(
-            self.physics.flow, mid_yaw[0]))) * dt[:, None])
-        at = np.full((k, 0, 3), np.nan)
-        if inside.any():  # the data again, split at the pose stamps too (the rates above keep one partition)
-            _, _, at = self.physics.between(dt, R[0, 1:-2], R[0, 2:-1], mid_yaw[0], kinks[0], outputs)
+        still = xi - (0.0 if self.physics.flow == (0.0, 0.0) else flow_in_body(self.physics.flow, mid_yaw.ravel()))
+        motion = se2.exp_step(np.zeros((V * k, 3)), still * np.tile(dt, V)[:, None]).reshape(V, k, 3)
+        at = at.reshape(V, k, at.shape[1], 3)
         for j in range(k):
             self._rates[first + j] = rates[:, j]
-            self._replays[first + j] = _Interval(motion[j], np.where(inside[j], cand[j] + ref, np.nan), at[j])
+            self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j])
         self._rated = self.paired - 1
 
     def _read_poses(self) -> None:
@@ -766,29 +778,32 @@ class MismatchMonitor:
             if ib > top:
                 break  # wait for the replay of τb's interval
             if ia < 1 or any(self._replays[i] is None for i in range(ia, ib + 1)):
-                pos += 1  # older than the history or than the first replay: left as interpolated
+                h.pose_ok[0] = False  # older than the history or than the first replay: left as interpolated
+                pos += 1
                 continue
-            a = self._motion(ia, ta, pos)
+            if np.any(np.diff(stamps[ia - 1:ib + 1]) > self.config.gap / self.config.rate):
+                h.pose_ok[0] = False  # across a lost shape sample the replay does not know the drive
+            a = self._motion(ia, ta, pos)  # (versions, 3)
             b = _compose(a, self._motion(pos + 1, h.t, ib, tb))
             alpha = (h.t - ta) / (tb - ta)
             d = a - alpha * b
             c, s = math.cos(h.yaw_a), math.sin(h.yaw_a)
-            h.pose[:] += np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+            h.pose[:] += np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1], d[:, 2]], axis=1)
             pos += 1
         self._read = self.paired - (len(hist) - pos)
 
     def _motion(self, first: int, start: float, last: int, end: float | None = None) -> FloatArray:
-        """The data's replayed motion from ``start`` (inside the interval ending at position ``first``) to
-        the end of the interval ending at ``last``, or to ``end`` inside it."""
-        g = np.zeros(3)
+        """The replayed motion (versions, 3) from ``start`` (inside the interval ending at position ``first``)
+        to the end of the interval ending at ``last``, or to ``end`` inside it."""
+        g = np.zeros((len(self._joint_masks) + 1, 3))
         for i in range(first, last + 1):
             rep = self._replays[i]
             assert rep is not None
             whole = rep.motion
             if end is not None and i == last and end < self._hist[i].t:
-                whole = rep.at[int(np.nanargmin(np.abs(rep.stamps - end)))]
+                whole = rep.at[:, int(np.nanargmin(np.abs(rep.stamps - end)))]
             if i == first and start > self._hist[i - 1].t:
-                whole = se2.relative(rep.at[int(np.nanargmin(np.abs(rep.stamps - start)))], whole)
+                whole = se2.relative(rep.at[:, int(np.nanargmin(np.abs(rep.stamps - start)))], whole)
             g = _compose(g, whole)
         return g
 
@@ -803,29 +818,34 @@ class MismatchMonitor:
             return
         n_stat = int(round(cfg.window_cycles * self._spc)) + w
         hist = list(self._hist)[:ready]
-        last = hist[-n:]
+        fresh = self._floor is None or self.updated % FLOOR_EVERY == 0
+        last = hist[-(n if fresh else n_stat):]  # the floor's span when it is renewed, else the statistic's
+        m = len(last)
         t = np.array([h.t for h in last])
-        R = np.array([h.r for h in last]).transpose(1, 0, 2)  # (versions, n, nj)
-        P = np.array([h.pose for h in last]).transpose(1, 0, 2)
-        rates = np.array(list(self._rates)[ready - n + 1:ready]).transpose(1, 0, 2)  # (versions, n − 1, ·)
+        versions = slice(None) if fresh else slice(0, 1)
+        R = np.array([h.r[versions] for h in last]).transpose(1, 0, 2)  # (versions, m, nj)
+        P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
+        rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
         gap = np.diff(t) > cfg.gap / cfg.rate
         shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
         shape_ok[1:] &= ~gap[:-1]
         shape_ok[:-1] &= ~gap[1:]
-        pose_ok = np.array([h.pose_ok for h in last])
-        valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
+        pose_ok = np.array([bool(h.pose_ok[0]) for h in last])
         win_ok = (np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1)
                   & pose_ok[:-w] & pose_ok[w:])
         split = (rates[..., :3], rates[..., 3:])
-        E, E1 = (equation_residuals(self.system, t, R, P, width, split) for width in (w, 1))  # (versions, ·, ch)
-        e, e1 = E[0], E1[0]
-        floor = noise_power(t, e1, w, valid)
-        resp, resp1 = E[1:] - e, E1[1:] - e1  # each noise group's response
-        P_g = np.array([noise_power(t, x, w, valid) for x in resp1])
-        W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
-        floor = fitted_gain(floor, P_g, W_g) * floor
+        E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
+        if fresh:
+            valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
+            E1 = equation_residuals(self.system, t, R, P, 1, split)
+            floor = noise_power(t, E1[0], w, valid)
+            resp, resp1 = E[1:] - E[0], E1[1:] - E1[0]  # each noise group's response
+            P_g = np.array([noise_power(t, x, w, valid) for x in resp1])
+            W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
+            self._floor = fitted_gain(floor, P_g, W_g) * floor
+        floor = self._floor
         stat_ok = win_ok[-(n_stat - w):]
-        tail = e[-(n_stat - w):][stat_ok]
+        tail = E[0, -(n_stat - w):][stat_ok]
         ms = np.mean(tail**2, axis=0) if tail.shape[0] else np.zeros(len(self.channels))
         ok = np.isfinite(floor) & (floor > 0)
         F = np.where(ok, ms / np.where(ok, floor, 1.0), 0.0)
@@ -857,9 +877,9 @@ class MismatchMonitor:
         n = self.config.persist_cycles * self._spc
         if stamp - since < self.config.persist_cycles / self.config.gait_hz - 0.5 / self.config.rate:
             return
-        if len(self._hist) < n:
+        t, r, pose = self.samples(n)
+        if t.size < n:
             return
-        t, r, pose = self._arrays(n)
         names = self.names
         rec = Recording(t=t, r=r, joint_names=names,
                         actuated=tuple(names[i] for i in self.system.actuated),
