@@ -1,51 +1,63 @@
 """Live mismatch monitor: is the robot still the simulator?  No ROS; the ``monitor`` node adapts it.
 
-Residual (equation error of the nominal physics)
-------------------------------------------------
-Paired samples k (shape r_k incl. passive joints, pose g_k at the same stamp) give intervals
-k → k+1 with the actuated rate ṙ_a = Δr_a/Δt (exact for a servo set-point stream).  On each
-interval the nominal system predicts the passive rates and the body velocity
-(:class:`IntervalPhysics`).  Over a sliding window of ``diff_window`` samples (enough to beat the
-differencing noise) the monitor compares, per channel,
+Residual (prediction error of the nominal physics, interval by interval)
+------------------------------------------------------------------------
+Paired samples k (shape r_k incl. passive joints, pose g_k at the shape stamp) give intervals
+k → k+1.  On each interval the nominal physics is replayed (:class:`IntervalPhysics`): integrated
+(RK4 and the Lie-group pose step, :func:`~suds_ros.core.physics.integrate.integrate_batch`) from
+the measured passive angles at k, under the measured drive (the actuated joints on straight lines
+between their samples, bent where the servo set-points bend: :func:`drive_kinks`).  The replay's
+mean rates over the interval are the prediction.  Over a sliding window of ``diff_window`` samples
+(enough to beat the differencing noise) the monitor compares, per channel,
 
 * passive joint j: the measured mean rate (r_j[k+w] − r_j[k]) / T with the time average of the
   predicted ṙ_j (rad/s);
 * ``xi_x``, ``xi_y``, ``xi_theta``: the measured body velocity log(g_k⁻¹ g_{k+w}) / T with the
   composition of the predicted interval motions (the same SE(2) estimator on both sides).
 
-Prediction without discretisation error (from the nominal model, not from the robot)
--------------------------------------------------------------------------------------
-The cheap prediction takes the physics at the interval's midpoint shape.  With stiff passive
-joints (swimmer9 relaxes at ~135 1/s, 1.35 per 10 ms sample) that midpoint rule misses the motion
-inside an interval by far more than the sensor noise.  So every interval is also replayed: the
-nominal physics integrated (RK4, :func:`~suds_ros.core.physics.integrate.integrate_batch`) from
-the recorded passive angles at its start, under the recorded drive (actuated joints on the straight
-line between the two samples).  The replay's own midpoint-rule error — the replayed increment minus
-the midpoint prediction at the replayed midpoint — is what the nominal physics says the midpoint
-rule misses there, and it is added to the prediction.  On data from the nominal physics the
-prediction is then exact up to the sensor noise (≈ 1e-5 of the uncorrected error on swimmer9), on
-a robot that differs from its model from the first sample as well: nothing is learnt from the
-robot's own first cycles.  Each interval is computed once, when its second sample arrives.
+Nothing is learnt from the robot: no baseline from its first cycles
+-------------------------------------------------------------------
+A cheaper prediction, the physics at each interval's midpoint shape, misses the motion inside an
+interval wherever the passive joints are stiff (swimmer9 relaxes at ~135 1/s, 1.35 per 10 ms
+sample) by far more than the sensor noise; a monitor built on it has to learn that error from the
+robot's first cycles, and a robot wrong from its first sample then looks nominal.  The replay has
+no such error (≈ 1e-3 of the midpoint rule's on swimmer9), so the statistic is right from the
+first report on, whatever the robot did before.  Each interval is replayed once, when the sample
+after its end has arrived (that sample gives the slope at a bend near the end).
+
+Lab streams
+-----------
+* The drive bends at its set-point times, the points of the uniform grid fitted to the shape stamps
+  (:func:`~suds_ros.core.resample.fit_grid`); with stamp jitter a bend falls inside an interval, and
+  the replay bends there too (:func:`drive_kinks`).
+* A pose stream of its own rate is read at a shape stamp by linear interpolation between the pose
+  samples around it, plus the replay's own departure from that straight line (the body velocity
+  jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
+  A sample's pose is final once the replay reaches the next pose sample.
+* A lost message: windows across an interval longer than ``gap`` sample periods (or next to one),
+  or ending on a pose read across a lost pose or shape sample, are not scored.
 
 Noise floor (from the data's high-frequency content, shaped by the model)
 ------------------------------------------------------------------------
 The raw signals cannot give it directly (the actuated drive is rough: its servo set-points carry a
 random perturbation whose fourth differences dwarf the sensor noise), but the one-interval
-residual can: its noise is, up to the model's response, a first difference of white noise m_k,
-so the accumulated residual S_k = Σ e1_i Δt_i is m_k plus whatever the model misses — smooth, or
-kinked at a few stick-slip samples.  Its fourth difference keeps only m: σ_m =
-1.4826·MAD(Δ⁴S)/√70 over the last ``floor_cycles`` cycles, and a window of span T carries the
-noise power 2σ_m²/T² (:func:`noise_power`).
+residual can: were its noise a first difference of white noise m_k, the accumulated residual
+S_k = Σ e1_i Δt_i would be m_k plus whatever the model misses — smooth, or kinked at a few
+stick-slip samples — and its fourth difference would keep only m: σ_m² from the mean square of
+Δ⁴S/√70 (clipped at 4 robust standard deviations), a window of span T carrying the noise power
+2σ_m²/T² (:func:`noise_power`).
 
-That is exact only where the noise passes through the residual as a pure first difference.  A
-stiff passive joint forgets part of each measurement within one interval, so its window residual
-collects noise from every sample inside the window, not only from the two ends (swimmer9's tail
-joints: about 4 times the first-difference power).  The monitor measures that gain on the model,
-along the recorded trajectory: a synthetic white noise (fixed seed, 1e-6 rad or m on every joint
-and pose coordinate, interpolated onto the shape stamps as the pose is) rides along with the data
-through the same prediction, and the gain κ is the window power of its response divided by what
-:func:`noise_power` makes of it (:func:`noise_gain`; ≈ 1 wherever the first-difference picture
-holds).  The floor of a channel is κ · 2σ_m²/T².
+The model shapes the noise otherwise: a stiff passive joint forgets part of each measurement within
+one interval, so its window collects noise from every sample inside it, not only from the two ends;
+a joint's noise reaches its neighbours' channels through the coupling; a pose interpolated between
+pose samples is smoother than measured.  The monitor measures these gains on the model, along the
+recorded trajectory: for each signal group (:func:`noise_groups`: the actuated joints, each passive
+joint, the pose) a twin of the data carries a synthetic white noise (fixed seed, 1e-6 rad or m,
+interpolated onto the shape stamps as the pose is) through the same replays and pose reading.  The
+groups' noise levels are fitted to the measured floors of all channels, and a channel's floor is
+κ · 2σ_m²/T² with κ its fitted window power over its fitted high-frequency power
+(:func:`fitted_gain`; ≈ 1 wherever the first-difference picture holds).  The floor is renewed every
+``FLOOR_EVERY`` updates over the last ``floor_cycles`` cycles.
 
 Statistic and levels
 --------------------
@@ -53,10 +65,11 @@ Every ``update_every`` samples, once ``floor_cycles`` cycles are at hand (the fi
 channel F = mean(residual²) / floor over the last ``window_cycles`` gait cycles (≈ 1 when the
 nominal physics holds; a systematic error adds its power on top).  Level OK (F ≤ ``warn``), WARN
 (``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
-entered its level.  Windows that span a lost sample (an interval longer than ``gap`` sample
-periods: the drive inside it is unknown) are left out of the mean and of the floor.
-:attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps of the first WARN
-and ERROR, and the largest F (``suds monitor`` prints them).
+entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
+of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
+them).  Nominal runs stay below ERROR and robots wrong from the first sample reach it at the first
+report: ``docs/results/monitor.md`` (``benchmarks/monitor_delay.py``),
+``test/unit/diagnosis/test_monitor.py``.
 
 Diagnosis
 ---------
@@ -82,7 +95,7 @@ import math
 import multiprocessing
 from collections import deque
 from concurrent.futures import Future, ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -94,7 +107,7 @@ from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, flow_in_body
-from suds_ros.core.physics.sim import _still, auto_substeps
+from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
 from suds_ros.core.resample import fit_grid
@@ -106,6 +119,10 @@ SYNTHETIC_NOISE = 1e-6
 #: RK4 steps of the interval replays: h·λ_max ≤ this (λ the fastest passive relaxation; ≈1e-4 of the
 #: passive motion in one interval, far below the sensor noise)
 REPLAY_ACCURACY = 0.5
+#: an interval whose passive relaxation is this many times the fastest over random shapes is not scored
+STIFF = 2.0
+#: most RK4 steps per straight piece of the drive in one interval replay
+MAX_STEPS = 64
 #: statistics updates between two renewals of the noise floor (it spans ``floor_cycles``: it changes slowly)
 FLOOR_EVERY = 5
 #: weight of the pull of the fitted noise levels toward one common level (relative to one channel's fit)
@@ -320,7 +337,10 @@ def drive_kinks(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float) 
 
 
 def _piecewise(s: FloatArray, times: FloatArray, values: FloatArray) -> FloatArray:
-    """Row-wise linear interpolation: at ``s`` (B, M) of the polylines through ``times`` (B, K) ↑, ``values`` (B, K, d)."""
+    """Row-wise linear interpolation at ``s`` (B, M) of the polylines through ``times`` (B, K, rising), ``values``.
+
+    ``values`` (B, K, d); returns (B, M, d).
+    """
     K = times.shape[1]
     seg = np.clip((s[:, :, None] >= times[:, None, 1:-1]).sum(axis=2), 0, K - 2)  # (B, M)
     t0 = np.take_along_axis(times, seg, axis=1)
@@ -333,11 +353,12 @@ def _piecewise(s: FloatArray, times: FloatArray, values: FloatArray) -> FloatArr
 
 
 class IntervalPhysics:
-    """The nominal physics on sample intervals: body velocity and passive rates, discretisation-free.
+    """The nominal physics replayed over sample intervals: the mean body velocity and passive rates on each.
 
-    ``dt`` (s) is the nominal sample interval (it sets the RK4 steps of the replay, from the
-    system's fastest passive relaxation: :func:`~suds_ros.core.physics.sim.auto_substeps`).  See
-    the module docstring: midpoint prediction plus the nominal replay's own midpoint-rule error.
+    ``dt`` (s) is the nominal sample interval (it sets the RK4 steps of the replays, from the
+    system's fastest passive relaxation: :func:`~suds_ros.core.physics.sim.auto_substeps` at
+    ``REPLAY_ACCURACY``).  A nominal background flow is added to the still-fluid replay as
+    R(−yaw)·U at the interval's middle heading.  See the module docstring.
     """
 
     def __init__(self, system: SudsSystem, dt: float) -> None:
@@ -345,12 +366,38 @@ class IntervalPhysics:
         self.still, self.flow = _still(system)
         self.act = np.asarray(system.actuated, dtype=np.intp)
         self.pas = np.asarray(system.passive, dtype=np.intp)
+        self.dt = float(dt)
         self.substeps = auto_substeps(system, dt, accuracy=REPLAY_ACCURACY)
+        self.rate = passive_rate(system)  # the fastest relaxation over random shapes, 1/s
+
+    def stiffness(self, r0: FloatArray, r1: FloatArray) -> FloatArray:
+        """The fastest passive relaxation of each of B intervals, 1/s (0 without passive joints).
+
+        The largest |eigenvalue| of ∂ṙ_p/∂r_p (finite differences, actuated joints at rest) at
+        the interval's two end shapes ``r0``, ``r1`` (B, nj), as :func:`auto_substeps` takes it
+        at random shapes.
+        """
+        pas = self.pas
+        B = r0.shape[0]
+        if pas.size == 0:
+            return np.zeros(B)
+        r = np.concatenate([r0, r1])
+        h = 1e-6
+        probes = np.repeat(r[None], pas.size + 1, axis=0)  # (np + 1, 2B, nj)
+        probes[np.arange(1, pas.size + 1), :, pas] += h
+        zero = np.zeros((probes.shape[0] * r.shape[0], self.act.size))
+        _, rp = self.still.velocities(probes.reshape(-1, r.shape[1]), zero)
+        rp = rp.reshape(pas.size + 1, r.shape[0], pas.size)
+        jac = np.moveaxis((rp[1:] - rp[:1]) / h, 0, 2)  # (2B, row i, column j)
+        ok = np.all(np.isfinite(jac), axis=(1, 2))
+        lam = np.full(r.shape[0], np.inf)
+        lam[ok] = np.abs(np.linalg.eigvals(jac[ok])).max(axis=1)
+        return np.maximum(lam[:B], lam[B:])
 
     def between(self, dt: FloatArray, r0: FloatArray, r1: FloatArray, yaw: FloatArray,
-                kinks: Kinks | None = None, outputs: FloatArray | None = None
-                ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Body velocity (B, 3) and passive rates (B, np) on B intervals, and the motion at ``outputs``.
+                kinks: Kinks | None = None, outputs: FloatArray | None = None, lam: FloatArray | None = None
+                ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
+        """Body velocity (B, 3) and passive rates (B, np) on B intervals, the motion at ``outputs``, stiff ones.
 
         ``dt`` (B,) interval lengths, s; ``r0``, ``r1`` (B, nj) the shapes at their ends;
         ``yaw`` (B,) the heading at their middles (used only by a nominal background flow);
@@ -358,7 +405,11 @@ class IntervalPhysics:
         actuated joints move on the straight line between the two samples).  ``outputs`` (B, M):
         times inside the intervals (s from their starts; NaN: none) at which the replayed pose is
         wanted; returned as (B, M, 3), relative to the pose at the interval's start (NaN where
-        none).  The rates are the replay's mean rates over each interval.
+        none).  The rates are the replay's mean rates over each interval.  The last item (B,) marks
+        the intervals where the robot is far stiffer than usual (its :meth:`stiffness` above
+        ``STIFF`` times the fastest relaxation over random shapes, e.g. a length near zero): the
+        replay takes more RK4 steps there, but neither it nor a recording's own integration is
+        to be trusted so close to a singular shape.  ``lam`` (B,): their :meth:`stiffness`, if at hand.
         """
         dt = np.asarray(dt, dtype=float)
         B = dt.size
@@ -380,12 +431,15 @@ class IntervalPhysics:
             drive = np.take_along_axis(drive, order[:, :, None], axis=1)
         rp, pose = r0[:, pas], np.zeros((B, 3))
         poses = [pose]
-        nominal = float(np.median(dt))
+        lam = self.stiffness(r0, r1) if lam is None else lam
+        stiff = ~(lam <= STIFF * max(self.rate, 1e-9))
+        local = float(lam[~stiff].max()) if np.any(~stiff) else 0.0  # the stiff ones are not scored
+        per_second = max(self.substeps / self.dt, local / REPLAY_ACCURACY)  # RK4 steps per second
         for i in range(times.shape[1] - 1):
             length = times[:, i + 1] - times[:, i]
             longest = float(length.max())
             if longest > 0.0:
-                steps = max(1, int(math.ceil(self.substeps * longest / nominal - 1e-9)))
+                steps = min(MAX_STEPS, max(1, int(math.ceil(per_second * longest - 1e-9))))
                 RP, P = integrate_batch(self.still.velocities, act, pas, drive[:, i:i + 2], rp, pose,
                                         np.maximum(length, 1e-12), steps)
                 rp, pose = RP[:, 1], P[:, 1]
@@ -400,11 +454,11 @@ class IntervalPhysics:
             where = np.argsort(order, axis=1, kind="stable")[:, -M:]  # the outputs' places among them
             at = np.take_along_axis(stack, where[:, :, None], axis=1)
             at[~np.isfinite(outputs)] = np.nan
-        return xi, rdot_p, at
+        return xi, rdot_p, at, stiff
 
     def rates(self, t: FloatArray, r: FloatArray, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Body velocity (n − 1, 3) and passive rates (n − 1, np) on the intervals of one series."""
-        xi, rdot_p, _ = self.between(np.diff(t), r[:-1], r[1:], 0.5 * (pose[1:, 2] + pose[:-1, 2]))
+        """The body velocity (n − 1, 3) and passive joint velocities (n − 1, np) on the intervals of one series."""
+        xi, rdot_p, _, _ = self.between(np.diff(t), r[:-1], r[1:], 0.5 * (pose[1:, 2] + pose[:-1, 2]))
         return xi, rdot_p
 
 
@@ -550,6 +604,7 @@ class _Interval(NamedTuple):
     motion: FloatArray  # (versions, 3) relative pose at the interval's end
     stamps: FloatArray  # (M,) pose stamps inside (NaN: none)
     at: FloatArray  # (versions, M, 3) relative pose at them
+    stiff: bool  # near a singular shape (:meth:`IntervalPhysics.between`): not scored
 
 
 def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -744,16 +799,18 @@ class MismatchMonitor:
         dt = t1 - t0
         mid_yaw = 0.5 * (yaw[:, 1:-2] + yaw[:, 2:-1])
         both = Kinks(*(np.concatenate(parts) for parts in zip(*kinks)))
-        xi, rp, at = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
-                                          R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
-                                          np.tile(outputs, (V, 1)) if inside.any() else None)
+        lam = np.tile(self.physics.stiffness(R[0, 1:-2], R[0, 2:-1]), V)  # the twins: as the data
+        xi, rp, at, stiff = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
+                                                 R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
+                                                 np.tile(outputs, (V, 1)) if inside.any() else None, lam)
         rates = np.concatenate([xi, rp], axis=1).reshape(V, k, -1)  # (V, k, 3 + np)
         still = xi - (0.0 if self.physics.flow == (0.0, 0.0) else flow_in_body(self.physics.flow, mid_yaw.ravel()))
         motion = se2.exp_step(np.zeros((V * k, 3)), still * np.tile(dt, V)[:, None]).reshape(V, k, 3)
         at = at.reshape(V, k, at.shape[1], 3)
         for j in range(k):
             self._rates[first + j] = rates[:, j]
-            self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j])
+            self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j],
+                                                 bool(stiff.reshape(V, k)[:, j].any()))
         self._rated = self.paired - 1
 
     def _read_poses(self) -> None:
@@ -793,8 +850,11 @@ class MismatchMonitor:
         self._read = self.paired - (len(hist) - pos)
 
     def _motion(self, first: int, start: float, last: int, end: float | None = None) -> FloatArray:
-        """The replayed motion (versions, 3) from ``start`` (inside the interval ending at position ``first``)
-        to the end of the interval ending at ``last``, or to ``end`` inside it."""
+        """The replayed motion (versions, 3) from ``start`` to the end of an interval, or to ``end`` inside it.
+
+        ``start`` lies inside the interval ending at history position ``first`` (or at its start),
+        the motion runs to the end of the interval ending at ``last``, or to ``end`` inside it.
+        """
         g = np.zeros((len(self._joint_masks) + 1, 3))
         for i in range(first, last + 1):
             rep = self._replays[i]
@@ -826,7 +886,8 @@ class MismatchMonitor:
         R = np.array([h.r[versions] for h in last]).transpose(1, 0, 2)  # (versions, m, nj)
         P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
         rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
-        gap = np.diff(t) > cfg.gap / cfg.rate
+        replays = list(self._replays)[ready - m + 1:ready]
+        gap = (np.diff(t) > cfg.gap / cfg.rate) | np.array([rep is None or rep.stiff for rep in replays])
         shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
         shape_ok[1:] &= ~gap[:-1]
         shape_ok[:-1] &= ~gap[1:]
