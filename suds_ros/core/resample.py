@@ -59,9 +59,7 @@ class Grid:
         if (pt.size == t.size and np.allclose(pt, t, rtol=0.0, atol=1e-6)
                 and np.allclose(np.diff(rel), dt, rtol=1e-3, atol=0.0)):
             return cls(t, dt, False)
-        k = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(rel) / dt), 1.0))])
-        A = np.column_stack([np.ones_like(k), k])
-        (a, b), *_ = np.linalg.lstsq(A, rel, rcond=None)
+        k, a, b = fit_grid(rel, dt)
         # grid points less than a step outside either stream's span (a pose stream starting a few
         # ms after the shape stream does not cost the first grid point: its first sample, within
         # the knot's support, still pins it; such an end point is marked unreliable)
@@ -98,6 +96,20 @@ class Grid:
     def pose(self, rec: Recording) -> FloatArray:
         """Pose (x, y, unwrapped yaw) at the grid points (n, 3)."""
         return rec.pose_at(self.t) if not self.resampled else knot_fit(rec.pose_t, rec.pose, self.t)
+
+
+def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
+    """The uniform grid a + b·k fitted (least squares) to stamps ``t`` against their nominal index k.
+
+    k counts whole periods ``dt`` (s) between successive stamps (at least one), so dropped
+    messages and a slightly wrong ``dt`` do not shift the indices.  Returns (k, a, b): the
+    index of every stamp (float), the grid's offset (s, in the clock of ``t``) and its step (s).
+    Subtract a reference time from large stamps first (1.7e9 s leaves 0.2 µs of precision).
+    """
+    k = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(t) / dt), 1.0))])
+    A = np.column_stack([np.ones_like(k), k])
+    (a, b), *_ = np.linalg.lstsq(A, t, rcond=None)
+    return k, float(a), float(b)
 
 
 def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:

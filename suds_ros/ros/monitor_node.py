@@ -17,8 +17,11 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   (``suds diagnose --json`` schema plus a ``monitor`` object: window, channels, since), computed
   in a separate process while the node keeps up with the stream.
 
-Nothing is published on ``suds/mismatch`` until ``floor_cycles`` + ``calibration_cycles`` cycles
-have been seen (the noise floor and the calibration need them).
+Nothing is published on ``suds/mismatch`` until ``floor_cycles`` cycles have been seen (the noise
+floor needs them); from that first report on the statistic is right whatever the robot did
+before: the nominal model's own discretisation error and noise gain come from replays of the
+nominal physics, nothing from the robot's first cycles.  ``suds monitor BAG`` runs the same core
+offline over a recording.
 
 System
 ------

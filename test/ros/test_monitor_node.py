@@ -138,7 +138,7 @@ def test_simulator_effects_at_run_time(ros_context):
 
 
 def test_monitor_node_publishes_per_channel_statuses(ros_context):
-    """Fed in process: one status per channel after the floor and calibration cycles."""
+    """Fed in process: one status per channel from the first report (after the floor's 3 cycles) on."""
     from rclpy.parameter import Parameter
 
     from suds_ros.core.physics.sim import SimConfig
@@ -149,7 +149,7 @@ def test_monitor_node_publishes_per_channel_statuses(ros_context):
     node = MonitorNode(context=ros_context, parameter_overrides=[Parameter("diagnose", value=False)])
     try:
         sim = StreamingSimulator(node.system, SimConfig(seed=0))
-        for _ in range(7):
+        for _ in range(4):
             ch = sim.step(100)
             for k in range(100):
                 node._on_pose(pose_to_msg(ch.t[k], *ch.pose[k]))

@@ -1,47 +1,74 @@
 """Live mismatch monitor: is the robot still the simulator?  No ROS; the ``monitor`` node adapts it.
 
-Residual (equation error of the nominal physics, no integration)
-----------------------------------------------------------------
-Paired samples k (shape r_k incl. passive joints, pose g_k at the same stamp) give intervals
-k → k+1 with midpoint shape r̄ and actuated rate ṙ_a = Δr_a/Δt (exact for a servo set-point
-stream).  The nominal system predicts the passive rates and the body velocity on each interval
-(``system.velocities``).  Over a sliding window of ``diff_window`` samples (enough to beat the
-differencing noise) the monitor compares, per channel,
+Residual (prediction error of the nominal physics, interval by interval)
+------------------------------------------------------------------------
+Paired samples k (shape r_k incl. passive joints, pose g_k at the shape stamp) give intervals
+k → k+1.  On each interval the nominal physics is replayed (:class:`IntervalPhysics`): integrated
+(RK4 and the Lie-group pose step, :func:`~suds_ros.core.physics.integrate.integrate_batch`) from
+the measured passive angles at k, under the measured drive (the actuated joints on straight lines
+between their samples, bent where the servo set-points bend: :func:`drive_kinks`).  The replay's
+mean rates over the interval are the prediction.  Over a sliding window of ``diff_window`` samples
+(enough to beat the differencing noise) the monitor compares, per channel,
 
 * passive joint j: the measured mean rate (r_j[k+w] − r_j[k]) / T with the time average of the
   predicted ṙ_j (rad/s);
 * ``xi_x``, ``xi_y``, ``xi_theta``: the measured body velocity log(g_k⁻¹ g_{k+w}) / T with the
-  composition of the predicted interval velocities (the same SE(2) estimator on both sides).
+  composition of the predicted interval motions (the same SE(2) estimator on both sides).
 
-Noise floor (from the data's high-frequency content)
-----------------------------------------------------
+Nothing is learnt from the robot: no baseline from its first cycles
+-------------------------------------------------------------------
+A cheaper prediction, the physics at each interval's midpoint shape, misses the motion inside an
+interval wherever the passive joints are stiff (swimmer9 relaxes at ~135 1/s, 1.35 per 10 ms
+sample) by far more than the sensor noise; a monitor built on it has to learn that error from the
+robot's first cycles, and a robot wrong from its first sample then looks nominal.  The replay has
+no such error (≈ 1e-3 of the midpoint rule's on swimmer9), so the statistic is right from the
+first report on, whatever the robot did before.  Each interval is replayed once, when the sample
+after its end has arrived (that sample gives the slope at a bend near the end).
+
+Lab streams
+-----------
+* The drive bends at its set-point times, the points of the uniform grid fitted to the shape stamps
+  (:func:`~suds_ros.core.resample.fit_grid`); with stamp jitter a bend falls inside an interval, and
+  the replay bends there too (:func:`drive_kinks`).
+* A pose stream of its own rate is read at a shape stamp by linear interpolation between the pose
+  samples around it, plus the replay's own departure from that straight line (the body velocity
+  jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
+  A sample's pose is final once the replay reaches the next pose sample.
+* A lost message: windows across an interval longer than ``gap`` sample periods (or next to one),
+  or ending on a pose read across a lost pose or shape sample, are not scored.
+
+Noise floor (from the data's high-frequency content, shaped by the model)
+------------------------------------------------------------------------
 The raw signals cannot give it directly (the actuated drive is rough: its servo set-points carry a
 random perturbation whose fourth differences dwarf the sensor noise), but the one-interval
-residual can: its noise is a first difference of white noise m_k (each signal's sensor noise,
-combined as the physics combines them), so the accumulated residual S_k = Σ e1_i Δt_i is m_k
-plus whatever the model misses — smooth, or kinked at a few stick-slip samples.  Its fourth
-difference keeps only m: σ_m = 1.4826·MAD(Δ⁴S)/√70 over the last ``floor_cycles`` cycles, and
-a window of span T carries the noise power 2σ_m²/T² (:func:`residual_floor`).
+residual can: were its noise a first difference of white noise m_k, the accumulated residual
+S_k = Σ e1_i Δt_i would be m_k plus whatever the model misses — smooth, or kinked at a few
+stick-slip samples — and its fourth difference would keep only m: σ_m² from the mean square of
+Δ⁴S/√70 (clipped at 4 robust standard deviations), a window of span T carrying the noise power
+2σ_m²/T² (:func:`noise_power`).
 
-Calibration
------------
-The interval equation error is not exactly zero for an exact model: with stiff passive joints
-(swimmer9 relaxes at ~135 1/s, 1.35 per 10 ms sample) the midpoint rule misses the motion inside
-an interval.  That discretisation error is measured once, over the first
-``calibration_cycles`` cycles (assumed nominal), as the mean excess of the residual power over
-the noise floor (clipped at 0), and added to the floor afterwards.  No status is reported
-before.  (A robot that is already mismatched when the monitor starts is therefore partly
-absorbed: start the monitor on a robot known to be nominal, or set ``calibration_cycles`` to 0
-for systems the midpoint rule resolves, such as purcell3, where the excess is ≈ 0.)
+The model shapes the noise otherwise: a stiff passive joint forgets part of each measurement within
+one interval, so its window collects noise from every sample inside it, not only from the two ends;
+a joint's noise reaches its neighbours' channels through the coupling; a pose interpolated between
+pose samples is smoother than measured.  The monitor measures these gains on the model, along the
+recorded trajectory: for each signal group (:func:`noise_groups`: the actuated joints, each passive
+joint, the pose) a twin of the data carries a synthetic white noise (fixed seed, 1e-6 rad or m,
+interpolated onto the shape stamps as the pose is) through the same replays and pose reading.  The
+groups' noise levels are fitted to the measured floors of all channels, and a channel's floor is
+κ · 2σ_m²/T² with κ its fitted window power over its fitted high-frequency power
+(:func:`fitted_gain`; ≈ 1 wherever the first-difference picture holds).  The floor is renewed every
+``FLOOR_EVERY`` updates over the last ``floor_cycles`` cycles.
 
 Statistic and levels
 --------------------
-Every ``update_every`` samples, per channel F = mean(residual²) / (floor + calibrated excess)
-over the last ``window_cycles`` gait cycles (≈ 1 when the nominal physics holds; a systematic
-error adds its power on top).  Level OK (F ≤ ``warn``), WARN (``warn`` < F ≤ ``error``), ERROR (F > ``error``),
-``since`` = the stamp at which the channel entered its level.  The thresholds are calibrated so
-that nominal 60-cycle runs never alarm: purcell3 stays OK (F ≤ 2.2 over seeds), swimmer9 below
-ERROR (F ≤ 3.8; the per-cycle spread of its discretisation error) —
+Every ``update_every`` samples, once ``floor_cycles`` cycles are at hand (the first report), per
+channel F = mean(residual²) / floor over the last ``window_cycles`` gait cycles (≈ 1 when the
+nominal physics holds; a systematic error adds its power on top).  Level OK (F ≤ ``warn``), WARN
+(``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
+entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
+of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
+them).  Nominal runs stay below ERROR and robots wrong from the first sample reach it at the first
+report: ``docs/results/monitor.md`` (``benchmarks/monitor_delay.py``),
 ``test/unit/diagnosis/test_monitor.py``.
 
 Diagnosis
@@ -52,10 +79,17 @@ episode, so after the change) as a :class:`~suds_ros.core.recording.Recording`. 
 episode; the episode ends when every channel is back to OK.  :class:`DiagnosisWorker` runs
 :func:`~suds_ros.core.diagnosis.pipeline.diagnose` in a separate process so the caller keeps up
 with the stream.
+
+Offline
+-------
+:func:`monitor_recording` feeds a recording's two streams, in stamp order, through the same
+:meth:`MismatchMonitor.on_shape` / :meth:`MismatchMonitor.on_pose` the node calls, and returns
+the :class:`MonitorRecord` (``suds monitor``).
 """
 
 from __future__ import annotations
 
+import heapq
 import json
 import math
 import multiprocessing
@@ -67,16 +101,39 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
-from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.physics.integrate import integrate_batch
+from suds_ros.core.physics.rft import ChainModel, flow_in_body
+from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
+from suds_ros.core.resample import fit_grid
 
 OK, WARN, ERROR = 0, 1, 2
 LEVEL_NAMES = ("OK", "WARN", "ERROR")
+#: std of the synthetic noise that measures the noise gain (rad or m; small: the response stays linear)
+SYNTHETIC_NOISE = 1e-6
+#: RK4 steps of the interval replays: h·λ_max ≤ this (λ the fastest passive relaxation; ≈1e-4 of the
+#: passive motion in one interval, far below the sensor noise)
+REPLAY_ACCURACY = 0.5
+#: an interval whose passive relaxation is this many times the fastest over random shapes is not scored
+STIFF = 2.0
+#: most RK4 steps per straight piece of the drive in one interval replay
+MAX_STEPS = 64
+#: statistics updates between two renewals of the noise floor (it spans ``floor_cycles``: it changes slowly)
+FLOOR_EVERY = 5
+#: weight of the pull of the fitted noise levels toward one common level (relative to one channel's fit)
+LEVEL_PRIOR = 1e-2
+#: the floor's fourth differences are clipped at this many robust standard deviations before their mean square
+CLIP = 4.0
+#: E[min(z², CLIP²)] for a standard normal z: the clipped mean square of Gaussian noise is this times its variance
+CLIP_MEAN = float(1.0 - math.erfc(CLIP / math.sqrt(2.0)) * (1.0 - CLIP**2)
+                  - 2.0 * CLIP * math.exp(-CLIP**2 / 2.0) / math.sqrt(2.0 * math.pi))
+#: seed of the synthetic noise (one stream per monitor: the statistics are reproducible)
+SYNTHETIC_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -88,19 +145,19 @@ class MonitorConfig:
     gait_hz : float
         Gait frequency, Hz (cycles are counted with it).
     rate : float
-        Nominal sample rate, Hz; ``rate / gait_hz`` samples per cycle.
+        Nominal sample rate of the shape stream, Hz; ``rate / gait_hz`` samples per cycle.
     diff_window : int
         Samples per residual window (the velocity differences span this many intervals).
     window_cycles : float
         Gait cycles over which the mean-square residual is taken.
     floor_cycles : float
-        Gait cycles of data whose residuals' fourth differences give the noise floor.
-    calibration_cycles : float
-        Gait cycles, after the first full windows, over which the nominal model's own
-        discretisation error is measured (the excess of the residual power over the noise floor,
-        averaged; see the module docstring).  0 skips it (pure noise floor).
+        Gait cycles of data whose residuals give the noise floor and its gain; the first report
+        comes once they are at hand.
     warn, error : float
-        Thresholds on F = mean-square residual / (noise floor + calibrated excess) (error > warn > 1).
+        Thresholds on F = mean-square residual / noise floor (error > warn > 1).
+    gap : float
+        An interval between paired samples longer than this many nominal sample periods is a
+        gap (a lost sample): the windows across it are not scored.
     persist_cycles : int
         Cycles a channel must stay in ERROR before the recent window is diagnosed (≥ 4:
         the diagnosis trains on half of it and scores on the other half).
@@ -111,15 +168,16 @@ class MonitorConfig:
     """
 
     gait_hz: float = setting(1.0, "gait frequency, Hz", gt=0.0, le=1000.0)
-    rate: float = setting(100.0, "sample rate of shape and pose, Hz (rate / gait_hz samples per cycle)",
+    rate: float = setting(100.0, "sample rate of the shape stream, Hz (rate / gait_hz samples per cycle)",
                           gt=0.0, le=100000.0)
     diff_window: int = setting(10, "samples per residual window", ge=1, le=10000)
     window_cycles: float = setting(1.0, "gait cycles of the mean-square residual", gt=0.0, le=100.0)
-    floor_cycles: float = setting(3.0, "gait cycles of data for the noise floor", gt=0.0, le=100.0)
-    calibration_cycles: float = setting(3.0, "cycles (assumed nominal) measuring the model's own "
-                                             "discretisation error; 0: none", ge=0.0, le=1000.0)
+    floor_cycles: float = setting(3.0, "gait cycles of data for the noise floor (the first report comes "
+                                       "after them)", gt=0.0, le=100.0)
     warn: float = setting(4.0, "WARN when F = mean-square residual / floor exceeds this", gt=1.0, le=1e9)
     error: float = setting(8.0, "ERROR when F exceeds this (> warn)", gt=1.0, le=1e9)
+    gap: float = setting(1.5, "intervals longer than this many sample periods are gaps (lost samples): "
+                              "windows across them are not scored", gt=1.0, le=1000.0)
     persist_cycles: int = setting(6, "cycles in ERROR before the recent window is diagnosed (≥ 4)", ge=4)
     history_cycles: float = setting(12.0, "cycles of samples kept", ge=1.0, le=10000.0)
     update_every: int = setting(10, "samples between statistics updates (and suds/mismatch messages)",
@@ -142,6 +200,12 @@ class MonitorConfig:
     def samples_per_cycle(self) -> int:
         """Samples per gait cycle."""
         return samples_per_cycle(1.0 / self.rate, self.gait_hz)
+
+    @property
+    def first_report_samples(self) -> int:
+        """Paired samples before the first statistics (the floor's cycles, at least one statistic window)."""
+        spc = self.samples_per_cycle
+        return max(int(round(self.window_cycles * spc)) + self.diff_window, int(round(self.floor_cycles * spc)))
 
 
 class ChannelStatus(NamedTuple):
@@ -166,79 +230,403 @@ class DiagnosisRequest:
     since: float
 
 
-# ------------------------------------------------------------------ residuals
+@dataclass(frozen=True)
+class ChannelRecord:
+    """What one channel went through: worst level, first stamps at WARN (or above) and at ERROR, largest F.
+
+    Stamps in s (the recording's clock), None when never reached.
+    """
+
+    channel: str
+    worst: int = OK
+    first_warn: float | None = None
+    first_error: float | None = None
+    max_statistic: float = 0.0
+
+    @property
+    def worst_name(self) -> str:
+        return LEVEL_NAMES[self.worst]
+
+    def seen(self, status: ChannelStatus, stamp: float) -> ChannelRecord:
+        """This record updated with one status reported at ``stamp``."""
+        warn = self.first_warn if self.first_warn is not None or status.level < WARN else stamp
+        error = self.first_error if self.first_error is not None or status.level < ERROR else stamp
+        return ChannelRecord(self.channel, max(self.worst, status.level), warn, error,
+                             max(self.max_statistic, status.statistic))
+
+
+@dataclass(frozen=True)
+class MonitorRecord:
+    """What the monitor reported over a run: per channel :class:`ChannelRecord`, the first and last report.
+
+    ``first_report`` / ``last_report``: stamps (s) of the first and last statistics update, None
+    before the first.  ``updates``: how many there were.
+    """
+
+    channels: tuple[ChannelRecord, ...]
+    first_report: float | None = None
+    last_report: float | None = None
+    updates: int = 0
+
+    @property
+    def worst(self) -> int:
+        """Highest level any channel reached (OK before the first report)."""
+        return max((c.worst for c in self.channels), default=OK)
+
+    def to_dict(self, origin: float = 0.0) -> dict[str, Any]:
+        """JSON-ready: ``{"worst", "channels": {name: {"worst", "first_warn_s", "first_error_s"}}}``.
+
+        Stamps become seconds after ``origin`` (e.g. the recording's first stamp); None (JSON null)
+        when never reached.
+        """
+        def rel(x: float | None) -> float | None:
+            return None if x is None else float(x - origin)
+
+        return {"worst": LEVEL_NAMES[self.worst],
+                "channels": {c.channel: {"worst": c.worst_name, "first_warn_s": rel(c.first_warn),
+                                         "first_error_s": rel(c.first_error)} for c in self.channels}}
+
+
+# ------------------------------------------------------------------ prediction
 def channel_names(system: SudsSystem) -> tuple[str, ...]:
     """Monitored channels: the passive joints, then the body velocity (x only for 1-D swimmers)."""
     body = BODY if getattr(system, "planar", True) else BODY[:1]
     return tuple(system.joint_names[j] for j in system.passive) + body
 
 
+class Kinks(NamedTuple):
+    """Where a piecewise-linear drive bends inside B sample intervals (times from each interval's start).
+
+    ``ta`` ≤ ``tb`` (B,) s; ``ka``, ``kb`` (B, na) the actuated angles there.  An interval without
+    a bend near its start has ``ta`` = 0 and ``ka`` = its first sample; likewise ``tb`` = its
+    length and ``kb`` = its last sample.
+    """
+
+    ta: FloatArray
+    ka: FloatArray
+    tb: FloatArray
+    kb: FloatArray
+
+
+def drive_kinks(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float) -> Kinks:
+    """The bends of the drive inside the intervals of t[1:-2] → t[2:-1] (the outer samples give slopes).
+
+    A servo set-point stream bends at its set-point times: the points ``grid`` (n,) of the
+    uniform grid fitted to the shape stamps (:func:`~suds_ros.core.resample.fit_grid`), one next
+    to each stamp of ``t`` (n,).  Sampled with jitter, a stamp t_j sits ε_j = t_j − g_j off its
+    grid point, so one interval can hold the bend of either end.  The angle at the bend is the
+    sample's, moved along the straight piece that holds both the bend and the sample (the chord
+    to the next sample when ε_j > 0, to the previous one when ε_j < 0).  Bends within 1e-3
+    ``period`` of a sample are not split off.  ``ra`` (n, na) the actuated angles.
+    """
+    eps = t - grid
+    tol = 1e-3 * period
+    fwd = np.diff(ra, axis=0) / np.diff(t)[:, None]  # chord j → j + 1
+    slope = np.where((eps[1:-1] > 0)[:, None], fwd[1:], fwd[:-1])  # samples 1 … n − 2
+    knot = ra[1:-1] - eps[1:-1, None] * slope
+    e0, e1 = eps[1:-2], eps[2:-1]  # each interval's start and end sample
+    t0 = t[1:-2]
+    start = e0 < -tol  # the start sample's grid point lies inside, after it
+    end = e1 > tol  # the end sample's grid point lies inside, before it
+    ta = np.where(start, -e0, 0.0)
+    tb = np.where(end, grid[2:-1] - t0, t[2:-1] - t0)
+    tb = np.maximum(tb, ta)
+    ka = np.where(start[:, None], knot[:-1], ra[1:-2])
+    kb = np.where(end[:, None], knot[1:], ra[2:-1])
+    return Kinks(ta, ka, tb, kb)
+
+
+def _piecewise(s: FloatArray, times: FloatArray, values: FloatArray) -> FloatArray:
+    """Row-wise linear interpolation at ``s`` (B, M) of the polylines through ``times`` (B, K, rising), ``values``.
+
+    ``values`` (B, K, d); returns (B, M, d).
+    """
+    K = times.shape[1]
+    seg = np.clip((s[:, :, None] >= times[:, None, 1:-1]).sum(axis=2), 0, K - 2)  # (B, M)
+    t0 = np.take_along_axis(times, seg, axis=1)
+    t1 = np.take_along_axis(times, seg + 1, axis=1)
+    v0 = np.take_along_axis(values, seg[:, :, None], axis=1)
+    v1 = np.take_along_axis(values, seg[:, :, None] + 1, axis=1)
+    span = t1 - t0
+    frac = np.where(span > 0, (s - t0) / np.where(span > 0, span, 1.0), 0.0)
+    return v0 + frac[:, :, None] * (v1 - v0)
+
+
+class IntervalPhysics:
+    """The nominal physics replayed over sample intervals: the mean body velocity and passive rates on each.
+
+    ``dt`` (s) is the nominal sample interval (it sets the RK4 steps of the replays, from the
+    system's fastest passive relaxation: :func:`~suds_ros.core.physics.sim.auto_substeps` at
+    ``REPLAY_ACCURACY``).  A nominal background flow is added to the still-fluid replay as
+    R(−yaw)·U at the interval's middle heading.  See the module docstring.
+    """
+
+    def __init__(self, system: SudsSystem, dt: float) -> None:
+        self.system = system
+        self.still, self.flow = _still(system)
+        self.act = np.asarray(system.actuated, dtype=np.intp)
+        self.pas = np.asarray(system.passive, dtype=np.intp)
+        self.dt = float(dt)
+        self.substeps = auto_substeps(system, dt, accuracy=REPLAY_ACCURACY)
+        self.rate = passive_rate(system)  # the fastest relaxation over random shapes, 1/s
+
+    def stiffness(self, r0: FloatArray, r1: FloatArray) -> FloatArray:
+        """The fastest passive relaxation of each of B intervals, 1/s (0 without passive joints).
+
+        The largest |eigenvalue| of ∂ṙ_p/∂r_p (finite differences, actuated joints at rest) at
+        the interval's two end shapes ``r0``, ``r1`` (B, nj), as :func:`auto_substeps` takes it
+        at random shapes.
+        """
+        pas = self.pas
+        B = r0.shape[0]
+        if pas.size == 0:
+            return np.zeros(B)
+        r = np.concatenate([r0, r1])
+        h = 1e-6
+        probes = np.repeat(r[None], pas.size + 1, axis=0)  # (np + 1, 2B, nj)
+        probes[np.arange(1, pas.size + 1), :, pas] += h
+        zero = np.zeros((probes.shape[0] * r.shape[0], self.act.size))
+        _, rp = self.still.velocities(probes.reshape(-1, r.shape[1]), zero)
+        rp = rp.reshape(pas.size + 1, r.shape[0], pas.size)
+        jac = np.moveaxis((rp[1:] - rp[:1]) / h, 0, 2)  # (2B, row i, column j)
+        ok = np.all(np.isfinite(jac), axis=(1, 2))
+        lam = np.full(r.shape[0], np.inf)
+        lam[ok] = np.abs(np.linalg.eigvals(jac[ok])).max(axis=1)
+        return np.maximum(lam[:B], lam[B:])
+
+    def between(self, dt: FloatArray, r0: FloatArray, r1: FloatArray, yaw: FloatArray,
+                kinks: Kinks | None = None, outputs: FloatArray | None = None, lam: FloatArray | None = None
+                ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
+        """Body velocity (B, 3) and passive rates (B, np) on B intervals, the motion at ``outputs``, stiff ones.
+
+        ``dt`` (B,) interval lengths, s; ``r0``, ``r1`` (B, nj) the shapes at their ends;
+        ``yaw`` (B,) the heading at their middles (used only by a nominal background flow);
+        ``kinks``: where the drive bends inside each interval (:func:`drive_kinks`; none: the
+        actuated joints move on the straight line between the two samples).  ``outputs`` (B, M):
+        times inside the intervals (s from their starts; NaN: none) at which the replayed pose is
+        wanted; returned as (B, M, 3), relative to the pose at the interval's start (NaN where
+        none).  The rates are the replay's mean rates over each interval.  The last item (B,) marks
+        the intervals where the robot is far stiffer than usual (its :meth:`stiffness` above
+        ``STIFF`` times the fastest relaxation over random shapes, e.g. a length near zero): the
+        replay takes more RK4 steps there, but neither it nor a recording's own integration is
+        to be trusted so close to a singular shape.  ``lam`` (B,): their :meth:`stiffness`, if at hand.
+        """
+        dt = np.asarray(dt, dtype=float)
+        B = dt.size
+        act, pas = self.act, self.pas
+        ra0, ra1 = r0[:, act], r1[:, act]
+        if kinks is None:
+            times = np.stack([np.zeros(B), dt], axis=1)
+            drive = np.stack([ra0, ra1], axis=1)
+        else:
+            times = np.stack([np.zeros(B), kinks.ta, kinks.tb, dt], axis=1)
+            drive = np.stack([ra0, kinks.ka, kinks.kb, ra1], axis=1)
+        M = 0 if outputs is None else outputs.shape[1]
+        if M:  # the output times become break points too (the drive there: on its straight pieces)
+            out = np.where(np.isfinite(outputs), np.clip(outputs, 0.0, dt[:, None]), dt[:, None])
+            drive = np.concatenate([drive, _piecewise(out, times, drive)], axis=1)
+            times = np.concatenate([times, out], axis=1)
+            order = np.argsort(times, axis=1, kind="stable")
+            times = np.take_along_axis(times, order, axis=1)
+            drive = np.take_along_axis(drive, order[:, :, None], axis=1)
+        rp, pose = r0[:, pas], np.zeros((B, 3))
+        poses = [pose]
+        lam = self.stiffness(r0, r1) if lam is None else lam
+        stiff = ~(lam <= STIFF * max(self.rate, 1e-9))
+        local = float(lam[~stiff].max()) if np.any(~stiff) else 0.0  # the stiff ones are not scored
+        per_second = max(self.substeps / self.dt, local / REPLAY_ACCURACY)  # RK4 steps per second
+        for i in range(times.shape[1] - 1):
+            length = times[:, i + 1] - times[:, i]
+            longest = float(length.max())
+            if longest > 0.0:
+                steps = min(MAX_STEPS, max(1, int(math.ceil(per_second * longest - 1e-9))))
+                RP, P = integrate_batch(self.still.velocities, act, pas, drive[:, i:i + 2], rp, pose,
+                                        np.maximum(length, 1e-12), steps)
+                rp, pose = RP[:, 1], P[:, 1]
+            poses.append(pose)
+        xi = se2.log(pose) / dt[:, None]
+        rdot_p = (rp - r0[:, pas]) / dt[:, None]
+        if self.flow != (0.0, 0.0):
+            xi = xi + flow_in_body(self.flow, yaw)
+        at = np.full((B, M, 3), np.nan)
+        if M:
+            stack = np.stack(poses, axis=1)  # (B, knots, 3), at the sorted break points
+            where = np.argsort(order, axis=1, kind="stable")[:, -M:]  # the outputs' places among them
+            at = np.take_along_axis(stack, where[:, :, None], axis=1)
+            at[~np.isfinite(outputs)] = np.nan
+        return xi, rdot_p, at, stiff
+
+    def rates(self, t: FloatArray, r: FloatArray, pose: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The body velocity (n − 1, 3) and passive joint velocities (n − 1, np) on the intervals of one series."""
+        xi, rdot_p, _, _ = self.between(np.diff(t), r[:-1], r[1:], 0.5 * (pose[1:, 2] + pose[:-1, 2]))
+        return xi, rdot_p
+
+
 def interval_rates(system: SudsSystem, t: FloatArray, r: FloatArray,
                    pose: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Predicted body velocity (n − 1, 3) and passive rates (n − 1, np) on each sample interval.
 
-    Midpoint shape and heading, actuated rate Δr_a/Δt: the nominal physics, no integration.
+    :meth:`IntervalPhysics.rates` at the series' median sample interval.
     """
-    act = list(system.actuated)
-    dt = np.diff(t)
-    mid = 0.5 * (r[1:] + r[:-1])
-    yaw = 0.5 * (pose[1:, 2] + pose[:-1, 2])
-    return system.velocities(mid, np.diff(r[:, act], axis=0) / dt[:, None], yaw=yaw)
+    return IntervalPhysics(system, float(np.median(np.diff(t)))).rates(t, r, pose)
 
 
 def equation_residuals(system: SudsSystem, t: FloatArray, r: FloatArray, pose: FloatArray,
                        w: int, rates: tuple[FloatArray, FloatArray] | None = None) -> FloatArray:
-    """Measured minus predicted rates over every window of ``w`` intervals, shape (n − w, channels).
+    """Measured minus predicted rates over every window of ``w`` intervals, shape (…, n − w, channels).
 
-    ``t`` (n,) stamps, ``r`` (n, nj) joints in the system's order, ``pose`` (n, 3) at the same
-    stamps (yaw unwrapped); ``rates``: :func:`interval_rates` of the same data, if at hand.
-    Columns as :func:`channel_names`.
+    ``t`` (n,) stamps, ``r`` (…, n, nj) joints in the system's order, ``pose`` (…, n, 3) at the
+    same stamps (yaw unwrapped); ``rates``: (ξ (…, n − 1, 3), ṙ_p (…, n − 1, np)) from
+    :func:`interval_rates` of the same data, if at hand (leading axes: several series on the same
+    stamps at once).  Columns as :func:`channel_names`.
     """
     pas = list(system.passive)
     xi, rdot_p = interval_rates(system, t, r, pose) if rates is None else rates
     dt = np.diff(t)
-    span = t[w:] - t[:-w]
+    span = (t[w:] - t[:-w])[:, None]
     nwin = t.size - w
-    cum = np.concatenate([np.zeros((1, len(pas))), np.cumsum(rdot_p * dt[:, None], axis=0)])
-    pred_p = (cum[w:] - cum[:-w]) / span[:, None]
-    meas_p = (r[w:, pas] - r[:-w, pas]) / span[:, None]
-    g = np.zeros((nwin, 3))
+    cum = np.cumsum(rdot_p * dt[:, None], axis=-2)
+    cum = np.concatenate([np.zeros_like(cum[..., :1, :]), cum], axis=-2)
+    pred_p = (cum[..., w:, :] - cum[..., :-w, :]) / span
+    meas_p = (r[..., w:, pas] - r[..., :-w, pas]) / span
+    g = np.zeros(xi.shape[:-2] + (nwin, 3))
     for j in range(w):  # compose the predicted interval motions of each window
-        g = se2.exp_step(g, xi[j:j + nwin] * dt[j:j + nwin, None])
-    pred_xi = se2.log(g) / span[:, None]
-    meas_xi = se2.log(se2.relative(pose[:-w], pose[w:])) / span[:, None]
+        g = se2.exp_step(g, xi[..., j:j + nwin, :] * dt[j:j + nwin, None])
+    pred_xi = se2.log(g) / span
+    meas_xi = se2.log(se2.relative(pose[..., :-w, :], pose[..., w:, :])) / span
     nb = len(channel_names(system)) - len(pas)
-    return np.concatenate([meas_p - pred_p, (meas_xi - pred_xi)[:, :nb]], axis=1)
+    return np.concatenate([meas_p - pred_p, (meas_xi - pred_xi)[..., :nb]], axis=-1)
+
+
+def noise_power(t: FloatArray, e1: FloatArray, w: int, valid: FloatArray | None = None) -> FloatArray:
+    """Each channel's noise power in a window of ``w`` intervals, from the one-interval residuals.
+
+    ``e1`` (n − 1, channels) the one-interval residuals over the stamps ``t`` (n,).  The noise of
+    a windowed residual is (m_{k+w} − m_k)/T for a white series m; m is the white part of the
+    accumulated residual S_k = Σ_{i<k} e1_i Δt_i, whose fourth difference keeps only it:
+    σ_m = 1.4826·MAD(Δ⁴S)/√70, power 2σ_m²/T² (T the median window span).  ``valid`` (n − 1,)
+    bool: intervals to use (a fourth difference touching another one is left out).
+    """
+    S = np.cumsum(e1 * np.diff(t)[:, None], axis=0)
+    d4 = S[4:] - 4 * S[3:-1] + 6 * S[2:-2] - 4 * S[1:-3] + S[:-4]
+    if valid is not None:  # Δ⁴S at k uses the intervals k+1 … k+4
+        ok = np.lib.stride_tricks.sliding_window_view(np.asarray(valid, dtype=bool)[1:], 4).all(axis=1)
+        d4 = d4[ok]
+    if d4.shape[0] == 0:
+        return np.full(e1.shape[1], np.nan)
+    dev = d4 - np.median(d4, axis=0)
+    mad = 1.4826 * np.median(np.abs(dev), axis=0)
+    var = np.mean(np.minimum(dev**2, (CLIP * mad) ** 2), axis=0) / CLIP_MEAN
+    T = float(np.median(t[w:] - t[:-w]))
+    return 2.0 * var / 70.0 / T**2
 
 
 def residual_floor(system: SudsSystem, t: FloatArray, r: FloatArray, pose: FloatArray,
-                   w: int) -> tuple[FloatArray, FloatArray]:
-    """Residuals (n − w, channels) over windows of ``w`` intervals and each channel's noise power.
-
-    The noise of a windowed residual is (m_{k+w} − m_k)/T for a white series m (the measurement
-    noise of the channel's signals, combined as the physics combines them); m is the white part
-    of the accumulated one-interval residual S_k = Σ_{i<k} e1_i Δt_i, whose fourth difference
-    keeps only it: σ_m = 1.4826·MAD(Δ⁴S)/√70, floor = 2σ_m²/T² (T the median window span).
-    """
-    rates = interval_rates(system, t, r, pose)
+                   w: int, rates: tuple[FloatArray, FloatArray] | None = None) -> tuple[FloatArray, FloatArray]:
+    """Residuals (n − w, channels) over windows of ``w`` intervals and each channel's :func:`noise_power`."""
+    rates = interval_rates(system, t, r, pose) if rates is None else rates
     e = equation_residuals(system, t, r, pose, w, rates)
     e1 = equation_residuals(system, t, r, pose, 1, rates)
-    S = np.cumsum(e1 * np.diff(t)[:, None], axis=0)
-    d4 = S[4:] - 4 * S[3:-1] + 6 * S[2:-2] - 4 * S[1:-3] + S[:-4]
-    sig = 1.4826 * np.median(np.abs(d4 - np.median(d4, axis=0)), axis=0) / math.sqrt(70.0)
-    T = float(np.median(t[w:] - t[:-w]))
-    return e, 2.0 * sig**2 / T**2
+    return e, noise_power(t, e1, w)
 
 
 # ------------------------------------------------------------------ the monitor
+def noise_groups(system: SudsSystem) -> tuple[tuple[str, FloatArray, float], ...]:
+    """The signal groups whose noise levels the floor fits: (name, joint mask (nj,), pose weight).
+
+    The actuated joints together (their noise reaches every channel through ṙ_a), each passive
+    joint alone (a stiff one shapes its own channel's noise), and the pose.
+    """
+    nj = len(system.joint_names)
+    out: list[tuple[str, FloatArray, float]] = []
+    if system.actuated:
+        mask = np.zeros(nj)
+        mask[list(system.actuated)] = 1.0
+        out.append(("actuated", mask, 0.0))
+    for j in system.passive:
+        mask = np.zeros(nj)
+        mask[j] = 1.0
+        out.append((system.joint_names[j], mask, 0.0))
+    out.append(("pose", np.zeros(nj), 1.0))
+    return tuple(out)
+
+
+def fitted_gain(floor: FloatArray, P: FloatArray, W: FloatArray) -> FloatArray:
+    """κ per channel from the noise groups' responses, weighted by levels fitted to the measured floors.
+
+    ``floor`` (channels,) the :func:`noise_power` of the data; ``P`` and ``W`` (groups, channels)
+    what :func:`noise_power` makes of each group's synthetic-noise response and that response's
+    window power.  The group levels s ≥ 0 make Σ_g s_g P_gc match ``floor`` (relative least
+    squares, :func:`scipy.optimize.nnls`), staying as close to one common level as the floors
+    allow (a weak pull, ``LEVEL_PRIOR``: with fewer channels than groups the floors alone do not
+    fix the levels); κ_c = Σ_g s_g W_gc / Σ_g s_g P_gc (1 where undefined).
+    """
+    from scipy.optimize import nnls
+
+    good = np.isfinite(floor) & (floor > 0) & np.all(np.isfinite(P), axis=0) & np.all(np.isfinite(W), axis=0)
+    A = (P[:, good] / floor[good]).T  # (channels, groups)
+    weights = np.ones(P.shape[0])
+    if A.size and np.all(np.isfinite(A)) and np.any(A > 0):
+        total = A.sum(axis=1)
+        common = float(total @ np.ones_like(total) / (total @ total))  # one level for every group
+        mu = math.sqrt(LEVEL_PRIOR)
+        aug = np.vstack([A * common, mu * np.eye(A.shape[1])])
+        u, _ = nnls(aug, np.concatenate([np.ones(A.shape[0]), mu * np.ones(A.shape[1])]))
+        if np.any(u > 0):
+            weights = u
+    num, den = weights @ np.where(np.isfinite(W), W, 0.0), weights @ np.where(np.isfinite(P), P, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = num / den
+    return np.where(np.isfinite(k) & (k > 0), k, 1.0)
+
+
+class _Sample(NamedTuple):
+    """One paired sample: the data and its noisy twins (one per noise group), and how its pose was read.
+
+    ``r`` (1 + groups, nj) and ``pose`` (1 + groups, 3): row 0 the data, row 1 + g the data plus
+    the synthetic noise on group g's signals.  ``pose`` is interpolated between the pose samples
+    at ``bracket`` = (τa, τb) (equal: a pose at this very stamp), ``yaw_a`` the yaw at τa;
+    ``pose_ok`` (one element, set when the pose is read) False when that bracket spans a lost
+    pose message or a lost shape sample, or lies before the first replay.
+    """
+
+    t: float
+    r: FloatArray
+    pose: FloatArray
+    bracket: tuple[float, float]
+    yaw_a: float
+    pose_ok: BoolArray
+
+
+class _Interval(NamedTuple):
+    """The replays over one interval (data and twins): the whole motion, and the motion up to pose stamps inside."""
+
+    motion: FloatArray  # (versions, 3) relative pose at the interval's end
+    stamps: FloatArray  # (M,) pose stamps inside (NaN: none)
+    at: FloatArray  # (versions, M, 3) relative pose at them
+    stiff: bool  # near a singular shape (:meth:`IntervalPhysics.between`): not scored
+
+
+def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Poses (…, 3): a·b (b expressed in a's frame)."""
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    return np.stack([a[..., 0] + c * b[..., 0] - s * b[..., 1], a[..., 1] + s * b[..., 0] + c * b[..., 1],
+                     a[..., 2] + b[..., 2]], axis=-1)
+
+
 class MismatchMonitor:
     """Pair shape and pose by stamps, track per-channel F against the noise floor, request diagnoses.
 
     Feed :meth:`on_shape` (stamp, names, positions — joints matched by name, extra joints
     ignored) and :meth:`on_pose` (stamp, x, y, yaw) in any interleaving; a shape sample is
-    paired once the pose stream has reached its stamp (pose interpolated linearly, yaw
-    unwrapped), never by arrival time.  :attr:`statuses` is the current state,
-    :meth:`take_request` the pending diagnosis request (at most one per ERROR episode).
+    paired once the pose stream has reached its stamp, never by arrival time.  The pose at a
+    shape stamp between two pose samples is their linear interpolation (yaw unwrapped) plus the
+    nominal replay's own departure from a straight line there (the body velocity jumps wherever
+    the drive bends, so a straight line between pose samples cuts those corners); a pose read
+    across more than ``gap`` typical pose intervals (a lost pose message) is not trusted:
+    windows that start or end on it are not scored.  :attr:`statuses` is the current state,
+    :attr:`record` what every channel went through so far, :meth:`take_request` the pending
+    diagnosis request (at most one per ERROR episode).
     """
 
     def __init__(self, system: SudsSystem, config: MonitorConfig = MonitorConfig()) -> None:
@@ -246,23 +634,35 @@ class MismatchMonitor:
         self.config = config
         self.channels = channel_names(system)
         self.names = tuple(system.joint_names)
+        self.physics = IntervalPhysics(system, 1.0 / config.rate)
+        groups = noise_groups(system)
+        self._joint_masks = np.array([g[1] for g in groups])  # (G, nj)
+        self._pose_masks = np.array([g[2] for g in groups])[:, None]  # (G, 1)
         spc = config.samples_per_cycle
         self._spc = spc
-        keep = int(math.ceil(config.history_cycles * spc)) + config.diff_window + 1
-        self._hist: deque[tuple[float, FloatArray, FloatArray]] = deque(maxlen=keep)
+        keep = int(math.ceil(config.history_cycles * spc)) + config.diff_window + 8
+        self._hist: deque[_Sample] = deque(maxlen=keep)
+        # predicted (ξ, ṙ_p) of the data and of each twin, (1 + G, 3 + np), and the data's replay,
+        # on the interval ending at each sample
+        self._rates: deque[FloatArray] = deque(maxlen=keep)
+        self._replays: deque[_Interval | None] = deque(maxlen=keep)
+        self._rated = 0  # samples (counted from the first) whose interval is predicted
+        self._read = 0  # samples whose pose is final (corrected with the replay)
         # samples waiting for the other stream (bounded: a stream that stops cannot fill memory)
         self._shapes: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
-        self._poses: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
+        self._poses: deque[tuple[float, FloatArray, FloatArray]] = deque(maxlen=keep)
+        self._pose_steps: deque[float] = deque(maxlen=64)  # recent pose intervals, s
+        self._rng_r, self._rng_pose = (np.random.default_rng(sq)
+                                       for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
         self._since_update = 0
+        self._floor: FloatArray | None = None  # the channels' noise floors, renewed every FLOOR_EVERY updates
         self.statuses: tuple[ChannelStatus, ...] = ()
+        self.record = MonitorRecord(tuple(ChannelRecord(c) for c in self.channels))
         self.updated = 0  # number of statistic updates
         self.paired = 0
         self.skipped = 0
         self._armed = True
         self._request: DiagnosisRequest | None = None
-        self._calib_left = int(round(config.calibration_cycles * spc / config.update_every))
-        self._excess: list[FloatArray] = []
-        self.bias = np.zeros(len(self.channels))  # calibrated discretisation error power per channel
 
     # -------------------------------------------------------- input
     def on_shape(self, stamp: float, names: tuple[str, ...] | list[str], position: FloatArray) -> int:
@@ -274,7 +674,7 @@ class MismatchMonitor:
             return 0
         r = pos[[index[n] for n in self.names]]
         if not np.all(np.isfinite(r)) or (self._shapes and stamp <= self._shapes[-1][0]) or (
-                self._hist and stamp <= self._hist[-1][0]):
+                self._hist and stamp <= self._hist[-1].t):
             self.skipped += 1
             return 0
         self._shapes.append((float(stamp), r))
@@ -289,7 +689,8 @@ class MismatchMonitor:
         if self._poses:  # unwrap yaw against the previous pose
             prev = self._poses[-1][1][2]
             p[2] = prev + (p[2] - prev + math.pi) % (2 * math.pi) - math.pi
-        self._poses.append((float(stamp), p))
+            self._pose_steps.append(float(stamp) - self._poses[-1][0])
+        self._poses.append((float(stamp), p, SYNTHETIC_NOISE * self._rng_pose.standard_normal(3)))
         return self._pair()
 
     def _pair(self) -> int:
@@ -298,25 +699,36 @@ class MismatchMonitor:
             t, r = self._shapes.popleft()
             while len(self._poses) > 1 and self._poses[1][0] <= t:
                 self._poses.popleft()
-            t0, p0 = self._poses[0]
+            t0, p0, n0 = self._poses[0]
             if t0 > t:  # before the first pose: cannot be paired
                 self.skipped += 1
                 continue
             if t0 == t or len(self._poses) == 1:
-                pose = p0
+                pose, noise, bracket, ok = p0, n0, (t, t), True
             else:
-                t1, p1 = self._poses[1]
-                pose = p0 + (p1 - p0) * (t - t0) / (t1 - t0)
-            self._add(t, r, pose)
+                t1, p1, n1 = self._poses[1]
+                a = (t - t0) / (t1 - t0)
+                pose, noise, bracket = p0 + (p1 - p0) * a, n0 + (n1 - n0) * a, (t0, t1)
+                ok = not self._pose_steps or t1 - t0 <= self.config.gap * float(np.median(self._pose_steps))
+            self._add(t, r, pose, noise, bracket, float(p0[2]), ok)
             n += 1
         return n
 
     def add_pair(self, stamp: float, r: FloatArray, pose: FloatArray) -> None:
         """Add one already paired sample (joints in the system's order, pose x, y, unwrapped yaw)."""
-        self._add(float(stamp), np.asarray(r, dtype=float), np.asarray(pose, dtype=float))
+        stamp = float(stamp)
+        pose = np.asarray(pose, dtype=float)
+        self._add(stamp, np.asarray(r, dtype=float), pose, SYNTHETIC_NOISE * self._rng_pose.standard_normal(3),
+                  (stamp, stamp), float(pose[2]), True)
 
-    def _add(self, t: float, r: FloatArray, pose: FloatArray) -> None:
-        self._hist.append((t, r, pose))
+    def _add(self, t: float, r: FloatArray, pose: FloatArray, pose_noise: FloatArray, bracket: tuple[float, float],
+             yaw_a: float, pose_ok: bool) -> None:
+        r_noise = SYNTHETIC_NOISE * self._rng_r.standard_normal(r.size)
+        rs = np.concatenate([r[None], r + self._joint_masks * r_noise])
+        poses = np.concatenate([pose[None], pose + self._pose_masks * pose_noise])
+        self._hist.append(_Sample(t, rs, poses, bracket, yaw_a, np.array([pose_ok])))
+        self._rates.append(np.full((rs.shape[0], 3 + len(self.system.passive)), np.nan))
+        self._replays.append(None)
         self.paired += 1
         self._since_update += 1
         if self._since_update >= self.config.update_every:
@@ -324,30 +736,180 @@ class MismatchMonitor:
             self._update()
 
     # -------------------------------------------------------- statistics
-    def _arrays(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        last = list(self._hist)[-n:]
-        return (np.array([h[0] for h in last]), np.array([h[1] for h in last]),
-                np.array([h[2] for h in last]))
+    def _pos(self, index: int) -> int:
+        """Position in the history of the sample counted ``index`` from the first."""
+        return index - (self.paired - len(self._hist))
+
+    def samples(self, n: int | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The newest ``n`` (all when None) paired samples whose pose is final: stamps, joints, poses.
+
+        Stamps (m,) s; joints (m, nj) in the system's order; poses (m, 3) x, y, unwrapped yaw at
+        the shape stamps (read as the module docstring says).  A sample's pose is final once the
+        replay reaches the pose sample after it: the newest one or two samples are not yet.
+        """
+        ready = len(self._hist) - (self.paired - min(self._read, self._rated))
+        last = list(self._hist)[:max(ready, 0)]
+        if n is not None:
+            last = last[-n:] if n > 0 else []
+        return (np.array([h.t for h in last]), np.array([h.r[0] for h in last]).reshape(len(last), len(self.names)),
+                np.array([h.pose[0] for h in last]).reshape(len(last), 3))
+
+    def _grid(self) -> tuple[float, FloatArray]:
+        """The set-point grid point next to every sample in the history: (reference time, points − it)."""
+        t = np.array([h.t for h in self._hist])
+        ref = t[0]
+        k, a, b = fit_grid(t - ref, 1.0 / self.config.rate)
+        return ref, a + b * k
+
+    def _predict_new_intervals(self) -> None:
+        """Predict the intervals that ended since the last update, but the newest (its end needs the next sample).
+
+        Data and twins in one batch; the drive bends where the grid says (:func:`drive_kinks`).  The
+        replays also give the motion up to the pose stamps inside each interval (for
+        :meth:`_read_poses`: each twin reads its pose with its own replay, as the data does).
+        """
+        m = len(self._hist)
+        first = max(self._pos(self._rated), 1)  # the first interval to predict ends at this position
+        k = (m - 2) - first + 1
+        if k <= 0:
+            return
+        hist = list(self._hist)
+        ref, grid = self._grid()
+        lo = first - 2  # positions lo … m − 1: one more on each side gives the slopes at the ends
+        last = hist[max(lo, 0):]
+        t = np.array([h.t for h in last]) - ref
+        g = grid[max(lo, 0):]
+        R = np.array([h.r for h in last]).transpose(1, 0, 2)  # (versions, samples, nj)
+        yaw = np.array([h.pose[:, 2] for h in last]).T  # (versions, samples)
+        brackets = np.array([h.bracket for h in last]) - ref
+        if lo < 0:  # the very first interval: no sample before it (a copy, one period earlier, on its grid point)
+            t = np.concatenate([[t[0] - 1.0 / self.config.rate], t])
+            g = np.concatenate([[g[0] - 1.0 / self.config.rate], g])
+            R = np.concatenate([R[:, :1], R], axis=1)
+            yaw = np.concatenate([yaw[:, :1], yaw], axis=1)
+            brackets = np.concatenate([brackets[:1], brackets])
+        act = self.physics.act
+        V = R.shape[0]
+        kinks = [drive_kinks(t, R[v][:, act], g, 1.0 / self.config.rate) for v in range(V)]
+        t0, t1 = t[1:-2], t[2:-1]
+        # pose stamps inside each interval: the start sample's next pose, the end sample's previous one
+        cand = np.stack([brackets[1:-2, 1], brackets[2:-1, 0]], axis=1)
+        inside = (cand > t0[:, None]) & (cand < t1[:, None])
+        outputs = np.where(inside, cand - t0[:, None], np.nan)
+        dt = t1 - t0
+        mid_yaw = 0.5 * (yaw[:, 1:-2] + yaw[:, 2:-1])
+        both = Kinks(*(np.concatenate(parts) for parts in zip(*kinks)))
+        lam = np.tile(self.physics.stiffness(R[0, 1:-2], R[0, 2:-1]), V)  # the twins: as the data
+        xi, rp, at, stiff = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
+                                                 R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
+                                                 np.tile(outputs, (V, 1)) if inside.any() else None, lam)
+        rates = np.concatenate([xi, rp], axis=1).reshape(V, k, -1)  # (V, k, 3 + np)
+        still = xi - (0.0 if self.physics.flow == (0.0, 0.0) else flow_in_body(self.physics.flow, mid_yaw.ravel()))
+        motion = se2.exp_step(np.zeros((V * k, 3)), still * np.tile(dt, V)[:, None]).reshape(V, k, 3)
+        at = at.reshape(V, k, at.shape[1], 3)
+        for j in range(k):
+            self._rates[first + j] = rates[:, j]
+            self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j],
+                                                 bool(stiff.reshape(V, k)[:, j].any()))
+        self._rated = self.paired - 1
+
+    def _read_poses(self) -> None:
+        """Finish the poses whose bracket the replays now cover: add the replay's departure from a straight line.
+
+        For a shape stamp t between pose samples at τa < t < τb (weight α = (t − τa)/(τb − τa)),
+        the replay gives the motion A from τa to t and B from τa to τb; the straight line between
+        the pose samples misses A − α·B (x, y in τa's frame, rotated to the world by the yaw at τa).
+        """
+        hist = list(self._hist)
+        stamps = np.array([h.t for h in hist])
+        top = self._pos(self._rated) - 1  # positions ≤ top have their intervals predicted
+        pos = max(self._pos(self._read), 0)
+        while pos < len(hist):
+            h = hist[pos]
+            ta, tb = h.bracket
+            if ta == tb:
+                pos += 1
+                continue
+            ia = int(np.searchsorted(stamps, ta, side="right"))  # interval ending at position ia holds τa
+            ib = int(np.searchsorted(stamps, tb, side="left"))  # … ending at ib holds τb
+            if ib > top:
+                break  # wait for the replay of τb's interval
+            if ia < 1 or any(self._replays[i] is None for i in range(ia, ib + 1)):
+                h.pose_ok[0] = False  # older than the history or than the first replay: left as interpolated
+                pos += 1
+                continue
+            if np.any(np.diff(stamps[ia - 1:ib + 1]) > self.config.gap / self.config.rate):
+                h.pose_ok[0] = False  # across a lost shape sample the replay does not know the drive
+            a = self._motion(ia, ta, pos)  # (versions, 3)
+            b = _compose(a, self._motion(pos + 1, h.t, ib, tb))
+            alpha = (h.t - ta) / (tb - ta)
+            d = a - alpha * b
+            c, s = math.cos(h.yaw_a), math.sin(h.yaw_a)
+            h.pose[:] += np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1], d[:, 2]], axis=1)
+            pos += 1
+        self._read = self.paired - (len(hist) - pos)
+
+    def _motion(self, first: int, start: float, last: int, end: float | None = None) -> FloatArray:
+        """The replayed motion (versions, 3) from ``start`` to the end of an interval, or to ``end`` inside it.
+
+        ``start`` lies inside the interval ending at history position ``first`` (or at its start),
+        the motion runs to the end of the interval ending at ``last``, or to ``end`` inside it.
+        """
+        g = np.zeros((len(self._joint_masks) + 1, 3))
+        for i in range(first, last + 1):
+            rep = self._replays[i]
+            assert rep is not None
+            whole = rep.motion
+            if end is not None and i == last and end < self._hist[i].t:
+                whole = rep.at[:, int(np.nanargmin(np.abs(rep.stamps - end)))]
+            if i == first and start > self._hist[i - 1].t:
+                whole = se2.relative(rep.at[:, int(np.nanargmin(np.abs(rep.stamps - start)))], whole)
+            g = _compose(g, whole)
+        return g
 
     def _update(self) -> None:
+        self._predict_new_intervals()
+        self._read_poses()
         cfg = self.config
         w = cfg.diff_window
+        n = cfg.first_report_samples
+        ready = len(self._hist) - (self.paired - min(self._rated, self._read))  # samples usable now
+        if ready < n:
+            return
         n_stat = int(round(cfg.window_cycles * self._spc)) + w
-        n_floor = int(round(cfg.floor_cycles * self._spc))
-        n = max(n_stat, n_floor)
-        if len(self._hist) < n:
-            return
-        t, r, pose = self._arrays(n)
-        e, floor = residual_floor(self.system, t, r, pose, w)
-        ms = np.mean(e[-(n_stat - w):] ** 2, axis=0)
-        if self._calib_left > 0:
-            self._excess.append(ms - floor)
-            self._calib_left -= 1
-            if self._calib_left == 0:
-                self.bias = np.maximum(np.mean(self._excess, axis=0), 0.0)
-            return
-        ref = floor + self.bias
-        F = np.where(ref > 0, ms / np.where(ref > 0, ref, 1.0), 0.0)
+        hist = list(self._hist)[:ready]
+        fresh = self._floor is None or self.updated % FLOOR_EVERY == 0
+        last = hist[-(n if fresh else n_stat):]  # the floor's span when it is renewed, else the statistic's
+        m = len(last)
+        t = np.array([h.t for h in last])
+        versions = slice(None) if fresh else slice(0, 1)
+        R = np.array([h.r[versions] for h in last]).transpose(1, 0, 2)  # (versions, m, nj)
+        P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
+        rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
+        replays = list(self._replays)[ready - m + 1:ready]
+        gap = (np.diff(t) > cfg.gap / cfg.rate) | np.array([rep is None or rep.stiff for rep in replays])
+        shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
+        shape_ok[1:] &= ~gap[:-1]
+        shape_ok[:-1] &= ~gap[1:]
+        pose_ok = np.array([bool(h.pose_ok[0]) for h in last])
+        win_ok = (np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1)
+                  & pose_ok[:-w] & pose_ok[w:])
+        split = (rates[..., :3], rates[..., 3:])
+        E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
+        if fresh:
+            valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
+            E1 = equation_residuals(self.system, t, R, P, 1, split)
+            floor = noise_power(t, E1[0], w, valid)
+            resp, resp1 = E[1:] - E[0], E1[1:] - E1[0]  # each noise group's response
+            P_g = np.array([noise_power(t, x, w, valid) for x in resp1])
+            W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
+            self._floor = fitted_gain(floor, P_g, W_g) * floor
+        floor = self._floor
+        stat_ok = win_ok[-(n_stat - w):]
+        tail = E[0, -(n_stat - w):][stat_ok]
+        ms = np.mean(tail**2, axis=0) if tail.shape[0] else np.zeros(len(self.channels))
+        ok = np.isfinite(floor) & (floor > 0)
+        F = np.where(ok, ms / np.where(ok, floor, 1.0), 0.0)
         self._set_levels(t[-1], F)
 
     def _set_levels(self, stamp: float, F: FloatArray) -> None:
@@ -361,6 +923,9 @@ class MismatchMonitor:
             out.append(ChannelStatus(name, level, float(f), float(since)))
         self.statuses = tuple(out)
         self.updated += 1
+        rec = self.record
+        self.record = MonitorRecord(tuple(c.seen(s, stamp) for c, s in zip(rec.channels, out)),
+                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated)
         if all(s.level == OK for s in out):
             self._armed = True
         self._maybe_request(stamp)
@@ -373,9 +938,9 @@ class MismatchMonitor:
         n = self.config.persist_cycles * self._spc
         if stamp - since < self.config.persist_cycles / self.config.gait_hz - 0.5 / self.config.rate:
             return
-        if len(self._hist) < n:
+        t, r, pose = self.samples(n)
+        if t.size < n:
             return
-        t, r, pose = self._arrays(n)
         names = self.names
         rec = Recording(t=t, r=r, joint_names=names,
                         actuated=tuple(names[i] for i in self.system.actuated),
@@ -392,7 +957,7 @@ class MismatchMonitor:
     @property
     def last_stamp(self) -> float:
         """Stamp of the newest paired sample, s (nan before the first)."""
-        return self._hist[-1][0] if self._hist else math.nan
+        return self._hist[-1].t if self._hist else math.nan
 
     @property
     def worst(self) -> int:
@@ -460,3 +1025,49 @@ def chain_model(system: SudsSystem) -> ChainModel | None:
     """The :class:`ChainModel` of an RFT chain system (None for systems the diagnosis cannot take)."""
     model: Any = getattr(system, "model", None)
     return model if isinstance(model, ChainModel) else None
+
+
+# ------------------------------------------------------------------ offline
+def recording_config(rec: Recording, gait_hz: float | None = None, **overrides: Any) -> MonitorConfig:
+    """The :class:`MonitorConfig` of a recording: its shape rate (median interval) and gait frequency.
+
+    ``gait_hz``: the recording's when None (then 1 Hz if it has none); the rate is rounded to a
+    whole number of samples per cycle.  ``overrides``: other settings.
+    """
+    f = gait_hz or rec.gait_hz or 1.0
+    if rec.t.size < 2:
+        raise SudsDataError(f"recording has {rec.t.size} shape sample(s); the monitor needs a stream",
+                            code=TOO_LITTLE_DATA)
+    spc = samples_per_cycle(float(np.median(np.diff(rec.t))), f)
+    return MonitorConfig(gait_hz=f, rate=spc * f, **overrides)
+
+
+def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig | None = None) -> MonitorRecord:
+    """Replay a recording through a :class:`MismatchMonitor`, as the live node would see it.
+
+    The shape and pose streams are merged in stamp order (a pose before a shape sample of the
+    same stamp) and fed through :meth:`MismatchMonitor.on_shape` / :meth:`MismatchMonitor.on_pose`.
+    ``config``: :func:`recording_config` when None.
+
+    Raises
+    ------
+    SudsDataError
+        (code ``too_little_data``) when the recording ends before the monitor's first report.
+    """
+    cfg = recording_config(rec) if config is None else config
+    mon = MismatchMonitor(system, cfg)
+    names = rec.joint_names
+    shapes = ((float(t), 1, k) for k, t in enumerate(rec.t))
+    poses = ((float(t), 0, k) for k, t in enumerate(rec.pose_t))
+    for _, kind, k in heapq.merge(poses, shapes):
+        if kind:
+            mon.on_shape(rec.t[k], names, rec.r[k])
+        else:
+            mon.on_pose(rec.pose_t[k], *rec.pose[k])
+    if mon.record.first_report is None:
+        need = cfg.first_report_samples
+        raise SudsDataError(
+            f"recording gave {mon.paired} paired samples ({mon.paired / cfg.samples_per_cycle:.2f} gait cycles "
+            f"at {cfg.gait_hz:g} Hz); the monitor reports after {need} ({cfg.floor_cycles:g} cycles)",
+            code=TOO_LITTLE_DATA)
+    return mon.record

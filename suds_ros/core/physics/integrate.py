@@ -36,7 +36,7 @@ def integrate_batch(
     r_a: FloatArray,
     r_p0: FloatArray,
     pose0: FloatArray,
-    dt: float,
+    dt: float | FloatArray,
     substeps: int,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
@@ -54,8 +54,8 @@ def integrate_batch(
         Passive joint values at the first sample.
     pose0 : (B, 3) float
         World pose (x, y, yaw) at the first sample.
-    dt : float
-        Sample interval, s.
+    dt : float or (B,) float
+        Sample interval, s: one for every run, or one per run (each run on its own uniform grid).
     substeps : int
         RK4 steps per sample interval.
     progress : callable, optional
@@ -78,7 +78,8 @@ def integrate_batch(
     RP[:, 0] = rp
     P[:, 0] = pose
     full = np.empty((B, act.size + pas.size))
-    h = dt / substeps
+    step = dt if np.ndim(dt) == 0 else np.asarray(dt, dtype=float).reshape(B, 1)
+    h = step / substeps
 
     def f(ra: FloatArray, rp_: FloatArray, va: FloatArray) -> tuple[FloatArray, FloatArray]:
         full[:, act] = ra
@@ -89,7 +90,7 @@ def integrate_batch(
     for k in range(m - 1):
         if progress is not None and k % every == 0:
             progress(k, m - 1)
-        va = (r_a[:, k + 1] - r_a[:, k]) / dt
+        va = (r_a[:, k + 1] - r_a[:, k]) / step
         for s in range(substeps):
             ra0 = r_a[:, k] + va * (s * h)
             xi1, k1 = f(ra0, rp, va)
