@@ -10,9 +10,9 @@ streams fed, in stamp order, through the same
 from __future__ import annotations
 
 import argparse
-import json
 from typing import TYPE_CHECKING
 
+from suds_ros.core import json_text
 from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording_and_model
 from suds_ros.core.errors import WRONG_JOINT_NAMES, SudsConfigError, SudsDataError
 
@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     record = monitor_recording(rec, system, config)
     origin = float(min(rec.t[0], rec.pose_t[0]))
     if args.json:
-        print(json.dumps(record.to_dict(origin)))
+        print(json_text.dumps(record.to_dict(origin)))
         return 0
 
     def when(stamp: float | None) -> str:

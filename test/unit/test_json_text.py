@@ -19,8 +19,6 @@ OWN_JSON = {
     "core/json_text.py": "the helper itself",
     "io/checkpoint.py": "the estimator's own checkpoint header: NaN state must round-trip, read only by us",
     "ros/simulator_node.py": "a log line, not a document",
-    "core/diagnosis/monitor.py": "the live monitor's diagnosis text (being reworked by the monitor work; "
-                                 "its report part comes from DiagnosisReport.to_dict)",
 }
 
 

@@ -90,7 +90,6 @@ the :class:`MonitorRecord` (``suds monitor``).
 from __future__ import annotations
 
 import heapq
-import json
 import math
 import multiprocessing
 from collections import deque
@@ -100,6 +99,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from suds_ros.core import json_text
 from suds_ros.core import se2
 from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.config import check_settings, setting
@@ -980,7 +980,7 @@ def diagnosis_json(request: DiagnosisRequest, model: ChainModel,
     out["monitor"] = {"window": [float(rec.t[0]), float(rec.t[-1])],
                       "cycles": int(round((rec.t[-1] - rec.t[0]) * (rec.gait_hz or 1.0))),
                       "channels": list(request.channels), "since": float(request.since)}
-    return json.dumps(out)
+    return json_text.dumps(out)
 
 
 class DiagnosisWorker:
