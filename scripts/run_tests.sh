@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Run the test suite in the suds_ros venv: scripts/run_tests.sh [pytest args...]
 #
-# Without arguments the whole suite runs as two pytest processes side by side (one per core):
-# the CPU-bound diagnosis tests in one, everything else (the ROS end-to-end tests among them) in
-# the other; SUDS_TEST_JOBS=1 runs it as one process.  With arguments, one pytest gets them.
+# Without arguments the suite runs as two pytest processes side by side (one per core): the
+# CPU-bound diagnosis tests in one, everything else (the ROS end-to-end tests among them) in the
+# other; SUDS_TEST_JOBS=1 runs it as one process.  Tests marked `slow` (the long cross-checks on
+# the public bags, multi-effect and lab diagnoses, the Γ targets) run only with SUDS_TEST_FULL=1.
+# With arguments, one pytest gets them (and selects what they say).
 # Fails when pytest collects no test (exit 5) as well as on any failure.
 set -euo pipefail
 ROOT=$(cd -- "$(dirname -- "${BASH_SOURCE[0]}")/.." && pwd -P)
@@ -50,11 +52,18 @@ fi
 # the whole suite in two parts, side by side; each part's output is printed when it ends
 heavy=(test/unit/diagnosis test/cli/test_model_end_to_end.py)
 rest=(test --ignore=test/unit/diagnosis --ignore=test/cli/test_model_end_to_end.py)
-echo "run_tests: two pytest processes: [${heavy[*]}] and [the rest of test/]"
+marks=(-m "not slow")
+what="without the slow cross-checks (SUDS_TEST_FULL=1 runs them too)"
+if [ "${SUDS_TEST_FULL:-0}" = 1 ]; then
+  marks=()
+  what="every test"
+fi
+echo "run_tests: $what, as two pytest processes: [${heavy[*]}] and [the rest of test/]"
+common=(-q -p no:cacheprovider --durations=15 "${marks[@]}")
 set +e
-python -m pytest -q -p no:cacheprovider "${heavy[@]}" >"$tmp/heavy.log" 2>&1 &
+python -m pytest "${common[@]}" "${heavy[@]}" >"$tmp/heavy.log" 2>&1 &
 pid_heavy=$!
-python -m pytest -q -p no:cacheprovider "${rest[@]}" >"$tmp/rest.log" 2>&1 &
+python -m pytest "${common[@]}" "${rest[@]}" >"$tmp/rest.log" 2>&1 &
 pid_rest=$!
 wait "$pid_rest"
 rc_rest=$?
