@@ -50,28 +50,27 @@ if [ "$#" -gt 0 ] || [ "$jobs" -le 1 ]; then
 fi
 
 # the whole suite in two parts, side by side; each part's output is printed when it ends
-heavy=(test/unit/diagnosis test/cli/test_model_end_to_end.py)
-rest=(test --ignore=test/unit/diagnosis --ignore=test/cli/test_model_end_to_end.py)
 marks=(-m "not slow")
 what="without the slow cross-checks (SUDS_TEST_FULL=1 runs them too)"
 if [ "${SUDS_TEST_FULL:-0}" = 1 ]; then
   marks=()
   what="every test"
 fi
-echo "run_tests: $what, as two pytest processes: [${heavy[*]}] and [the rest of test/]"
-common=(-q -p no:cacheprovider --durations=15 "${marks[@]}")
+# the parts are chosen in test/conftest.py (SUDS_TEST_PART): the diagnosis tests / the rest
+echo "run_tests: $what, as two pytest processes: the diagnosis tests and the rest"
+common=(-q -p no:cacheprovider --durations=15 "${marks[@]}" test)
 set +e
-python -m pytest "${common[@]}" "${heavy[@]}" >"$tmp/heavy.log" 2>&1 &
+SUDS_TEST_PART=heavy python -m pytest "${common[@]}" >"$tmp/heavy.log" 2>&1 &
 pid_heavy=$!
-python -m pytest "${common[@]}" "${rest[@]}" >"$tmp/rest.log" 2>&1 &
+SUDS_TEST_PART=rest python -m pytest "${common[@]}" >"$tmp/rest.log" 2>&1 &
 pid_rest=$!
 wait "$pid_rest"
 rc_rest=$?
-echo "===== part 1 of 2: the rest of test/ (pytest exit $rc_rest) ====="
+echo "===== part 1 of 2: all but the diagnosis tests (pytest exit $rc_rest) ====="
 cat "$tmp/rest.log"
 wait "$pid_heavy"
 rc_heavy=$?
-echo "===== part 2 of 2: ${heavy[*]} (pytest exit $rc_heavy) ====="
+echo "===== part 2 of 2: the diagnosis tests (pytest exit $rc_heavy) ====="
 cat "$tmp/heavy.log"
 set -e
 s_rest=$(summary_of "$tmp/rest.log")
