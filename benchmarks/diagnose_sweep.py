@@ -18,7 +18,7 @@ alternative of one.  With ``--max-effects 1`` and ``--catalogue-only`` it is the
 single-effect sweep.  Cases run in ``--jobs`` processes.
 
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]
-Writes docs/results/diagnose_sweep.md.
+Writes docs/results/diagnose_sweep_lab.md (docs/results/diagnose_sweep.md is the earlier built-in-only, aligned sweep).
 """
 
 from __future__ import annotations
@@ -254,7 +254,7 @@ def main() -> None:
     ap.add_argument("--lab", type=float, default=0.5, help="fraction of the cases recorded the lab way")
     ap.add_argument("--jobs", type=int, default=2, help="processes")
     ap.add_argument("--catalogue-only", action="store_true", help="no model-parameter errors drawn")
-    ap.add_argument("--out", default="docs/results/diagnose_sweep.md")
+    ap.add_argument("--out", default="docs/results/diagnose_sweep_lab.md")
     args = ap.parse_args()
     from concurrent.futures import ProcessPoolExecutor
 
