@@ -237,16 +237,14 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
     gains: list[float] = []
     for step in range(config.max_effects):
         options = list(singles) if step == 0 else sel.extend(cur, singles)
-        if step == 0 and first is not None:
-            options = [first] + [o for o in options if o.cand != first.cand]
         if not options:
             break
         score = {o.cand.label: o.score.score for o in options}
         if sel.calibration is not None:
             score = sel.calibration.adjusted(cur, options)
             options = sorted(options, key=lambda o: -score[o.cand.label])
-            if step == 0 and first is not None:
-                options = [first] + [o for o in options if o.cand != first.cand]
+        if step == 0 and first is not None:
+            options = [first] + [o for o in options if o.cand != first.cand]
         best = options[0]
         gain = score[best.cand.label] - cur.score.score
         gains.append(float(gain))
