@@ -21,12 +21,14 @@ streams onto it.
   fitted separately; over one 10 ms step this differs from SE(2) interpolation (a circular arc)
   by ~v·ω·Δt²/8 < 1e-5 m.
 - The windowed body velocity's noise floor then needs the gain of that linear operator on white
-  pose noise (:func:`xi_noise_gain`, calibrated on seeded white noise at the pose stamps).
+  pose noise (:func:`xi_noise_gain`, calibrated on seeded white noise at the pose stamps); the
+  noise itself is measured at the pose stream's own stamps, where it is white.
 Cycles are counted from the time the grid spans, never from the number of messages received.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -112,28 +114,41 @@ def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
     return k, float(a), float(b)
 
 
-def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
-    """Grid points with no sample of the stream ``ts`` within half a grid step (e.g. a dropped message).
-
-    There the stream's value is interpolated across a possible kink (for the OU-perturbed drive
-    an error of up to |Δṙ|·Δt/2, several hundredths of a radian), so residuals that use the
-    value at such a point are left out of the statistics (:meth:`ChannelTable.residuals
-    <suds_ros.core.diagnosis.locate.ChannelTable.residuals>`).
-    """
+def _near(ts: FloatArray, grid: FloatArray) -> BoolArray:
+    """Grid points with a sample of the stream ``ts`` within half a grid step (the knots of :func:`knot_fit`)."""
     dt = float(np.median(np.diff(grid)))
     i = np.searchsorted(ts, grid)
     after = np.abs(ts[np.clip(i, 0, ts.size - 1)] - grid) <= 0.5 * dt
     before = np.abs(ts[np.clip(i - 1, 0, ts.size - 1)] - grid) <= 0.5 * dt
-    return ~(after | before)
+    return after | before
+
+
+def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
+    """Grid points where the stream ``ts`` is interpolated across a missing sample (e.g. a dropped message).
+
+    A grid point is a gap when no sample lies within half a grid step of it *and* the two
+    samples around it are more than 1.5 of the stream's own period P (median spacing) apart,
+    or it lies outside the stream.  So a stream slower than the grid (pose at 50 Hz on a
+    100 Hz shape grid) is not a gap between its regular samples, only where one of them is
+    missing.  At a gap the stream's value is interpolated across a possible kink (for the
+    OU-perturbed drive an error of up to |Δṙ|·Δt/2, several hundredths of a radian), so
+    residuals that use the value at such a point are left out of the statistics
+    (:meth:`ChannelTable.residuals <suds_ros.core.diagnosis.locate.ChannelTable.residuals>`).
+    """
+    period = max(float(np.median(np.diff(grid))), float(np.median(np.diff(ts))) if ts.size > 1 else 0.0)
+    i = np.searchsorted(ts, grid)
+    inside = (i > 0) & (i < ts.size)
+    span = np.full(grid.size, np.inf)
+    span[inside] = ts[i[inside]] - ts[i[inside] - 1]
+    return ~_near(ts, grid) & (span > 1.5 * period)
 
 
 def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
     """Least-squares linear spline of the samples ``Y`` (m, c) at stamps ``ts``, evaluated at ``grid``.
 
-    Knots: the grid points that have a sample within half a grid step (not :func:`gaps`; and both
-    ends).  Rows √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
+    Knots: the grid points that have a sample within half a grid step (and both ends).  Rows √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
     """
-    near = ~gaps(ts, grid)
+    near = _near(ts, grid)
     near[0] = near[-1] = True
     knots = grid[near]
     K = knots.size
@@ -151,24 +166,105 @@ def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
     return np.stack([np.interp(grid, knots, coef[:, c]) for c in range(Y.shape[1])], axis=1)
 
 
-def _mad(x: FloatArray) -> float:
-    return float(1.4826 * np.median(np.abs(x - np.median(x))))
-
-
 def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) -> float:
-    """Gain g such that g·σ̂/(w·dt) is the RMS noise of the windowed body velocity on ``grid``.
+    """Gain g such that g·σ/(w·dt) is the RMS noise of the windowed body velocity on ``grid``.
 
-    σ̂ is the floor's estimate of the pose noise (MAD of fourth differences over √70,
-    :func:`~suds_ros.core.diagnosis.floor.noise_floor`).  White noise on the grid itself gives
-    g = √2; for a pose stream fitted onto the grid by :func:`knot_fit` both the fourth
-    differences and the window differences see the fit's correlated noise, so g is measured on
-    ``draws`` columns of seeded unit white noise at the pose stamps ``pose_t`` put through the same fit.
+    σ is the white noise of each pose sample at its own stamp ``pose_t`` (the floor's estimate,
+    :func:`~suds_ros.core.diagnosis.floor.noise_floor`, is taken at those stamps).  White noise on
+    the grid itself gives g = √2 (two independent window ends); a pose stream fitted onto the
+    grid by :func:`knot_fit` averages or interpolates its samples, so g is measured on ``draws``
+    columns of seeded unit white noise at ``pose_t`` put through the same fit.
     """
     noise = np.random.default_rng(0).standard_normal((pose_t.size, draws))
     G = knot_fit(pose_t, noise, grid)
-    est = np.array([_mad(np.diff(G[:, c], n=4)) for c in range(draws)]) / np.sqrt(70.0)
-    act = np.sqrt(np.mean((G[w:] - G[:-w]) ** 2, axis=0))
-    return float(np.sqrt(np.mean(act**2) / np.mean(est**2)))
+    return float(np.sqrt(np.mean((G[w:] - G[:-w]) ** 2)))
+
+
+class StreamSampling:
+    """How a stream with stamps ``ts`` sees a signal given on (a segment of) the uniform ``grid``.
+
+    The signal is read at the stamps (linear interpolation between grid points: the simulated
+    pose is smooth between the drive's set-points, which sit on the grid) and brought back onto
+    the grid by the same :func:`knot_fit` the recorded stream went through.  A simulated pose
+    put through this is comparable with the recorded one whatever the stream's rate: a pose
+    stream slower than the grid loses the kinks of the motion between its samples, and the
+    replay must lose the same ones.  The linear operator of each segment (start, length) is
+    built once (a banded factorisation) and applied to any number of columns.
+    """
+
+    def __init__(self, ts: FloatArray, grid: FloatArray) -> None:
+        self.ts = np.asarray(ts, dtype=float)
+        self.grid = np.asarray(grid, dtype=float)
+        self._ops: dict[tuple[int, int], tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix,
+                                              tuple[int, int]]] = {}
+
+    @staticmethod
+    def _hat(x: FloatArray, nodes: FloatArray) -> scipy.sparse.csr_matrix:
+        """Rows: linear interpolation at ``x`` of values given at ``nodes`` (clamped at the ends)."""
+        j = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+        u = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+        rows = np.repeat(np.arange(x.size), 2)
+        return scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
+                                        (rows, np.stack([j, j + 1], axis=1).ravel())),
+                                       shape=(x.size, nodes.size))
+
+    def _op(self, s0: int, m: int) -> tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix, tuple[int, int]]:
+        key = (s0, m)
+        hit = self._ops.get(key)
+        if hit is not None:
+            return hit
+        T = self.grid[s0:s0 + m]
+        lo = int(np.searchsorted(self.ts, T[0], side="left"))
+        hi = int(np.searchsorted(self.ts, T[-1], side="right"))
+        s = self.ts[lo:hi]
+        near = _near(s, T) if s.size else np.zeros(m, dtype=bool)
+        has = np.flatnonzero(near)
+        # grid points outside the first and last knot that holds a sample: the recording's fit
+        # (over the whole grid) reaches past the segment there, which the segment cannot
+        ends = (int(has[0]), int(has[-1])) if has.size else (m, -1)
+        near[0] = near[-1] = True
+        kidx = np.flatnonzero(near)
+        knots = T[kidx]
+        I = self._hat(s, T)  # grid → stamps
+        A = self._hat(s, knots)  # knots → stamps
+        prior = self._hat(knots, s) if s.size >= 2 else scipy.sparse.csr_matrix((knots.size, s.size))
+        N = (A.T @ A + _RIDGE * scipy.sparse.identity(knots.size)).tocsc()
+        R = ((A.T + _RIDGE * prior) @ I).tocsr()
+        L = self._hat(T, knots)  # knots → grid
+        op = (R, scipy.sparse.linalg.splu(N), L, ends)
+        if len(self._ops) > 512:
+            self._ops.clear()
+        self._ops[key] = op
+        return op
+
+    def apply(self, Y: FloatArray, starts: Sequence[int]) -> FloatArray:
+        """``Y`` (B, m, c) on the grid segments starting at ``starts``, as the stream would record it.
+
+        NaN samples (e.g. beyond the end of a delayed signal) are held from their finite
+        neighbours for the fit and are NaN again in the result, with two samples either side.
+        Grid points before the segment's first and after its last stream sample (within half a
+        step) are NaN too: the recording's value there depends on samples outside the segment.
+        """
+        Y = np.asarray(Y, dtype=float)
+        out = np.empty_like(Y)
+        B, m, c = Y.shape
+        for b, s0 in enumerate(starts):
+            y = Y[b]
+            bad = ~np.all(np.isfinite(y), axis=1)
+            if bad.all():
+                out[b] = np.nan
+                continue
+            if bad.any():
+                good = np.flatnonzero(~bad)
+                y = np.stack([np.interp(np.arange(m), good, y[good, k]) for k in range(c)], axis=1)
+            R, lu, L, (first, last) = self._op(int(s0), m)
+            out[b] = L @ lu.solve(np.asarray(R @ y, dtype=float))  # type: ignore[attr-defined]
+            out[b, :first] = np.nan
+            out[b, last + 1:] = np.nan
+            if bad.any():
+                spread = np.convolve(bad.astype(float), np.ones(5), mode="same") > 0
+                out[b, spread] = np.nan
+        return out
 
 
 def on_shape_grid(rec: Recording) -> Recording:

@@ -13,6 +13,7 @@ import numpy as np
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
 from suds_ros.core.resample import Grid
+from suds_ros.core.resample import StreamSampling
 from suds_ros.core.resample import xi_noise_gain as grid_xi_noise_gain
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.rft import ChainModel
@@ -46,6 +47,8 @@ class Data:
     shape_gap: BoolArray | None = None  # (n,) shape unreliable: no sample within half a step (or next to such a point)
     pose_gap: BoolArray | None = None  # (n,) the same for the pose stream
     resampled: bool = False  # the streams were brought onto a grid (not aligned and uniform)
+    # how the pose stream sees a signal on the grid (None: the pose is recorded on the grid itself)
+    pose_sampling: StreamSampling | None = None
 
 
 def prepare(rec: Recording, model: ChainModel) -> Data:
@@ -100,6 +103,7 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         shape_gap=grid.unreliable(rec.t),
         pose_gap=grid.unreliable(rec.pose_t),
         resampled=grid.resampled,
+        pose_sampling=StreamSampling(rec.pose_t, t) if grid.resampled else None,
     )
 
 

@@ -9,8 +9,9 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 
-#: Per-segment (recorded r_p, simulated r_p, recorded pose, simulated pose), each (B, m, ·).
-FloorArrays = tuple[FloatArray, FloatArray, FloatArray, FloatArray]
+#: Per-segment recorded and simulated r_p, each (B, m, np), and the fourth differences (K, 3)
+#: of the pose residual at the pose stream's own stamps, all segments together.
+FloorArrays = tuple[FloatArray, FloatArray, FloatArray]
 #: σ of each passive angle (np,) and the floors of the ξ translation (m/s) and rotation (rad/s).
 Floors = tuple[FloatArray, float, float]
 
@@ -29,22 +30,21 @@ def _d4(x: FloatArray, axis: int = -1) -> FloatArray:
 
 
 def noise_floor(
-    rec_rp: FloatArray, sim_rp: FloatArray, rec_pose: FloatArray, sim_pose: FloatArray, w: int, dt: float,
+    rec_rp: FloatArray, sim_rp: FloatArray, pose_d4: FloatArray, w: int, dt: float,
     gain: float = float(np.sqrt(2.0)),
 ) -> Floors:
     """Noise floor from the white part of the replay residual.
 
-    Arrays are per segment (B, m, ·).  Returns σ of each passive angle (np,), and the floor of
-    the windowed ξ translation (m/s) and rotation (rad/s) components: gain·σ_pose/(w·dt), with
-    ``gain`` √2 for white pose noise on the grid (two independent window ends) and
-    :func:`~suds_ros.core.diagnosis.data.xi_noise_gain` for a pose stream interpolated onto it.
+    ``rec_rp``, ``sim_rp`` are per segment (B, m, np); ``pose_d4`` the fourth differences of
+    the pose residual at the pose stamps (:func:`floor_arrays`).  Returns σ of each passive
+    angle (np,), and the floor of the windowed ξ translation (m/s) and rotation (rad/s)
+    components: gain·σ_pose/(w·dt), with ``gain`` √2 for white pose noise on the grid (two
+    independent window ends) and :func:`~suds_ros.core.diagnosis.data.xi_noise_gain` for a pose
+    stream fitted onto it.
     """
     e = rec_rp - sim_rp
     sig_rp = np.array([_mad_sigma(_d4(e[..., j], axis=1).ravel()) for j in range(e.shape[-1])]) / np.sqrt(70)
-    ep = rec_pose - sim_pose
-    sx = _mad_sigma(_d4(ep[..., 0], axis=1).ravel())
-    sy = _mad_sigma(_d4(ep[..., 1], axis=1).ravel())
-    sth = _mad_sigma(_d4(ep[..., 2], axis=1).ravel())
+    sx, sy, sth = (_mad_sigma(pose_d4[:, c]) for c in range(3))
     s_xy = np.sqrt((sx**2 + sy**2) / 2 / 70)
     s_th = sth / np.sqrt(70)
     k = gain / (w * dt)
@@ -54,16 +54,30 @@ def noise_floor(
 def floor_arrays(
     data: Data, segs: Sequence[tuple[int, int]], sim_rp: Sequence[FloatArray], sim_pose: Sequence[FloatArray]
 ) -> FloorArrays:
-    """(recorded r_p, simulated r_p, recorded pose, simulated pose) per segment, cut to a common length.
+    """The arrays :func:`noise_floor` takes, from the replayed segments.
 
     ``segs`` holds (first sample, length) of each replayed segment; ``sim_rp[k]`` and
-    ``sim_pose[k]`` are segment k's simulated passive angles and pose from its first sample on.
+    ``sim_pose[k]`` are segment k's simulated passive angles and pose on the grid from its first
+    sample on.  The passive angles are cut to a common length and stacked.  The pose residual is
+    taken at the pose stream's own stamps (the simulated pose, smooth between the grid's
+    set-points, interpolated there), where the measurement noise is white whatever the stream's
+    rate: on the grid a pose stream slower than the grid is an interpolation whose fourth
+    differences hold the kinks of the motion between samples.  On a recording whose pose shares
+    the grid's stamps the two are the same.
     """
     m = min(length for _, length in segs)
-    rr, ss, pr, ps = [], [], [], []
-    for k, (s0, _) in enumerate(segs):
+    rr, ss, d4 = [], [], []
+    for k, (s0, length) in enumerate(segs):
         rr.append(data.r[s0:s0 + m][:, data.pas])
-        pr.append(data.pose[s0:s0 + m])
         ss.append(sim_rp[k][:m])
-        ps.append(sim_pose[k][:m])
-    return np.stack(rr), np.stack(ss), np.stack(pr), np.stack(ps)
+        T = data.t[s0:s0 + length]
+        lo = int(np.searchsorted(data.pose_t, T[0], side="left"))
+        hi = int(np.searchsorted(data.pose_t, T[-1], side="right"))
+        ts = data.pose_t[lo:hi]
+        if ts.size < 5:
+            continue
+        P = np.asarray(sim_pose[k][:length], dtype=float)
+        sim = np.stack([np.interp(ts, T, P[:, c]) for c in range(3)], axis=1)
+        d4.append(_d4(data.pose_raw[lo:hi] - sim, axis=0))
+    pose_d4 = np.concatenate(d4, axis=0) if d4 else np.full((0, 3), np.nan)
+    return np.stack(rr), np.stack(ss), pose_d4

@@ -340,7 +340,8 @@ def _regression_data(
     xi_rec = window_xi(data.pose[:n], w, data.dt)
     rp_rec = r[:, data.pas]
     rp_sim = sim_rp[:n]
-    xi_sim = window_xi(sim_pose[:n], w, data.dt)
+    sp = sim_pose[:n] if data.pose_sampling is None else data.pose_sampling.apply(sim_pose[None, :n], [0])[0]
+    xi_sim = window_xi(sp, w, data.dt)
     mid = np.arange(n - w)
     phm = 0.5 * (ph[:-w] + ph[w:])
     rmid = 0.5 * (r[:-w] + r[w:])

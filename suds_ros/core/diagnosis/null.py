@@ -65,22 +65,23 @@ def pose_sigma(floors: Floors, w: int, dt: float, gain: float) -> tuple[float, f
 
 
 def null_recording(
-    data: Data, rep: RecordingReplay, starts: IntArray, floors: Floors, w: int, gain: float,
-    rng: np.random.Generator,
+    data: Data, rep: RecordingReplay, starts: IntArray, floors: Floors, w: int, rng: np.random.Generator,
 ) -> Data:
     """The recording ``data`` with its passive angles and pose replaced by ``rep`` plus floor noise.
 
     ``starts``: the output starts of ``rep``'s pieces (:func:`~.replay.piece_starts`); ``floors``
-    the recording's noise floors; ``w`` and ``gain`` the body-velocity window and the floor's gain
-    (:func:`~suds_ros.core.diagnosis.data.xi_noise_gain`).  Samples past ``n_used`` keep their
-    recorded values (no stage reads them).
+    the recording's noise floors; ``w`` the body-velocity window.  The null's pose lies on the
+    grid with white noise, so its ξ floor is √2·σ/(w·dt): σ is chosen so that the null's body
+    velocity is as noisy as the recording's, whatever the recording's pose rate.  Samples past
+    ``n_used`` keep their recorded values (no stage reads them).
     """
     n = data.n_used
     sig_rp = np.nan_to_num(np.asarray(floors[0], dtype=float), nan=0.0)
     r = data.r.copy()
     if data.pas.size:
         r[:n, data.pas] = rep.rp + rng.standard_normal(rep.rp.shape) * sig_rp
-    sxy, sth = pose_sigma(floors, w, data.dt, gain)
+    sxy, sth = pose_sigma(floors, w, data.dt, float(np.sqrt(2.0)))
     pose = data.pose.copy()
     pose[:n] = stitched_pose(data, rep.pose, starts) + rng.standard_normal((n, 3)) * np.array([sxy, sxy, sth])
-    return dataclasses.replace(data, r=r, pose=pose, pose_t=data.t.copy(), pose_raw=pose, resampled=False)
+    return dataclasses.replace(data, r=r, pose=pose, pose_t=data.t.copy(), pose_raw=pose, resampled=False,
+                               pose_sampling=None)

@@ -119,7 +119,7 @@ from suds_ros.core.diagnosis.discovery import discover, formula
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
 from suds_ros.core.diagnosis.null import null_recording
-from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay_recording
+from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay, replay_recording
 from suds_ros.core.diagnosis.report import (
     Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
 )
@@ -203,14 +203,14 @@ def diagnose(
     coeffs: tuple[tuple[str, str, float, tuple[tuple[float, float], ...]], ...] = ()
     if located and reference is None:
         try:
-            coeffs = coefficient_comparison(data, nom.replay.rp, nom.replay.pose, config.eq_window)
+            coeffs = coefficient_comparison(nom.data, nom.replay.rp, nom.replay.pose, config.eq_window)
         except (SudsDataError, np.linalg.LinAlgError, ValueError):
             coeffs = ()
     clock.mark("locate")
     if not located:
         return _report(nom, nom.replay, clock.timings, coefficients=coeffs)
     say("ranking catalogue candidates (equation error)")
-    naming = name_mismatch(data, model, config, nom.floors[0], null=_null_maker(nom))
+    naming = name_mismatch(nom.data, model, config, nom.floors[0], null=_null_maker(nom))
     clock.mark("name")
     say(f"fitting {naming.chosen.cand.label} inside the simulator")
     fit = _refine(nom, naming, located, clock)
@@ -228,7 +228,7 @@ def rank_effects(
     data = prepare(rec, model)
     nom = replay_nominal(data, model, config, None)
     located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
-    return name_mismatch(data, model, config, nom.floors[0], null=_null_maker(nom)), tuple(located)
+    return name_mismatch(nom.data, model, config, nom.floors[0], null=_null_maker(nom)), tuple(located)
 
 
 def _null_maker(nom: _Nominal) -> Callable[[Candidate, FloatArray], Data] | None:
@@ -250,7 +250,7 @@ def _null_maker(nom: _Nominal) -> Callable[[Candidate, FloatArray], Data] | None
         sig_rp, s_xy, s_th = noise_floor(*rep.floor_arrays, nom.w, data.dt, gain)
         floors = (np.fmin(sig_rp, nom.floors[0]), min(s_xy, nom.floors[1]), min(s_th, nom.floors[2]))
         seed = [config.calibration_seed] + [ord(ch) for ch in cand.label]
-        return null_recording(data, rep, starts, floors, nom.w, gain, np.random.default_rng(seed))
+        return null_recording(data, rep, starts, floors, nom.w, np.random.default_rng(seed))
 
     return make
 
@@ -274,9 +274,13 @@ def discover_formulas(
 
 
 def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
-    """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F."""
+    """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F.
+
+    The returned ``data`` has its shape gaps widened by the replay's memory (:func:`_settle_gaps`).
+    """
     w = max(1, int(round(config.window / data.dt)))
     substeps = config.substeps or min(auto_substeps(RFTChain(model), data.dt, accuracy=0.4), 8)
+    data = _settle_gaps(data, model, substeps)
     chunk = int(round(config.replay_chunk * data.spc))
     warm = int(round(config.replay_warm / data.dt))
     rep = replay_recording(data, model, 0.0, w, substeps, reference, chunk, warm)
@@ -290,6 +294,33 @@ def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refere
         floors=floors, floor=floor, E0=E0, rms0=table.rms(E0), F0=table.fstats(E0, floor),
         referenced=reference is not None,
     )
+
+
+def _settle_gaps(data: Data, model: ChainModel, substeps: int) -> Data:
+    """``data`` with each shape gap widened by the time the passive joints take to forget it.
+
+    Across a shape gap the replay is driven by actuated angles interpolated over a lost kink, and
+    the passive joints carry that error on for their own relaxation time.  The time is measured
+    on the nominal model: a few training segments are replayed twice, once from passive angles
+    0.05 rad off, and the samples until the difference has fallen below 5 % of its start (at
+    most one gait cycle) follow every gap in the mask.
+    """
+    if data.shape_gap is None or not data.shape_gap.any() or not data.pas.size:
+        return data
+    length = min(data.spc, data.n_train // 2)
+    starts = np.linspace(0, data.n_train - length, 4).astype(np.intp)
+    base = replay(model, 0.0, data, starts, length, 1, substeps)
+    r = data.r.copy()
+    r[np.ix_(starts, data.pas)] += 0.05
+    off = replay(model, 0.0, dataclasses.replace(data, r=r), starts, length, 1, substeps)
+    diff = np.max(np.abs(off.rp - base.rp), axis=(0, 2))
+    below = np.flatnonzero(diff < 0.05 * diff[0])
+    settle = int(below[0]) if below.size else length
+    gap = data.shape_gap.copy()
+    idx = np.flatnonzero(data.shape_gap)
+    for k in range(1, settle + 1):
+        gap[np.minimum(idx + k, gap.size - 1)] = True
+    return dataclasses.replace(data, shape_gap=gap)
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from suds_ros.core.diagnosis.resimulate import DiscoveredTorqueChain
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.recording import Recording
+from suds_ros.core.resample import StreamSampling
 
 
 def window_xi(pose: FloatArray, w: int, dt: float) -> FloatArray:
@@ -37,11 +38,15 @@ def midpoint_xi(pose: FloatArray, data: Data, w: int) -> FloatArray:
 
 
 def measure(
-    pose: FloatArray, t_seg: FloatArray, flow: tuple[float, float], delay: float, w: int, dt: float
+    pose: FloatArray, t_seg: FloatArray, flow: tuple[float, float], delay: float, w: int, dt: float,
+    sampling: StreamSampling | None = None, starts: Sequence[int] = (),
 ) -> FloatArray:
     """Simulated pose stream → windowed body velocity, with flow drift and pose-stamp delay.
 
     pose (B, m, 3) still-fluid poses at times t_seg (B, m) (segment-relative times start at 0).
+    ``sampling``: the recording's pose stream (:class:`~suds_ros.core.resample.StreamSampling`),
+    through which the simulated pose is seen as the recorded one was, for segments at grid
+    indices ``starts``; None when the pose was recorded on the grid.
     """
     P = pose.copy()
     tt = t_seg - t_seg[:, :1]
@@ -56,6 +61,8 @@ def measure(
             for c in range(3):
                 Q[b, ok, c] = np.interp(ts[ok], tt[b], P[b, :, c])
         P = Q
+    if sampling is not None:
+        P = sampling.apply(P, starts)
     return window_xi(P, w, dt)
 
 
@@ -93,7 +100,7 @@ def replay(
     rp0 = data.r[idx[:, 0]][:, data.pas]
     pose0 = data.pose[idx[:, 0]]
     RP, P = integrate_batch(chain.velocities, data.act, data.pas, ra, rp0, pose0, data.dt, substeps)
-    xi = measure(P, data.t[idx], model.flow, delay, w, data.dt)
+    xi = measure(P, data.t[idx], model.flow, delay, w, data.dt, data.pose_sampling, list(starts))
     tt = data.t[idx] - data.t[idx[:, :1]]
     Pf = P.copy()
     Pf[..., 0] += model.flow[0] * tt

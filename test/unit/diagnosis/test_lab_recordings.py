@@ -14,7 +14,7 @@ import pytest
 
 from suds_ros.core.diagnosis import diagnose
 from suds_ros.core.diagnosis.data import prepare, xi_noise_gain
-from suds_ros.core.resample import Grid, gaps, knot_fit
+from suds_ros.core.resample import Grid, StreamSampling, gaps, knot_fit
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
 from suds_ros.core.physics.rft import RFTChain
@@ -79,6 +79,50 @@ def xi_noise_gain_of(pose_t: np.ndarray, grid: np.ndarray) -> float:
     return xi_noise_gain(pose_t, grid, 10)
 
 
+def test_a_slower_stream_has_gaps_only_where_a_sample_is_missing() -> None:
+    """A 50 Hz pose stream on the 100 Hz grid: the grid points between its samples are not gaps;
+    those around a dropped sample are."""
+    grid = np.arange(1000) * 0.01
+    ts = 0.0037 + np.arange(499) * 0.02
+    inside = (grid >= ts[0]) & (grid <= ts[-1])
+    assert not gaps(ts, grid)[inside].any()
+    g = gaps(np.delete(ts, 200), grid) & inside
+    assert g.any() and np.all(np.abs(grid[g] - ts[200]) < 0.02)
+
+
+def test_stream_sampling_is_the_knot_fit_of_the_signal_read_at_the_stamps() -> None:
+    rng = np.random.default_rng(2)
+    grid = 3.0 + np.arange(600) * 0.01
+    ts = 3.0037 + np.arange(299) * 0.02 + rng.normal(0.0, 4e-4, 299)
+    ts = np.delete(ts, [40, 41, 150])
+    Y = np.cumsum(rng.normal(0.0, 0.05, (2, 600, 3)), axis=1)
+    starts = [0, 200]
+    out = StreamSampling(ts, grid).apply(Y[:, :400], starts)
+    for b, s0 in enumerate(starts):
+        T = grid[s0:s0 + 400]
+        s = ts[(ts >= T[0]) & (ts <= T[-1])]
+        at = np.stack([np.interp(s, T, Y[b, :400, c]) for c in range(3)], axis=1)
+        want = knot_fit(s, at, T)
+        ok = np.isfinite(out[b, :, 0])
+        assert ok.sum() >= 395  # only the ends past the first / last sample are left out
+        np.testing.assert_allclose(out[b][ok], want[ok], atol=1e-12)
+
+
+def test_nominal_replay_is_at_the_floor_with_a_50hz_pose_stream() -> None:
+    """A 50 Hz pose loses the kinks of the motion between its samples; the replay, seen through
+    the same stream, loses the same ones: every channel is tested and at its floor, with drops."""
+    from suds_ros.core.diagnosis import DiagnoseConfig
+    from suds_ros.core.diagnosis.pipeline import replay_nominal
+
+    model = purcell3_model()
+    rec = simulate_lab(RFTChain(model), SimConfig(cycles=12, seed=6), LabConditions(pose_hz=50.0, drop=0.01))
+    nom = replay_nominal(prepare(rec, model), model, DiagnoseConfig(), None)
+    assert set(nom.F0) == {"joint_2", "xi_x", "xi_y", "xi_theta"}
+    assert all(np.isfinite(v) and 0.6 < v < 1.4 for v in nom.F0.values()), nom.F0
+    sxy = nom.floors[1] * nom.w * nom.data.dt / xi_noise_gain(nom.data, nom.w)
+    assert sxy == pytest.approx(1e-3, rel=0.15)  # the pose noise, measured at the pose stamps
+
+
 def test_lab_recording_is_laid_out_by_time_not_by_sample_count() -> None:
     rec = _lab([], 6, 5)
     assert rec.n_samples != 600 and rec.pose_t.size != rec.n_samples  # drops, 120 Hz pose
@@ -124,6 +168,13 @@ def test_lab_with_a_50hz_pose_stream_and_half_hz_gait_stays_clean() -> None:
     rec = simulate_lab(RFTChain(model), cfg, LabConditions(pose_hz=50.0))
     rep = diagnose(rec, model)
     assert rep.mismatch is False, rep.statistics
+
+
+@pytest.mark.slow
+def test_a_current_is_named_through_a_50hz_pose_stream(check_recovered) -> None:  # type: ignore[no-untyped-def]
+    effects = [dict(name="background_flow", vx=0.05, vy=0.0)]
+    rep = diagnose(_lab(effects, 30, 5, LabConditions(pose_hz=50.0)), purcell3_model())
+    check_recovered(rep, effects)
 
 
 @pytest.mark.slow

@@ -64,8 +64,7 @@ def test_null_of_the_true_model_looks_like_the_recording() -> None:
     rep = replay_recording(data, model, 0.0, w, 4, None, chunk, warm)
     gain = xi_noise_gain(data, w)
     floors = noise_floor(*rep.floor_arrays, w, data.dt, gain)
-    null = null_recording(data, rep, piece_starts(data, w, chunk, warm), floors, w, gain,
-                          np.random.default_rng(1))
+    null = null_recording(data, rep, piece_starts(data, w, chunk, warm), floors, w, np.random.default_rng(1))
     rep0 = replay_recording(null, model, 0.0, w, 4, None, chunk, warm)
     again = noise_floor(*rep0.floor_arrays, w, data.dt, gain)
     np.testing.assert_allclose(again[0], floors[0], rtol=0.25)
