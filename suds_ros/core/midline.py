@@ -341,3 +341,24 @@ def fit_gait(t: FloatArray, r: FloatArray, gait_hz: float) -> FloatArray:
     c, a, b = coef
     # A sin(w − φ) = A cos φ sin w − A sin φ cos w
     return np.column_stack([np.hypot(a, b), wrap(np.arctan2(-b, a)), c])
+
+
+def time_gaps(t: FloatArray, factor: float = 1.5) -> list[tuple[int, float, float]]:
+    """Intervals longer than ``factor`` × the median interval: frames the file does not hold.
+
+    Parameters
+    ----------
+    t : (n,) float
+        Frame times, s, increasing.
+
+    Returns
+    -------
+    list of (row, t_before, t_after)
+        ``row`` is the row before the gap.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        return []
+    d = np.diff(t)
+    at = np.flatnonzero(d > factor * float(np.median(d)))
+    return [(int(k), float(t[k]), float(t[k + 1])) for k in at]
