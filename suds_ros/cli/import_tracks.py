@@ -114,7 +114,7 @@ def _passive(text: str | None, names: tuple[str, ...]) -> list[str]:
         out.append(name)
     if len(set(out)) == len(names):
         raise SudsConfigError("--passive: every joint named; at least one joint must be actuated")
-    return out
+    return [n for n in names if n in out]  # head to tail
 
 
 def _metres_per_unit(args: argparse.Namespace, file_units: str | None, source: str) -> float:
