@@ -54,8 +54,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p = subparsers.add_parser("import", help="tracked midlines/keypoints of an animal → recording + model file",
                               description=__doc__.splitlines()[0], epilog=EPILOG,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("file", metavar="FILE", help="tracker file: .csv (midline or DeepLabCut), .wcon, "
-                                                 ".h5 (DeepLabCut or SLEAP), .slp")
+    p.add_argument("file", metavar="FILE",
+                   help="tracker file: .csv (midline or DeepLabCut), .wcon, .h5 (DeepLabCut or SLEAP), .slp")
     p.add_argument("-o", "--output", required=True, metavar="REC.mcap",
                    help="output recording; the model file is written beside it as REC.yaml "
                         "(neither is overwritten without --overwrite)")

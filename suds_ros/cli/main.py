@@ -1,4 +1,4 @@
-"""The ``suds`` command: simulate, inspect, identify, score, diagnose and monitor recordings; robot model files; import tracked animals.
+"""The ``suds`` command: simulate, inspect, identify, score, diagnose, monitor; model files; import tracked animals.
 
 One parser (:func:`build_parser`) assembled from the command modules
 (:mod:`~suds_ros.cli.simulate`, :mod:`~suds_ros.cli.inspect`,

@@ -136,7 +136,8 @@ def test_wcon_round_trip_exact(run, tmp_path) -> None:  # type: ignore[no-untype
     check_import(rec, out, ~mask)
 
 
-def test_dense_midline_with_fractions_frame_numbers_and_pixels(run, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_dense_midline_with_fractions_frame_numbers_and_pixels(  # type: ignore[no-untyped-def]
+        run, tmp_path, capsys) -> None:
     rec, q = run
     L = np.asarray(load_model(WORM8).link_length)
     a = np.arange(4) / 4

@@ -111,7 +111,8 @@ def test_dlc_csv_without_movement(tmp_path: Path) -> None:
         tr.read_dlc_csv(multi)
 
 
-def test_formats_that_need_movement_say_how_to_get_it(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_formats_that_need_movement_say_how_to_get_it(  # type: ignore[no-untyped-def]
+        tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(tr, "movement_available", lambda: False)
     for name, fmt in (("a.h5", "dlc"), ("a.slp", "sleap"), ("a.h5", "sleap")):
         with pytest.raises(SudsConfigError, match="needs the `movement` package.*pip install movement") as exc:
