@@ -108,6 +108,8 @@ setup(
     data_files=data_files,
     install_requires=["setuptools", "numpy", "scipy", "threadpoolctl", "mcap", "rosbags", "PyYAML"],
     extras_require={"plot": ["matplotlib"], "foxglove": ["foxglove-sdk"],
+                    # `suds import` of DeepLabCut .h5 and SLEAP files (about 100 packages: see README)
+                    "tracking": ["movement"],
                     "test": ["pytest", "mcap-ros2-support", "flake8", "pydocstyle"]},
     python_requires=">=3.10",
     zip_safe=False,

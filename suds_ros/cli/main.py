@@ -1,9 +1,10 @@
-"""The ``suds`` command: simulate, inspect, identify, score, diagnose and monitor recordings; robot model files.
+"""The ``suds`` command: simulate, inspect, identify, score, diagnose, monitor; model files; import tracked animals.
 
 One parser (:func:`build_parser`) assembled from the command modules
 (:mod:`~suds_ros.cli.simulate`, :mod:`~suds_ros.cli.inspect`,
 :mod:`~suds_ros.cli.identify`, :mod:`~suds_ros.cli.diagnose`,
-:mod:`~suds_ros.cli.monitor`, :mod:`~suds_ros.cli.model`), each of which
+:mod:`~suds_ros.cli.monitor`, :mod:`~suds_ros.cli.model`,
+:mod:`~suds_ros.cli.import_tracks`), each of which
 registers its subcommands and a ``run(args) -> int``; and one error handler
 (:func:`main`): a deliberate error (:class:`~suds_ros.core.errors.SudsError`,
 or a command line argparse refuses) prints one ``ERROR: …`` line on stderr and
@@ -49,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``suds``."""
-    from suds_ros.cli import diagnose, identify, inspect, model, monitor, simulate
+    from suds_ros.cli import diagnose, identify, import_tracks, inspect, model, monitor, simulate
 
     parser = _Parser(
         prog="suds",
@@ -64,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     diagnose.add_parser(sub)
     monitor.add_parser(sub)
     model.add_parser(sub)
+    import_tracks.add_parser(sub)
     return parser
 
 

@@ -1,0 +1,132 @@
+"""io.tracks: the tracker file readers (midline CSV, WCON, DeepLabCut csv; movement for DLC .h5 / SLEAP)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.io import tracks as tr
+from suds_ros.io.tracks import BAD_TRACK_FILE, MISSING_DEPENDENCY, detect_format, read_tracks
+
+
+def write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_midline_csv_with_times_frames_comments_and_lost_cells(tmp_path: Path) -> None:
+    f = write(tmp_path / "m.csv", "# from my tracker\nt,x0,y0,x1,y1\n0.0,1,2,3,4\n0.5,,2,3,4\n1.0,nan,NaN,5,6\n")
+    got = read_tracks(f)
+    assert got.format == "csv" and got.t.tolist() == [0.0, 0.5, 1.0] and got.frame is None
+    assert got.points.shape == (3, 2, 2) and got.units is None
+    np.testing.assert_array_equal(got.points[0], [[1, 2], [3, 4]])
+    assert np.isnan(got.points[1, 0, 0]) and np.isnan(got.points[2, 0]).all()
+    g = read_tracks(write(tmp_path / "f.csv", "frame,x0,y0,x1,y1\n10,1,2,3,4\n12,1,2,3,4\n"))
+    assert g.t is None and g.frame.tolist() == [10, 12]
+
+
+@pytest.mark.parametrize("text, match", [
+    ("", "no header row"),
+    ("time,x0,y0\n0,1,2\n", "first column: expected `t` .* got 'time'"),
+    ("t,x0,y0,y1,x1\n0,1,2,3,4\n", "got column 'y1'"),
+    ("t,x0,y0,x1,y1,likelihood\n0,1,2,3,4,1\n", "got column 'likelihood'"),
+    ("t\n0\n", "no x0,y0 columns"),
+    ("t,x0,y0\n0,1\n", "row 1: expected 3 cells, got 2"),
+    ("t,x0,y0\n0,a,2\n", "row 1: expected numbers"),
+    ("frame,x0,y0\n1.5,1,2\n", "`frame` expected an integer"),
+])
+def test_midline_csv_errors_name_the_problem(tmp_path: Path, text: str, match: str) -> None:
+    with pytest.raises(SudsDataError, match=match) as exc:
+        read_tracks(write(tmp_path / "bad.csv", text))
+    assert exc.value.code == BAD_TRACK_FILE
+
+
+def wcon(data: object, units: object = None) -> str:
+    return json.dumps({"units": units or {"t": "ms", "x": "mm", "y": "mm"}, "data": data})
+
+
+def test_wcon_records_offsets_nulls_units(tmp_path: Path) -> None:
+    data = [
+        {"id": "w1", "t": [0, 20], "x": [[1, 2, 3], [1, 2, 3]], "y": [[0, 0, 0], [0, 1, None]],
+         "ox": [10, 20], "oy": 5},
+        {"id": "w1", "t": 40, "x": [], "y": []},  # a time without points: lost
+        {"id": "w1", "t": [60], "x": [[4, 5, 6]], "y": [[1, 1, 1]], "@custom": {"ignored": True}},
+    ]
+    got = read_tracks(write(tmp_path / "w.wcon", wcon(data)))
+    assert got.format == "wcon" and got.units == "mm"
+    np.testing.assert_allclose(got.t, [0.0, 0.02, 0.04, 0.06])
+    np.testing.assert_array_equal(got.points[0], [[11, 5], [12, 5], [13, 5]])
+    assert np.isnan(got.points[1, 2, 1]) and np.isnan(got.points[2]).all()
+    np.testing.assert_array_equal(got.points[3], [[4, 1], [5, 1], [6, 1]])
+    assert got.counts is None  # every frame with points has all of them
+    one = read_tracks(write(tmp_path / "one.json", wcon({"id": 1, "t": 0.5, "x": [1, 2], "y": [3, 4]},
+                                                        {"t": "s", "x": "um", "y": "um"})))
+    assert one.units == "um" and one.t.tolist() == [0.5] and one.points.shape == (1, 2, 2)
+
+
+def test_wcon_varying_point_counts_pad_with_the_tail(tmp_path: Path) -> None:
+    data = {"id": 1, "t": [0, 1], "x": [[0, 1, 2], [0, 1]], "y": [[0, 0, 0], [0, 0]]}
+    got = read_tracks(write(tmp_path / "v.wcon", wcon(data, {"t": "s", "x": "mm", "y": "mm"})))
+    assert got.counts.tolist() == [3, 2]
+    np.testing.assert_array_equal(got.points[1], [[0, 0], [1, 0], [1, 0]])
+
+
+@pytest.mark.parametrize("text, match", [
+    ("{not json", "invalid JSON"),
+    (json.dumps({"data": []}), "expected a JSON object with `units` and `data`"),
+    (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "fortnight", "x": "mm", "y": "mm"}), "units.t"),
+    (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "s", "x": "px", "y": "px"}), "units.x"),
+    (wcon([{"id": 1, "t": 0, "x": [1], "y": [1]}, {"id": 2, "t": 0, "x": [1], "y": [1]}]), "2 animals"),
+    (wcon({"id": 1, "t": [0, 1], "x": [[1]], "y": [[1], [2]]}), r"data\[0\].x: expected 2 entries"),
+    (wcon({"id": 1, "t": [0, 1], "x": [[], []], "y": [[], []]}), "no midline"),
+    (wcon([{"t": 0}]), r"data\[0\]: expected a record with id, t, x, y"),
+])
+def test_wcon_errors_name_the_problem(tmp_path: Path, text: str, match: str) -> None:
+    with pytest.raises(SudsDataError, match=match) as exc:
+        read_tracks(write(tmp_path / "bad.wcon", text))
+    assert exc.value.code == BAD_TRACK_FILE
+
+
+DLC_CSV = """scorer,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50
+bodyparts,snout,snout,snout,tail,tail,tail
+coords,x,y,likelihood,x,y,likelihood
+0,1.5,2.5,0.99,3.5,4.5,0.98
+1,,,0.01,3.0,4.0,0.97
+"""
+
+
+def test_dlc_csv_without_movement(tmp_path: Path) -> None:
+    f = write(tmp_path / "fish.csv", DLC_CSV)
+    assert detect_format(f) == "dlc"
+    got = tr.read_dlc_csv(f)
+    assert got.point_names == ("snout", "tail") and got.frame.tolist() == [0, 1] and got.t is None
+    np.testing.assert_array_equal(got.points[0], [[1.5, 2.5], [3.5, 4.5]])
+    assert np.isnan(got.points[1, 0]).all()
+    multi = write(tmp_path / "ma.csv", DLC_CSV.replace("bodyparts", "individuals,fish1\nbodyparts", 1))
+    with pytest.raises(SudsConfigError, match="multi-animal DeepLabCut csv needs the `movement` package"):
+        tr.read_dlc_csv(multi)
+
+
+def test_formats_that_need_movement_say_how_to_get_it(  # type: ignore[no-untyped-def]
+        tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr(tr, "movement_available", lambda: False)
+    for name, fmt in (("a.h5", "dlc"), ("a.slp", "sleap"), ("a.h5", "sleap")):
+        with pytest.raises(SudsConfigError, match="needs the `movement` package.*pip install movement") as exc:
+            read_tracks(write(tmp_path / name, "x"), fmt)
+        assert exc.value.code == MISSING_DEPENDENCY
+    got = read_tracks(write(tmp_path / "fish.csv", DLC_CSV))  # a DLC csv is read without it
+    assert got.format == "dlc"
+
+
+def test_detect_format(tmp_path: Path) -> None:
+    assert detect_format(write(tmp_path / "a.wcon", "{}")) == "wcon"
+    assert detect_format(write(tmp_path / "a.csv", "t,x0,y0\n")) == "csv"
+    assert detect_format(tmp_path / "a.slp") == "sleap"
+    with pytest.raises(SudsConfigError, match="pass --format dlc or --format sleap"):
+        detect_format(tmp_path / "a.h5")
+    with pytest.raises(SudsConfigError, match=r"extension '\.txt'"):
+        detect_format(tmp_path / "a.txt")
