@@ -132,9 +132,10 @@ class OnlineSudsEstimator:
         Gait cycles the initialisation buffer must span; starts at ``config.init_cycles``
         and grows by one each time the phaser finds the buffer too short.
     template_ : FourierTemplate
-        Gait template θ(φ) fitted on the initial cycles (after initialisation).
+        Gait template θ(φ) fitted on the initial cycles; set at initialisation (absent before,
+        as scikit-learn's learned attributes are before ``fit``).
     omega_ : float
-        Mean phase rate ω̄ of the initial cycles, rad/s (NaN before initialisation).
+        Mean phase rate ω̄ of the initial cycles, rad/s; set at initialisation.
     regressor : SudsRegressor
         The incremental SUDS regression published now.
     """
@@ -157,8 +158,6 @@ class OnlineSudsEstimator:
             config.init_cycles, config.gait_hz, config.template_order, config.phaser_order)
         self._early_poses: list[tuple[float, tuple[float, float, float]]] = []  # poses before the start
         self._init_cycles = float(config.init_cycles)
-        self.template_: FourierTemplate | None = None
-        self.omega_ = float("nan")
         self._phase0 = float("nan")
         self._tracker: PhaseTracker | None = None
         self._rows: StreamFeaturiser | None = None
@@ -272,7 +271,8 @@ class OnlineSudsEstimator:
         """Fix phase, template and rate; featurise the buffered samples."""
         self._init_cycles = self.initialiser.init_cycles_  # type: ignore[union-attr]
         self.initialiser = None
-        self.template_, self.omega_ = s.template, s.omega
+        self.template_: FourierTemplate = s.template
+        self.omega_: float = s.omega
         self.selector = self._selector(gait_kernel_scale(s.template, s.omega, self._act))
         self._tracker = PhaseTracker(s.template, s.omega, float(s.phase[-1]), float(s.t[-1]))
         self._phase0 = float(s.phase[0])
@@ -363,8 +363,8 @@ class OnlineSudsEstimator:
             joint_names=self.joint_names,
             actuated=self.actuated,
             passive=self.passive,
-            template_coef=np.asarray(self.template_.coef_, dtype=float),  # type: ignore[union-attr]
-            template_residual_var=np.asarray(self.template_.residual_var_, dtype=float),  # type: ignore[union-attr]
+            template_coef=np.asarray(self.template_.coef_, dtype=float),
+            template_residual_var=np.asarray(self.template_.residual_var_, dtype=float),
             template_order=self.config.template_order,
             omega=self.omega_,
             suds=self.regressor.config,

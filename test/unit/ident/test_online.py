@@ -59,6 +59,7 @@ def test_hyperparameters_never_change_while_fitting(purcell3_run, monkeypatch) -
     rec = purcell3_run
     cfg = OnlineConfig(init_cycles=3.0)
     est = OnlineSudsEstimator(rec.joint_names, rec.actuated, cfg)
+    assert not hasattr(est, "template_") and not hasattr(est, "omega_")  # learned, not set in __init__
     _feed(est, rec, 0, 1000)
     assert len(calls) == 2 and calls[1] > calls[0] + 90  # one more cycle buffered
     assert est.config is cfg and est.config == OnlineConfig(init_cycles=3.0)
