@@ -81,11 +81,21 @@ def _segments(lo: int, hi: int, length: int) -> list[int]:
 def _residual_vector(
     data: Data, rep: Replay, starts: Sequence[int], length: int, w: int, sig_rp: FloatArray, s_xy: float, s_th: float
 ) -> FloatArray:
-    """Noise-floor-weighted replay residuals, (B, k): r_p per sample, ξ on non-overlapping windows."""
+    """Noise-floor-weighted replay residuals, (B, k): r_p per sample, ξ on non-overlapping windows.
+
+    Samples at or after a gap of a stream (:attr:`Data.shape_gap`, :attr:`Data.pose_gap`), and
+    windows that touch one, count as zero: there the recording is interpolated across a lost kink.
+    """
     idx = np.asarray(starts)[:, None] + np.arange(length)[None, :]
     e_rp = (data.r[idx][:, :, data.pas] - rep.rp) / sig_rp
     xi_rec = window_xi(data.pose[idx], w, data.dt)
     e_xi = (xi_rec - rep.xi) / np.array([s_xy, s_xy, s_th])
+    if data.shape_gap is not None and data.pose_gap is not None:
+        sg = data.shape_gap[idx]
+        e_rp = np.where(sg[..., None], 0.0, e_rp)
+        bad = np.concatenate([np.zeros((idx.shape[0], 1)), np.cumsum(sg | data.pose_gap[idx], axis=1)], axis=1)
+        touches = (bad[:, w + 1:] - bad[:, : bad.shape[1] - w - 1]) > 0  # window k spans samples k … k + w
+        e_xi = np.where(touches[:, : e_xi.shape[1], None], 0.0, e_xi)
     e_xi = e_xi[:, ::w]
     e_xi = np.where(np.isfinite(e_xi), e_xi, 0.0)
     B = len(starts)
