@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from suds_ros.cli.common import add_bag_argument, add_recording_options, load_recording
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.json_text import dumps
@@ -20,8 +22,15 @@ the next --test-cycles cycles are held out.  Γ = 1 − Σ|model − truth| / Σ
 compares the model with the phase-only template on the held-out cycles
 (Γ = 0: no better than the template, Γ = 1: perfect).
 
+A recording with bouts (`suds import --segment`; metadata key `bouts`) is split
+into whole bouts instead: the first bouts until --train-cycles cycles train, the
+following bouts (up to --test-cycles cycles) are held out; no interval spans a
+pause.  Too few bouts or cycles for that end in an ERROR naming how many there
+are.  --ignore-bouts splits by time as for a steady run.
+
 examples:
   suds identify run.mcap                      # 30 train / 30 test cycles, regressor set 2
+  suds identify larva.mcap --train-cycles 12 --test-cycles 6   # whole bouts
   suds identify run.mcap --regressors 1 --json
   suds identify run.mcap --figure fig.png --actuated joint_1 --system purcell3
 """
@@ -40,6 +49,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="regressor set: 1 [1,δ,δ̇_a], 2 [1,δ,δ̇_a,δ⊗δ̇_a], 3 full second order "
                         "(default: chosen with the Fourier orders and ridge by cross-validation on the "
                         "training cycles; with --streaming the estimator's set 2)")
+    p.add_argument("--ignore-bouts", action="store_true",
+                   help="split by time even when the recording lists bouts (metadata `bouts`)")
     p.add_argument("--window", type=int, default=1,
                    help="differencing window in samples (default 1)")
     p.add_argument("--torque", action="store_true",
@@ -60,9 +71,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds identify``; returns the exit code."""
-    from suds_ros.core.ident.identify import split_cycles
+    from suds_ros.core.ident.identify import split_bouts, split_cycles
 
     rec = load_recording(args.bag, args)
+    if rec.bouts and not args.ignore_bouts:
+        if args.streaming:
+            raise SudsConfigError("--streaming: the recording lists bouts (intermittent motion) and the live "
+                                  "estimator runs on one continuous stream; pass --ignore-bouts to run it anyway")
+        if args.test_cycles == 0:
+            raise SudsConfigError("--test-cycles 0 is only supported with --streaming (nothing to score)")
+        train_bouts, test_bouts = split_bouts(rec, args.train_cycles, args.test_cycles)
+        return _batch(args, rec, train_bouts, test_bouts)
     if args.test_cycles == 0:
         train, test = rec, None
     else:
@@ -74,8 +93,25 @@ def run(args: argparse.Namespace) -> int:
     return _batch(args, rec, train, test)
 
 
-def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Recording) -> int:
-    """The batch identifier, scored on ``test``; prints the Γ table (or JSON)."""
+def _cycles(recs: list[Recording], gait_hz: float) -> float:
+    """Gait cycles in recordings (each counting its last sample's period)."""
+    return sum((r.t[-1] - r.t[0] + r.dt) * gait_hz for r in recs)
+
+
+def _end_to_end(recs: list[Recording]) -> Recording:
+    """Bouts as one recording for the figure's gait panel (samples in time order, pauses left out)."""
+    from dataclasses import replace
+
+    if len(recs) == 1:
+        return recs[0]
+    return replace(recs[0], t=np.concatenate([r.t for r in recs]), r=np.concatenate([r.r for r in recs]),
+                   pose_t=np.concatenate([r.pose_t for r in recs]), pose=np.concatenate([r.pose for r in recs]),
+                   effort=None, truth={})
+
+
+def _batch(args: argparse.Namespace, rec: Recording, train: Recording | list[Recording],
+           test: Recording | list[Recording]) -> int:
+    """The batch identifier, scored on ``test`` (a recording, or held-out bouts); prints the Γ table (or JSON)."""
     from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
     from suds_ros.core.ident.scoring import score_prediction
     from suds_ros.core.ident.sysid import SudsConfig
@@ -90,11 +126,15 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
     ident = SudsIdentifier(cfg, torque=bool(args.torque)).fit(train)
     pred = ident.predict(test)
     sc = score_prediction(pred)
+    hz = rec.gait_hz or 1.0
+    bouts = isinstance(train, list)
+    train_list = train if isinstance(train, list) else [train]
+    test_list = test if isinstance(test, list) else [test]
     result: dict[str, Any] = {
         "bag": str(args.bag),
         "system": rec.system,
-        "train_cycles": args.train_cycles,
-        "test_cycles": int(round((test.t[-1] - test.t[0] + test.dt) * (rec.gait_hz or 1.0))),
+        "train_cycles": round(_cycles(train_list, hz), 2) if bouts else args.train_cycles,
+        "test_cycles": round(_cycles(test_list, hz), 2) if bouts else int(round(_cycles(test_list, hz))),
         "regressors": ident.regressor_.config.regressors,
         "ridge": ident.regressor_.config.ridge,
         "state": ident.regressor_.config.state,
@@ -107,18 +147,29 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording, test: Rec
         },
         **sc.as_dict(),
     }
+    if bouts:
+        result["bouts"] = {
+            "total": len(rec.bouts),
+            "train": [[float(r.t[0]), float(r.t[-1])] for r in train_list],
+            "test": [[float(r.t[0]), float(r.t[-1])] for r in test_list],
+        }
     if args.figure:
         from suds_ros.report.identify_figure import identify_figure
 
-        identify_figure(ident, train, test, pred, args.figure,
+        identify_figure(ident, _end_to_end(train_list), _end_to_end(test_list), pred, args.figure,
                         title=f"{rec.system}: {Path(args.bag).name}")
         result["figure"] = str(args.figure)
     if args.json:
         print(dumps(result, indent=2))
         return 0
     print(f"{rec.system}: {args.bag}")
-    print(f"  train {args.train_cycles} cycles, test {result['test_cycles']} cycles, regressor set "
-          f"{result['regressors']}, {ident.n_parameters} parameters per output")
+    if bouts:
+        print(f"  whole bouts: train {len(train_list)} bouts ({result['train_cycles']:.1f} cycles), held out "
+              f"{len(test_list)} bouts ({result['test_cycles']:.1f} cycles) of {len(rec.bouts)}; regressor set "
+              f"{result['regressors']}, {ident.n_parameters} parameters per output")
+    else:
+        print(f"  train {args.train_cycles} cycles, test {result['test_cycles']} cycles, regressor set "
+              f"{result['regressors']}, {ident.n_parameters} parameters per output")
     print(f"  {'':<14}{'Γ':>8}")
     print(f"  {'body':<14}{_gamma_text(sc.gamma_body)}")
     if sc.gamma_passive is None:

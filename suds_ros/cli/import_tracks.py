@@ -27,6 +27,7 @@ examples:
   suds import midline.csv -o fish.mcap --links 6 --units px --px-size 2.5e-4
   suds import tracks.csv -o eel.mcap --links 4 --units mm --fps 50 --passive joint_3,joint_4
   suds import fish_dlc.h5 --format dlc -o fish.mcap --links 4 --units px --px-size 1e-4 --fps 100
+  suds import larva.csv -o larva.mcap --links 5 --units mm --segment amplitude:0.15   # swims in bouts
 
 Midline CSV layout: a header row, then one row per frame: `t` (s) or `frame` (with --fps), then
 x0,y0,x1,y1,... head (first point) to tail.  Empty or `nan` cells mark a lost point; a frame with
@@ -43,6 +44,15 @@ every joint actuated except --passive (these get a placeholder stiffness: edit i
 c∥ = 1, c⊥ = 2 (nominal), gait_hz from the dominant frequency of the joint angles, and each
 actuated joint's drive fitted at that frequency.  DeepLabCut .h5 and SLEAP files need the
 optional `movement` package (pip install movement).
+
+Intermittent motion (--segment MEASURE:THRESH): activity is measured at every kept frame over a
+centred window of one gait cycle, and a bout is a run of frames at or above THRESH lasting at
+least --min-bout-cycles gait cycles (default 2):
+  speed:THRESH      body speed, body lengths per second (the body link's centre, displacement
+                    across the window / its duration / the chain's length)
+  amplitude:THRESH  joint-angle amplitude, rad (largest over joints of √2 × the windowed SD)
+The bouts are reported (count, times, cycles each) and listed in the recording's metadata
+(key `bouts`); `suds identify` then trains and tests on whole bouts.
 """
 
 #: metres per unit of --units (px: --px-size)
@@ -75,6 +85,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="relative link lengths head to tail, N numbers (default equal)")
     p.add_argument("--gait-hz", type=float, metavar="HZ",
                    help="gait frequency, Hz (default: the dominant frequency of the joint angles)")
+    p.add_argument("--segment", metavar="MEASURE:THRESH",
+                   help="find bouts of steady motion: speed:THRESH (body lengths/s) or amplitude:THRESH "
+                        "(rad); listed in the recording for `suds identify` (see below)")
+    p.add_argument("--min-bout-cycles", type=float, default=2.0, metavar="C",
+                   help="with --segment: shortest bout kept, gait cycles (default 2)")
     p.add_argument("--name", help="system id in the recording and the model file (default from -o)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--json", action="store_true", help="machine-readable summary")
@@ -205,6 +220,31 @@ def _model(name: str, lengths: np.ndarray, joint_names: tuple[str, ...], passive
                       gait=gait, joint_names=joint_names, gait_hz=gait_hz)
 
 
+def _segment(rule: Any, t: np.ndarray, fit: Any, gait_hz: float, src: Path
+             ) -> tuple[list[tuple[float, float]], dict[str, Any]]:
+    """Bouts of ``--segment`` on the kept frames, and their summary; none found is an error."""
+    from suds_ros.core.bouts import MEASURES, segment_bouts
+
+    length = float(np.sum(fit.mean_lengths))
+    bouts, activity = segment_bouts(rule, t, fit.r, fit.pose, gait_hz, length)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    unit = MEASURES[rule.measure]
+    if not bouts:
+        raise SudsDataError(f"{src}: --segment {rule.measure}:{rule.threshold:g}: no bout of at least "
+                            f"{rule.min_cycles:g} gait cycles ({rule.min_cycles / gait_hz:.3g} s at {gait_hz:.4g} Hz) "
+                            f"with {rule.measure} ≥ {rule.threshold:g} {unit}; the {rule.measure} ranges "
+                            f"{float(np.min(activity)):.3g} … {float(np.max(activity)):.3g} {unit} "
+                            f"(median {float(np.median(activity)):.3g})", code=TOO_LITTLE_DATA)
+    rows = []
+    for a, b in bouts:
+        frames = int(np.count_nonzero((t >= a) & (t <= b)))
+        rows.append({"t_first": a, "t_last": b, "frames": frames, "cycles": (b - a + dt) * gait_hz})
+    return bouts, {"measure": rule.measure, "threshold": rule.threshold, "unit": unit,
+                   "min_cycles": rule.min_cycles, "bouts": rows,
+                   "steady_cycles": sum(r["cycles"] for r in rows),
+                   "total_cycles": (float(t[-1] - t[0]) + dt) * gait_hz}
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds import``; returns the exit code."""
     import yaml
@@ -236,6 +276,13 @@ def run(args: argparse.Namespace) -> int:
     if fractions is not None and len(fractions) != n:
         raise SudsConfigError(f"--fractions: expected {n} relative link lengths (one per link), "
                               f"got {len(fractions)}")
+    rule = None
+    if args.segment is not None:
+        from suds_ros.core.bouts import BoutRule
+
+        if not (math.isfinite(args.min_bout_cycles) and args.min_bout_cycles > 0):
+            raise SudsConfigError(f"--min-bout-cycles: expected a number of cycles > 0, got {args.min_bout_cycles}")
+        rule = BoutRule.parse(args.segment, args.min_bout_cycles)
     names = default_joint_names(n - 1)
     passive = _passive(args.passive, names)
     name = _system_name(args, out)
@@ -277,9 +324,13 @@ def run(args: argparse.Namespace) -> int:
     model_from_dict(yaml.safe_load(text), str(model_out))  # the file must load as it is written
 
     actuated = [j for j in names if j not in passive]
+    bouts: list[tuple[float, float]] = []
+    segment = None
+    if rule is not None:
+        bouts, segment = _segment(rule, tk, fit, gait_hz, src)
     try:
         with RecordingWriter(out, system=name, joint_names=names, actuated=actuated, passive=passive,
-                             gait_hz=gait_hz, overwrite=args.overwrite) as writer:
+                             gait_hz=gait_hz, bouts=bouts, overwrite=args.overwrite) as writer:
             writer.write(tk, fit.r, tk, fit.pose)
         model_out.write_text(text, encoding="utf-8")
     except BaseException:
@@ -296,6 +347,8 @@ def run(args: argparse.Namespace) -> int:
         "system": name, "actuated": actuated, "passive": passive,
         "recording": str(out), "model": str(model_out),
     }
+    if segment is not None:
+        summary["segment"] = segment
     if args.json:
         print(dumps(summary, indent=2))
     else:
@@ -322,5 +375,14 @@ def _describe(s: dict[str, Any]) -> str:
     lines.append(f"gait {s['gait_hz']:.4g} Hz; actuated {', '.join(s['actuated'])}"
                  + (f"; passive {', '.join(s['passive'])} (placeholder stiffness in the model file)"
                     if s["passive"] else ""))
+    if "segment" in s:
+        g = s["segment"]
+        lines.append(f"bouts ({g['measure']} ≥ {g['threshold']:g} {g['unit']}, ≥ {g['min_cycles']:g} cycles): "
+                     f"{len(g['bouts'])}, {g['steady_cycles']:.1f} cycles of {g['total_cycles']:.1f}")
+        for k, b in enumerate(g["bouts"][:20]):
+            lines.append(f"  bout {k + 1}: {b['t_first']:.6g} … {b['t_last']:.6g} s, {b['cycles']:.1f} cycles, "
+                         f"{b['frames']} frames")
+        if len(g["bouts"]) > 20:
+            lines.append(f"  … {len(g['bouts']) - 20} more bouts (see --json)")
     lines.append(f"wrote {s['recording']} (system {s['system']!r}) and {s['model']}")
     return "\n".join(lines)

@@ -80,6 +80,10 @@ class Recording:
         Nominal gait frequency, Hz, if known.
     effort : (n, nj) float or None
         Recorded joint efforts (N·m), if any.
+    bouts : tuple of (t_first, t_last)
+        Steady stretches of intermittent motion (stamps, s; in time order, disjoint), as ``suds
+        import --segment`` finds them and the metadata key ``bouts`` holds; empty: the whole
+        recording is one steady run.  Identification then trains and tests on whole bouts.
     truth : dict
         Optional ground truth from a simulator, never written to bags: ``"xi"`` (n, 3)
         body velocity, ``"rdot"`` (n, nj) shape velocity, ``"phase"`` (n,) reference phase
@@ -96,6 +100,7 @@ class Recording:
     system: str = "unknown"
     gait_hz: float | None = None
     effort: FloatArray | None = None
+    bouts: tuple[tuple[float, float], ...] = ()
     truth: dict[str, FloatArray] = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -144,6 +149,12 @@ class Recording:
             )
         if not self.actuated:
             raise SudsDataError("no actuated joint: a SUDS model needs at least one driven joint")
+        bouts = tuple((float(a), float(b)) for a, b in self.bouts)
+        for k, (a, b) in enumerate(bouts):
+            if not (np.isfinite(a) and np.isfinite(b) and a <= b) or (k and a <= bouts[k - 1][1]):
+                raise SudsDataError(f"bouts: expected (t_first, t_last) pairs with t_first ≤ t_last, in time "
+                                    f"order without overlap, got {list(self.bouts)!r}")
+        object.__setattr__(self, "bouts", bouts)
         if pose.size:
             pose = pose.copy()
             pose[:, 2] = np.unwrap(pose[:, 2])

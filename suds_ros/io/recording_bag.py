@@ -65,6 +65,8 @@ META_SYSTEM = "system"
 META_ACTUATED = "actuated"
 META_PASSIVE = "passive"
 META_GAIT_HZ = "gait_hz"
+#: optional: steady stretches of intermittent motion, ``t_first:t_last`` pairs (s), comma-joined
+META_BOUTS = "bouts"
 #: frame of the recorded body pose
 WORLD_FRAME = "world"
 
@@ -511,10 +513,18 @@ def _to_recording(res: ScanResult, meta: dict[str, str] | None, system: str | No
         if not math.isfinite(gait_hz) or gait_hz <= 0:
             raise SudsBagError(f"{res.path}: 'suds' metadata gait_hz: expected a positive "
                                f"frequency, got {meta[META_GAIT_HZ]!r}")
+    bouts: tuple[tuple[float, float], ...] = ()
+    if meta is not None and meta.get(META_BOUTS, "").strip():
+        from suds_ros.core.bouts import parse_bouts
+
+        try:
+            bouts = parse_bouts(meta[META_BOUTS])
+        except SudsDataError as exc:
+            raise SudsBagError(f"{res.path}: 'suds' metadata {exc}") from None
     try:
         return Recording(t=t, r=r, joint_names=names, actuated=act, passive=pas,
                          pose_t=pose_t, pose=pose, system=system, gait_hz=gait_hz,
-                         effort=effort)
+                         effort=effort, bouts=bouts)
     except SudsDataError as exc:
         raise SudsDataError(f"{res.path}: {exc}", code=exc.code) from None
 
@@ -528,11 +538,11 @@ def write_recording(path: str | Path, rec: Recording, *, overwrite: bool = False
     effort if ``rec.effort``), pose samples PoseStamped messages in frame
     ``world`` with a yaw-only quaternion; header stamps are the sample stamps and
     the log times equal them.  The ``suds`` metadata record holds system,
-    actuated, passive (comma-joined) and gait_hz (if known).  The same file as
+    actuated, passive (comma-joined), gait_hz (if known) and bouts (if any).  The same file as
     :class:`RecordingWriter` given the recording in blocks.
     """
     with RecordingWriter(path, system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated,
-                         passive=rec.passive, gait_hz=rec.gait_hz, overwrite=overwrite,
+                         passive=rec.passive, gait_hz=rec.gait_hz, bouts=rec.bouts, overwrite=overwrite,
                          compression=compression, shape_topic=shape_topic, pose_topic=pose_topic) as w:
         w.write(rec.t, rec.r, rec.pose_t, rec.pose, rec.effort)
 
@@ -556,6 +566,9 @@ class RecordingWriter:
         Joint names, in the column order of the shape samples, and the joint roles.
     gait_hz : float or None
         Nominal gait frequency, Hz (metadata, if known).
+    bouts : sequence of (t_first, t_last)
+        Steady stretches of intermittent motion, stamps in s (metadata key ``bouts``, only when
+        there are any).
     overwrite, compression, shape_topic, pose_topic
         As :func:`write_recording`.
 
@@ -567,13 +580,19 @@ class RecordingWriter:
 
     def __init__(self, path: str | Path, *, system: str, joint_names: Sequence[str],
                  actuated: Sequence[str], passive: Sequence[str], gait_hz: float | None = None,
-                 overwrite: bool = False, compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
+                 bouts: Sequence[tuple[float, float]] = (), overwrite: bool = False,
+                 compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
                  pose_topic: str = POSE_TOPIC) -> None:
         self.joint_names = tuple(joint_names)
         self._topics = (shape_topic, pose_topic)
         meta = {META_SYSTEM: system, META_ACTUATED: ",".join(actuated), META_PASSIVE: ",".join(passive)}
         if gait_hz is not None:
             meta[META_GAIT_HZ] = repr(float(gait_hz))
+        if bouts:
+            from suds_ros.core.bouts import bouts_text, parse_bouts
+
+            meta[META_BOUTS] = bouts_text(tuple((float(a), float(b)) for a, b in bouts))
+            parse_bouts(meta[META_BOUTS])  # in order and disjoint, as readers check
         self._writer = BagWriter(path, overwrite=overwrite, compression=compression)
         self.path = self._writer.path
         self._writer.add_topic(shape_topic, SHAPE_TYPE)

@@ -8,12 +8,13 @@ the actuator torques are identified the same way (``torque=True``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import fourier_basis
 from suds_ros.core.ident.intervals import (
@@ -252,24 +253,35 @@ class SudsIdentifier(BaseEstimator):
         return interval_features(self.template_, self.omega_, rec.actuated_index, phase_mid, r, rdot)
 
     # -------------------------------------------------------------- API
-    def fit(self, rec: Recording) -> "SudsIdentifier":
-        """Estimate phase, template and the SUDS regression from a training recording."""
+    def fit(self, rec: Recording | Sequence[Recording]) -> "SudsIdentifier":
+        """Estimate phase, template and the SUDS regression from a training recording.
+
+        ``rec`` may also be a sequence of recordings of the same joints: the bouts of an
+        intermittent run (:func:`split_bouts`).  The phaser is fitted on their samples together,
+        each bout's phase is then taken on its own, and intervals never span two bouts.
+        """
         from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
         self._reset_learned()
         if not isinstance(self.config, IdentifyConfig):
             raise SudsConfigError(f"`config`: expected an IdentifyConfig, got {self.config!r}")
-        rec = self._prepared(rec)
-        phase = self._phase(rec, fit=True)
-        span = rec.t[-1] - rec.t[0]
-        self.omega_ = float((phase[-1] - phase[0]) / span)
+        recs = [self._prepared(r) for r in _recordings(rec)]
+        rec = recs[0]
+        if len(recs) == 1 or self.config.phase == "truth":
+            phases = [self._phase(r, fit=True) for r in recs]
+        else:
+            self._phase(_joined(recs), fit=True)
+            phases = [self._phase(r, fit=False) for r in recs]
+        span = sum(r.t[-1] - r.t[0] for r in recs)
+        self.omega_ = float(sum(p[-1] - p[0] for p in phases) / span)
         if not self.omega_ > 0:
             raise SudsDataError(f"estimated phase does not advance (rate {self.omega_:.3g} rad/s)")
         tcfg = FourierTemplateConfig(order=self.config.template_order)
-        self.template_ = FourierTemplate(tcfg).fit(phase, rec.r)
+        self.template_ = FourierTemplate(tcfg).fit(np.concatenate(phases), np.concatenate([r.r for r in recs]))
         self.kernel_scale_ = gait_kernel_scale(self.template_, self.omega_, rec.actuated_index)
-        s = self._samples(rec, phase)
-        X = self.features(rec, s.iv, s.ph)
+        parts = [self._samples(r, p) for r, p in zip(recs, phases)]
+        X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
+        s = parts[0] if len(parts) == 1 else _merged(parts)
         self.output_template_coef_ = self._fit_output_template(s)
         suds = self._select_model(rec, X, s, self.output_template(s.ph))
         self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
@@ -342,8 +354,21 @@ class SudsIdentifier(BaseEstimator):
                 f"from the training joints {list(self.joint_names_)} (actuated {list(self.actuated_)})"
             )
 
-    def predict(self, rec: Recording) -> Prediction:
-        """Model and template predictions with the measured outputs of ``rec``."""
+    def predict(self, rec: Recording | Sequence[Recording]) -> Prediction:
+        """Model and template predictions with the measured outputs of ``rec``.
+
+        A sequence of recordings (held-out bouts) gives their predictions one after the other.
+        """
+        if not isinstance(rec, Recording):
+            preds = [self.predict(r) for r in _recordings(rec)]
+            if len(preds) == 1:
+                return preds[0]
+            if any(p.body is not None for p in preds):
+                raise SudsDataError(_POSE_STAMPS_MSG)
+            return Prediction(t=np.concatenate([p.t for p in preds]), phase=np.concatenate([p.phase for p in preds]),
+                              channels=preds[0].channels, truth=np.concatenate([p.truth for p in preds]),
+                              model=np.concatenate([p.model for p in preds]),
+                              template=np.concatenate([p.template for p in preds]))
         self._check(rec)
         rec = self._prepared(rec)
         phase = self._phase(rec, fit=False)
@@ -362,11 +387,11 @@ class SudsIdentifier(BaseEstimator):
         return Prediction(t=s.iv.t, phase=s.ph, channels=self.channels_, truth=s.Y, model=model,
                           template=template, body=body)
 
-    def scores(self, rec: Recording) -> Scores:
+    def scores(self, rec: Recording | Sequence[Recording]) -> Scores:
         """Γ per output group and RMS errors of the model and the template on ``rec`` (held-out data)."""
         return score_prediction(self.predict(rec))
 
-    def score(self, rec: Recording) -> float:
+    def score(self, rec: Recording | Sequence[Recording]) -> float:
         """One number for ``rec`` (held-out data): the mean Γ over the output groups it has.
 
         The groups are the body velocity, the passive rates and (``torque``) the actuator
@@ -382,6 +407,47 @@ class SudsIdentifier(BaseEstimator):
         """Regression parameters per output channel."""
         check_is_fitted(self)
         return self.regressor_.n_parameters
+
+
+_POSE_STAMPS_MSG = ("bouts: identification on several bouts needs the pose sampled at the shape stamps "
+                    "(as `suds import` writes it); this recording's pose stream has stamps of its own")
+
+
+def _recordings(rec: Recording | Sequence[Recording]) -> list[Recording]:
+    """``rec`` as a non-empty list of recordings of the same joints and roles."""
+    recs = [rec] if isinstance(rec, Recording) else list(rec)
+    if not recs or not all(isinstance(r, Recording) for r in recs):
+        raise SudsConfigError(f"`rec`: expected a Recording or a non-empty sequence of them, got {rec!r}")
+    first = recs[0]
+    for k, r in enumerate(recs[1:], 1):
+        if r.joint_names != first.joint_names or r.actuated != first.actuated:
+            raise SudsDataError(f"`rec`: recording {k} has joints {list(r.joint_names)} (actuated "
+                                f"{list(r.actuated)}), recording 0 {list(first.joint_names)} (actuated "
+                                f"{list(first.actuated)}): expected the same")
+    return recs
+
+
+def _joined(recs: list[Recording]) -> Recording:
+    """The bouts' shape samples end to end on one uniform clock (for the phaser only)."""
+    from dataclasses import replace
+
+    r = np.concatenate([x.r for x in recs])
+    dt = float(np.median([x.dt for x in recs]))
+    t = recs[0].t[0] + dt * np.arange(r.shape[0])
+    return replace(recs[0], t=t, r=r, pose_t=t[[0, -1]], pose=np.zeros((2, 3)), effort=None, truth={})
+
+
+def _merged(parts: list[_Samples]) -> _Samples:
+    """The regression data of several bouts, one after the other (``iv.k`` indexes each bout's own samples)."""
+    if any(p.pose is not None for p in parts):
+        raise SudsDataError(_POSE_STAMPS_MSG)
+    ivs = [p.iv for p in parts]
+    effort = None if ivs[0].effort is None else np.concatenate([iv.effort for iv in ivs])  # type: ignore[misc]
+    iv = Intervals(t=np.concatenate([iv.t for iv in ivs]), k=np.concatenate([iv.k for iv in ivs]),
+                   r=np.concatenate([iv.r for iv in ivs]), rdot=np.concatenate([iv.rdot for iv in ivs]),
+                   xi=np.concatenate([iv.xi for iv in ivs]), effort=effort,
+                   dt=np.concatenate([iv.dt for iv in ivs]))
+    return _Samples(iv, np.concatenate([p.ph for p in parts]), np.concatenate([p.Y for p in parts]), None)
 
 
 def _rows(config: SudsConfig, X: FloatArray, n_actuated: int, kernel_scale: object) -> object:
@@ -421,3 +487,55 @@ def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tup
     if stop == n_cycles:
         k_stop = rec.n_samples
     return rec.slice(0, int(k_train)), rec.slice(int(k_train), int(k_stop))
+
+
+def split_bouts(rec: Recording, n_train: int, n_test: int | None = None
+                ) -> tuple[list[Recording], list[Recording]]:
+    """Whole bouts for training and for the held-out test, from ``rec.bouts``.
+
+    The first bouts in time whose cycles (duration × ``rec.gait_hz``, each bout's duration
+    counting its last sample's period) reach ``n_train`` train; the following bouts, up to
+    ``n_test`` cycles (default: every bout left), are held out.  No bout is cut.
+
+    Raises
+    ------
+    SudsDataError
+        (code ``too_little_data``) no bouts, fewer than two, or too few cycles in them to train
+        on ``n_train`` cycles and still hold out one whole bout; the message names the bouts
+        and cycles there are.
+    """
+    hz = rec.gait_hz or 1.0
+    dt = rec.dt
+    pieces: list[Recording] = []
+    for a, b in rec.bouts:
+        eps = 1e-9 * max(1.0, abs(b))  # stamps round-tripped through the metadata text
+        k0 = int(np.searchsorted(rec.t, a - eps, side="left"))
+        k1 = int(np.searchsorted(rec.t, b + eps, side="right"))
+        if k1 - k0 >= 2:
+            pieces.append(rec.slice(k0, k1))
+    cycles = [float((p.t[-1] - p.t[0] + dt) * hz) for p in pieces]
+    total = sum(cycles)
+    what = (f"the recording's {len(pieces)} bouts hold {total:.1f} cycles of {1.0 / hz:g} s "
+            f"({', '.join(f'{c:.1f}' for c in cycles) or 'none'})")
+    if len(pieces) < 2:
+        raise SudsDataError(f"cannot hold out whole bouts: {what}; need at least 2 bouts (one to train on, "
+                            "one to hold out)", code=TOO_LITTLE_DATA)
+    if n_train < 1:
+        raise SudsDataError(f"cannot train on {n_train} cycles: expected at least 1", code=TOO_LITTLE_DATA)
+    done, k = 0.0, 0
+    while k < len(pieces) and done < n_train - 1e-9:
+        done += cycles[k]
+        k += 1
+    if done < n_train - 1e-9 or k >= len(pieces):
+        most = total - cycles[-1]
+        raise SudsDataError(f"cannot train on {n_train} cycles of whole bouts and hold out a whole bout: {what}; "
+                            f"at most {most:.1f} cycles can train (pass --train-cycles {int(np.floor(most))} or "
+                            "fewer)", code=TOO_LITTLE_DATA)
+    test: list[Recording] = []
+    held = 0.0
+    for p, c in zip(pieces[k:], cycles[k:]):
+        if n_test is not None and test and held >= n_test - 1e-9:
+            break
+        test.append(p)
+        held += c
+    return pieces[:k], test
