@@ -51,6 +51,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--catalogue-only", action="store_true",
                    help="suspect only the catalogue effects, not the robot model's own parameters "
                         "(link lengths, link drag, pose frame; all suspected by default)")
+    p.add_argument("--propose-experiment", metavar="DIR", default=None,
+                   help="for an ambiguous finding, write to DIR the gait (suds-gait/1) that best tells the "
+                        "explanations apart, and say how many cycles of it would")
     p.add_argument("-o", "--output", metavar="REPORT_DIR",
                    help="write figures, report.json and summary.txt here")
     add_recording_options(p)
@@ -62,10 +65,9 @@ def run(args: argparse.Namespace) -> int:
     from suds_ros.core.diagnosis import DiagnoseConfig, diagnose_recording
     from suds_ros.report.diagnosis import summary_text, write_figures
 
-    if args.output:
-        out = Path(args.output)
-        if out.exists() and not out.is_dir():
-            raise SudsConfigError(f"-o {str(out)!r}: exists and is not a directory")
+    for flag, value in (("-o", args.output), ("--propose-experiment", args.propose_experiment)):
+        if value and Path(value).exists() and not Path(value).is_dir():
+            raise SudsConfigError(f"{flag} {value!r}: exists and is not a directory")
     rec, model = load_recording_and_model(args.bag, args)
     ref = load_recording(args.sim, args) if args.sim else None
     quiet = args.json or not sys.stderr.isatty()
@@ -74,10 +76,59 @@ def run(args: argparse.Namespace) -> int:
     config = DiagnoseConfig(model_suspects=not args.catalogue_only)
     rep = diagnose_recording(rec, system=system, config=config, reference=ref, progress=progress, model=model)
     paths = write_figures(rep, args.output) if args.output else []
+    experiments: list[dict[str, object]] = []
+    lines: list[str] = []
+    if args.propose_experiment:
+        experiments, lines = _experiments(rep, rec, model, system, config, Path(args.propose_experiment))
     if args.json:
-        print(rep.to_json())
+        if args.propose_experiment:
+            from suds_ros.core.json_text import dumps
+
+            print(dumps({**rep.to_dict(), "experiments": experiments}))
+        else:
+            print(rep.to_json())
         return 0
     print(summary_text(rep, str(args.bag)))
+    for line in lines:
+        print(line)
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _experiments(rep, rec, model, system, config, out: Path) -> tuple[list[dict[str, object]], list[str]]:  # type: ignore[no-untyped-def]
+    """Propose a settling experiment for each alternative of the finding; write the gaits to ``out``.
+
+    Returns the JSON entries and the report lines.  Nothing is overwritten: an existing file of
+    the same name is an error.
+    """
+    from suds_ros.core.diagnosis.experiment import propose_for_report
+    from suds_ros.core.physics.gait import dump_gait
+    from suds_ros.core.physics.systems import load_system
+
+    chain = model if model is not None else load_system(system or rec.system).model
+    chain = chain.with_(gait_hz=rec.gait_hz or chain.gait_hz)
+    proposals = propose_for_report(rep, chain, rec.dt, config)
+    if not proposals:
+        return [], ["  experiment: none proposed (the finding has no alternatives)"]
+    out.mkdir(parents=True, exist_ok=True)
+    entries: list[dict[str, object]] = []
+    lines = ["  experiments that settle the ambiguity (suds simulate --gait FILE, or run it on the robot):"]
+    for i, p in enumerate(proposals, start=1):
+        entry = p.as_dict()
+        if p.gait is None:
+            entry["gait_file"] = None
+            lines.append(f"    {p.reported} OR {p.alternative}: no drive within the joint range and speed "
+                         f"separates them ({p.nats_per_cycle:.3g} nats per cycle at best): for this robot they "
+                         "are the same physics")
+        else:
+            path = out / f"experiment_{i}.yaml"
+            if path.exists():
+                raise SudsConfigError(f"--propose-experiment: {str(path)!r} exists; nothing overwritten")
+            path.write_text(dump_gait(p.gait))
+            entry["gait_file"] = str(path)
+            lines.append(f"    {p.reported} OR {p.alternative}: run {path} for {p.cycles} cycles "
+                         f"({p.nats_per_cycle:.3g} nats per cycle between them, against "
+                         f"{p.nominal_nats_per_cycle:.3g} under the nominal gait; {p.threshold:g} nats settle it)")
+        entries.append(entry)
+    return entries, lines

@@ -1,0 +1,302 @@
+"""An experiment that settles an ambiguous finding: the drive under which two explanations differ most.
+
+When the diagnosis reports a finding with alternatives (:class:`~.report.Alternative`), the
+recording cannot tell the explanations apart: under the drive that was run their predictions
+agree to within the noise.  Under another drive they may not.  This module searches the robot's
+admissible gaits (``shared/spec/gait.md``: joint range and joint speed per actuated joint, the
+robot's gait frequency, K ≤ 3 harmonics) for the one that separates the two explanations best.
+
+Separation of a gait, in nats per cycle: both explanations are simulated under the gait (two
+warm-up cycles, then one cycle at the passive periodic steady state, batched over candidate
+gaits), and the expected log-likelihood ratio of one cycle of recording between them is
+
+    ½ Σ_samples Σ_j (Δr_p,j / σ_j)²  +  ½ Σ_windows Σ_c (Δξ_c / floor_c)²,
+
+with the recording's own noise floors (σ_j of each passive angle; the windowed body velocity's
+floors on non-overlapping windows, as the diagnosis' output error counts them).  Because a new
+recording would refit each explanation's parameters, the final separation is measured after
+refitting the alternative's parameters to the reported set's predictions under the proposed gait
+(and vice versa; the smaller of the two counts): a difference that a parameter change absorbs is
+no separation.  The search: the nominal gait, seeded random admissible gaits around it, then
+random steps around the best; the best few and the nominal gait are refitted, and the best of
+them is proposed (so never a drive that separates less than the one already run).
+
+Cycles needed: the diagnosis scores held-out evidence on half of the cycles, so a recording of
+N cycles gives about ½·N·(nats per cycle) between the explanations; N is the smallest count (at
+least 8) for which that reaches ``evidence_threshold``.  Explanations that no admissible drive
+separates (the same physics, e.g. one passive joint's stiffness and the global stiffness-to-drag
+scale) are reported as such, with no gait.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.diagnosis.replay import measure
+from suds_ros.core.diagnosis.report import Alternative, DiagnoseConfig, DiagnosisReport, FittedEffect
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.gait import Gait, GaitLimits, constraint_grid, constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.integrate import integrate_batch
+from suds_ros.core.physics.rft import ChainModel, RFTChain
+from suds_ros.core.physics.sim import auto_substeps
+
+#: an effect as ``apply_effects`` takes it
+Effect = dict[str, object]
+
+#: below this many nats per cycle no recording of reasonable length separates two explanations
+INSEPARABLE_NATS = 0.05
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """How the experiment is searched.
+
+    Parameters
+    ----------
+    order : int
+        Harmonics K of the proposed gait (≤ 3 per ``gait.md``).
+    candidates : int
+        Random admissible gaits in the first round (and again around the best in the second).
+    refit : int
+        Best candidates whose separation is measured after refitting the parameters.
+    warm_cycles : int
+        Cycles simulated before the scored cycle (the passive joints settle).
+    seed : int
+        Seed of the random search.
+    min_cycles : int
+        Fewest cycles a proposal asks for (the diagnosis needs whole halves to train and test).
+    """
+
+    order: int = 2
+    candidates: int = 48
+    refit: int = 3
+    warm_cycles: int = 2
+    seed: int = 0
+    min_cycles: int = 8
+
+    def __post_init__(self) -> None:
+        for name, ok in (("order", 1 <= self.order <= 3), ("candidates", self.candidates >= 1),
+                         ("refit", self.refit >= 1), ("warm_cycles", self.warm_cycles >= 1),
+                         ("min_cycles", self.min_cycles >= 4)):
+            if not ok:
+                raise SudsConfigError(f"`{name}`: value {getattr(self, name)!r} out of range")
+
+
+@dataclass(frozen=True)
+class ProposedExperiment:
+    """The drive that best tells the reported explanation from one alternative.
+
+    ``gait`` is None when no admissible drive separates them (``separable`` False).
+    ``nats_per_cycle``: expected evidence between them per cycle under ``gait`` (after refitting);
+    ``nominal_nats_per_cycle`` the same under the nominal gait; ``cycles`` the cycles of ``gait``
+    that give ``threshold`` nats of held-out evidence.
+    """
+
+    reported: str
+    alternative: str
+    gait: Gait | None
+    nats_per_cycle: float
+    nominal_nats_per_cycle: float
+    cycles: int | None
+    threshold: float
+
+    @property
+    def separable(self) -> bool:
+        return self.gait is not None
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "reported": self.reported,
+            "alternative": self.alternative,
+            "separable": self.separable,
+            "nats_per_cycle": float(self.nats_per_cycle),
+            "nominal_nats_per_cycle": float(self.nominal_nats_per_cycle),
+            "cycles": self.cycles,
+            "threshold": float(self.threshold),
+        }
+
+
+def _label(parts: Sequence[tuple[str, str | None]]) -> str:
+    return " + ".join(n if t is None else f"{n}:{t}" for n, t in parts)
+
+
+def _as_effect(name: str, target: str | None, params: Mapping[str, float]) -> Effect:
+    e: Effect = {"name": name, **{k: float(v) for k, v in params.items()}}
+    if target is not None:
+        e["link" if EFFECTS[name].needs_link else "joint"] = target
+    return e
+
+
+def effect_sets(effects: Sequence[FittedEffect], alt: Alternative) -> tuple[list[Effect], list[Effect]]:
+    """The reported set and the alternative set, as effect dicts for ``apply_effects``."""
+    reported = [_as_effect(e.name, e.target, e.parameters) for e in effects]
+    dropped = set(alt.instead_of)
+    keep = [e for e in effects if _label([(e.name, e.target)]) not in dropped]
+    other = [_as_effect(e.name, e.target, e.parameters) for e in keep]
+    other.append(_as_effect(alt.name, alt.target, alt.parameters))
+    other.extend(_as_effect(n, t, p) for n, t, p in alt.with_effects)
+    return reported, other
+
+
+class _Simulator:
+    """Batched steady-cycle outputs of an explanation under candidate gaits."""
+
+    def __init__(self, base: ChainModel, floors: Mapping[str, float], names: Sequence[str],
+                 dt: float, w: int, warm_cycles: int) -> None:
+        self.base = base
+        self.system = RFTChain(base)
+        self.act = np.asarray(base.actuated, dtype=np.intp)
+        self.pas = np.asarray(base.passive, dtype=np.intp)
+        self.dt, self.w = float(dt), int(w)
+        self.spc = int(round(1.0 / (base.gait_hz * dt)))
+        self.m = (warm_cycles + 1) * self.spc + self.w
+        self.t = np.arange(self.m) * self.dt
+        self.first = warm_cycles * self.spc
+        sig = [floors.get(names[j], float("nan")) for j in self.pas]
+        self.sig_rp = np.asarray(sig, dtype=float)
+        self.sig_xi = np.array([floors.get("xi_x", np.nan), floors.get("xi_y", np.nan),
+                                floors.get("xi_theta", np.nan)], dtype=float)
+        self.substeps = min(auto_substeps(self.system, self.dt, accuracy=0.4), 8)
+
+    def outputs(self, effects: Sequence[Effect], gaits: Sequence[Gait]) -> tuple[FloatArray, FloatArray]:
+        """Scored cycle of r_p (B, spc, np) and non-overlapping windowed ξ (B, spc // w, 3)."""
+        model, delay = apply_effects(self.base, list(effects))
+        still = model.with_(flow=(0.0, 0.0))
+        ra = np.stack([g.r(self.t) for g in gaits])
+        B = ra.shape[0]
+        nj = self.act.size + self.pas.size
+        rest = np.broadcast_to(np.asarray(model.rest, dtype=float), (nj,))[self.pas]
+        rp0 = np.zeros((B, self.pas.size)) + rest
+        RP, P = integrate_batch(RFTChain(still).velocities, self.act, self.pas, ra, rp0, np.zeros((B, 3)),
+                                self.dt, self.substeps)
+        xi = measure(P, np.broadcast_to(self.t, (B, self.m)), model.flow, delay, self.w, self.dt)
+        a, b = self.first, self.first + self.spc
+        return RP[:, a:b], xi[:, a:b:self.w]
+
+    def nats(self, A: tuple[FloatArray, FloatArray], Bo: tuple[FloatArray, FloatArray]) -> FloatArray:
+        """Expected log-likelihood ratio of one cycle between two explanations' outputs, per gait."""
+        drp = (A[0] - Bo[0]) / self.sig_rp if self.pas.size else np.zeros(A[0].shape)
+        dxi = (A[1] - Bo[1]) / self.sig_xi
+        rp = np.nansum(drp**2, axis=(1, 2)) if drp.size else np.zeros(A[0].shape[0])
+        return 0.5 * (rp + np.nansum(dxi**2, axis=(1, 2)))
+
+
+def _admissible(x: FloatArray, template: Gait, order: int, limits: GaitLimits) -> Gait:
+    """The gait of flat parameters ``x`` shrunk per joint (towards zero) until it meets the limits."""
+    g = template.from_vector(x, order, objective=None, predicted=())
+    t = constraint_grid(order, g.gait_hz)
+    r, v = np.abs(g.r(t)).max(axis=0), np.abs(g.rdot(t)).max(axis=0)
+    lim, spd = np.asarray(limits.limit), np.asarray(limits.speed_limit)
+    s = np.minimum(1.0, np.minimum(lim / np.maximum(r, 1e-300), spd / np.maximum(v, 1e-300))) * (1 - 1e-9)
+    m = np.asarray(x, dtype=float).reshape(len(g.joints), 2 * order + 1) * s[:, None]
+    return template.from_vector(m.ravel(), order, objective=None, predicted=())
+
+
+def _refit(sim: _Simulator, fixed: Sequence[Effect], free: Sequence[Effect], gait: Gait) -> float:
+    """Nats per cycle between ``fixed`` and ``free`` under ``gait`` after refitting ``free``'s parameters."""
+    target = sim.outputs(fixed, [gait])
+    names = [(e, [p for p in EFFECTS[str(e["name"])].param_names]) for e in free]
+    x0 = np.array([float(e[p]) for e, ps in names for p in ps])  # type: ignore[arg-type]
+    lo = np.array([q.lower for e, _ in names for q in EFFECTS[str(e["name"])].params])
+    hi = np.array([q.upper for e, _ in names for q in EFFECTS[str(e["name"])].params])
+    scale = np.array([q.scale for e, _ in names for q in EFFECTS[str(e["name"])].params])
+    x0 = np.clip(x0, lo + 1e-6 * scale, hi - 1e-6 * scale)
+
+    def effects(x: FloatArray) -> list[Effect]:
+        out, i = [], 0
+        for e, ps in names:
+            d = dict(e)
+            for p in ps:
+                d[p] = float(x[i])
+                i += 1
+            out.append(d)
+        return out
+
+    def resid(x: FloatArray) -> FloatArray:
+        try:
+            rp, xi = sim.outputs(effects(x), [gait])
+        except (SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+            return np.full(target[0].size + target[1].size, 1e3)
+        drp = ((rp - target[0]) / sim.sig_rp).ravel() if sim.pas.size else np.zeros(0)
+        dxi = np.nan_to_num(((xi - target[1]) / sim.sig_xi).ravel())
+        return np.concatenate([drp, dxi])
+
+    if x0.size == 0:
+        return float(0.5 * np.sum(resid(x0) ** 2))
+    sol = scipy.optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=scale, max_nfev=20 * (x0.size + 1))
+    return float(min(0.5 * np.sum(sol.fun**2), 0.5 * np.sum(resid(x0) ** 2)))
+
+
+def propose(
+    base: ChainModel, reported: Sequence[Effect], alternative: Sequence[Effect], floors: Mapping[str, float],
+    dt: float, w: int, threshold: float, config: ExperimentConfig = ExperimentConfig(),
+    labels: tuple[str, str] = ("reported", "alternative"),
+) -> ProposedExperiment:
+    """The admissible gait that best separates ``reported`` from ``alternative`` on ``base``.
+
+    ``floors`` are the recording's noise floors by channel (passive joint names, ``xi_x``,
+    ``xi_y``, ``xi_theta``), ``dt`` its sample period (s) and ``w`` the body-velocity window.
+    """
+    system = RFTChain(base)
+    nominal = nominal_gait(system)
+    limits = gait_limits(system, nominal)
+    names = system.joint_names
+    sim = _Simulator(base, floors, names, dt, w, config.warm_cycles)
+    order = config.order
+    rng = np.random.default_rng(config.seed)
+    x_nom = nominal.to_vector(order)
+    span = np.repeat(np.asarray(limits.limit), 2 * order + 1)
+
+    def score(gaits: list[Gait]) -> FloatArray:
+        return sim.nats(sim.outputs(reported, gaits), sim.outputs(alternative, gaits))
+
+    nominal_adm = _admissible(x_nom, nominal, order, limits)
+    pool = [nominal_adm] + [_admissible(x_nom + rng.normal(0.0, 0.6, x_nom.size) * span, nominal, order, limits)
+                            for _ in range(config.candidates)]
+    s = score(pool)
+    best = pool[int(np.nanargmax(s))]
+    xb = best.to_vector(order)
+    pool2 = [_admissible(xb + rng.normal(0.0, 0.2, xb.size) * span, nominal, order, limits)
+             for _ in range(config.candidates)]
+    s2 = score(pool2)
+    allg, alls = pool + pool2, np.concatenate([s, s2])
+    # the nominal gait first: the proposal is never worse than the drive already run
+    top = [nominal_adm] + [allg[i] for i in np.argsort(-np.nan_to_num(alls, nan=-np.inf))[: config.refit] if i]
+    refitted = [min(_refit(sim, reported, alternative, g), _refit(sim, alternative, reported, g)) for g in top]
+    nom_nats = refitted[0]
+    k = int(np.argmax(refitted))
+    nats = refitted[k]
+    if not nats > INSEPARABLE_NATS:
+        return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold)
+    gait = top[k]
+    bad = constraint_violations(gait, limits)
+    if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
+        raise SudsConfigError(f"proposed gait violates its limits: {bad}")
+    cycles = max(config.min_cycles, int(math.ceil(2.0 * threshold / nats)))
+    gait = Gait(gait.system, gait.gait_hz, gait.joints, gait.offset, gait.cos, gait.sin)
+    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold)
+
+
+def propose_for_report(
+    rep: DiagnosisReport, base: ChainModel, dt: float, config: DiagnoseConfig = DiagnoseConfig(),
+    experiment: ExperimentConfig = ExperimentConfig(),
+) -> tuple[ProposedExperiment, ...]:
+    """One proposal per alternative of the report's first effect (none without alternatives)."""
+    if not rep.effects or not rep.effects[0].alternatives:
+        return ()
+    w = max(1, int(round(config.window / dt)))
+    out = []
+    label = _label([(e.name, e.target) for e in rep.effects])
+    for alt in rep.effects[0].alternatives:
+        a, b = effect_sets(rep.effects, alt)
+        alt_label = _label([(str(e["name"]), e.get("joint") or e.get("link")) for e in b])  # type: ignore[misc]
+        out.append(propose(base, a, b, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
+                           (label, alt_label)))
+    return tuple(out)

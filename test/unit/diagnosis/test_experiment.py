@@ -1,0 +1,52 @@
+"""The experiment that settles an ambiguous finding (:mod:`suds_ros.core.diagnosis.experiment`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.diagnosis.experiment import ExperimentConfig, effect_sets, propose
+from suds_ros.core.diagnosis.report import Alternative, FittedEffect
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.systems import purcell3_model
+
+FLOORS = {"joint_2": 1.3e-3, "xi_x": 0.0145, "xi_y": 0.0145, "xi_theta": 0.015}
+FAST = ExperimentConfig(candidates=12, refit=2)
+
+
+def test_the_same_physics_is_not_separable() -> None:
+    """With one passive joint, its stiffness and the global stiffness-to-drag scale are one
+    parameter: no drive tells them apart, and no gait is proposed."""
+    base = purcell3_model()
+    p = propose(base, [dict(name="stiffness_to_drag_error", scale=0.7)],
+                [dict(name="joint_stiffness_error", joint="joint_2", scale=0.9)], FLOORS, 0.01, 10, 60.0, FAST)
+    assert p.gait is None and p.cycles is None and not p.separable
+    assert p.nats_per_cycle < 0.05
+
+
+def test_a_cubic_spring_and_a_stiffer_spring_are_told_apart_by_a_drive_within_the_limits() -> None:
+    """Under the nominal gait a cubic spring looks much like a stiffer linear one; the proposal
+    finds a drive (within joint range and speed) that separates them better, after refitting."""
+    base = purcell3_model()
+    a = [dict(name="spring_nonlinearity", joint="joint_2", k3=3.0)]
+    b = [dict(name="joint_stiffness_error", joint="joint_2", scale=1.2)]
+    p = propose(base, a, b, FLOORS, 0.01, 10, 60.0, FAST)
+    assert p.separable and p.gait is not None
+    assert p.nats_per_cycle >= p.nominal_nats_per_cycle > 0
+    assert p.cycles == max(8, int(np.ceil(2 * 60.0 / p.nats_per_cycle)))
+    system = RFTChain(base)
+    assert constraint_violations(p.gait, gait_limits(system, nominal_gait(system))) == []
+    assert p.gait.joints == tuple(system.joint_names[i] for i in system.actuated)
+    assert p.as_dict()["separable"] is True
+
+
+def test_effect_sets_swap_the_alternative_for_what_it_replaces() -> None:
+    effects = (FittedEffect("joint_viscous_damping", "joint_2", {"d": 0.3}, {"d": 0.01}, 70.0,
+                            (Alternative("joint_coulomb_friction", "joint_2", {"mu": 0.1}, 3.0,
+                                         instead_of=("joint_viscous_damping:joint_2",)),)),
+               FittedEffect("background_flow", None, {"vx": 0.1, "vy": 0.0}, {"vx": 0.01, "vy": 0.01}, 200.0))
+    a, b = effect_sets(effects, effects[0].alternatives[0])
+    assert [e["name"] for e in a] == ["joint_viscous_damping", "background_flow"]
+    assert [e["name"] for e in b] == ["background_flow", "joint_coulomb_friction"]
+    assert b[1] == {"name": "joint_coulomb_friction", "joint": "joint_2", "mu": pytest.approx(0.1)}
