@@ -65,6 +65,10 @@ META_SYSTEM = "system"
 META_ACTUATED = "actuated"
 META_PASSIVE = "passive"
 META_GAIT_HZ = "gait_hz"
+#: a second metadata record (not part of the ``suds`` record's contract): the gait that drove the run
+GAIT_METADATA_NAME = "suds_gait"
+#: its one key: the ``suds-gait/1`` file text
+META_GAIT_YAML = "yaml"
 #: frame of the recorded body pose
 WORLD_FRAME = "world"
 
@@ -558,6 +562,9 @@ class RecordingWriter:
         Nominal gait frequency, Hz (metadata, if known).
     overwrite, compression, shape_topic, pose_topic
         As :func:`write_recording`.
+    gait_yaml : str or None
+        The ``suds-gait/1`` text of the gait that drove the run: written as its own metadata
+        record ``suds_gait`` (key ``yaml``), beside the contract's ``suds`` record.
 
     Raises
     ------
@@ -568,7 +575,7 @@ class RecordingWriter:
     def __init__(self, path: str | Path, *, system: str, joint_names: Sequence[str],
                  actuated: Sequence[str], passive: Sequence[str], gait_hz: float | None = None,
                  overwrite: bool = False, compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
-                 pose_topic: str = POSE_TOPIC) -> None:
+                 pose_topic: str = POSE_TOPIC, gait_yaml: str | None = None) -> None:
         self.joint_names = tuple(joint_names)
         self._topics = (shape_topic, pose_topic)
         meta = {META_SYSTEM: system, META_ACTUATED: ",".join(actuated), META_PASSIVE: ",".join(passive)}
@@ -579,6 +586,8 @@ class RecordingWriter:
         self._writer.add_topic(shape_topic, SHAPE_TYPE)
         self._writer.add_topic(pose_topic, POSE_TYPE)
         self._writer.write_metadata(METADATA_NAME, meta)
+        if gait_yaml is not None:  # its own record: readers of the contract never see it
+            self._writer.write_metadata(GAIT_METADATA_NAME, {META_GAIT_YAML: gait_yaml})
         nj = len(self.joint_names)
         # samples not yet written: stamps (ns) and values, per stream
         self._shape_ns, self._r = np.empty(0, dtype=np.int64), np.empty((0, nj))
