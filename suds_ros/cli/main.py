@@ -49,7 +49,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``suds``."""
-    from suds_ros.cli import diagnose, identify, inspect, model, monitor, simulate
+    from suds_ros.cli import diagnose, identify, inspect, model, monitor, optimize, simulate
 
     parser = _Parser(
         prog="suds",
@@ -64,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     diagnose.add_parser(sub)
     monitor.add_parser(sub)
     model.add_parser(sub)
+    optimize.add_parser(sub)
     return parser
 
 
