@@ -46,6 +46,8 @@ SHAPE_TOPIC = "/suds/shape"
 POSE_TOPIC = "/suds/body_pose"
 # topics the suds_ros nodes add
 SYSTEM_TOPIC = "/suds/system"
+#: the gait in force (std_msgs/String, the suds-gait/1 text; latched), published by the simulator
+GAIT_TOPIC = "/suds/gait"
 MODEL_TOPIC = "/suds/model"
 STATUS_TOPIC = "/suds/status"
 PREDICTED_BODY_TOPIC = "/suds/predicted/body_velocity"
