@@ -88,3 +88,48 @@ def test_gait_switch_without_a_jump(start_process, node_command, probe, tmp_path
     dev = r1[after] - new.r(t[after] - onset)[:, 0]
     assert np.sqrt(np.mean(dev**2)) < 0.35
     assert stop(sim) == 0, sim.output()
+
+
+# ------------------------------------------------------------------ in process
+def test_gait_message_round_trip_and_refusal() -> None:
+    from std_msgs.msg import String
+
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.core.physics.gait import nominal_gait
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.ros.conversions import gait_from_msg, gait_to_msg
+
+    g = nominal_gait(make_system("swimmer9"))
+    assert gait_from_msg(gait_to_msg(g)) == g
+    with pytest.raises(SudsConfigError, match="/suds/gait: `format`"):
+        gait_from_msg(String(data="format: other\n"))
+
+
+def test_start_gait_file_drives_the_stream_and_a_bad_one_stops_the_node(ros_context, tmp_path: Path):
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.core.physics.gait import nominal_gait, save_gait
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.ros.simulator_node import SimulatorNode
+
+    g = nominal_gait(make_system("purcell3")).from_vector(np.array([0.2, 0.0, 0.9]), 1)
+    good, bad = tmp_path / "g.yaml", tmp_path / "s9.yaml"
+    save_gait(g, good)
+    save_gait(nominal_gait(make_system("swimmer9")), bad)
+    node = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter("real_time_factor", value=0.0), Parameter("noise", value=0.0),
+        Parameter("gait_file", value=str(good))])
+    try:
+        assert node.describe_parameter("gait_file").read_only is False
+        assert node.sim.gait == g
+        res = node.set_parameters([Parameter("gait_file", value=str(tmp_path / "none.yaml"))])[0]
+        assert not res.successful and "cannot read the gait file" in res.reason
+        assert node.set_parameters([Parameter("gait_file", value="")])[0].successful  # back to nominal
+        for _ in range(101):
+            node._next_sample()
+        assert node.sim.gait == nominal_gait(make_system("purcell3"))
+    finally:
+        node.destroy_node()
+    with pytest.raises(SudsConfigError, match="the gait is for 'swimmer9'"):
+        SimulatorNode(context=ros_context, parameter_overrides=[Parameter("gait_file", value=str(bad))])

@@ -356,7 +356,12 @@ class _Problem:
         X = np.concatenate([np.repeat(x[None], m + 1, axis=0), x[None] + step_fd * np.eye(x.size)[self.free]])
         eye = np.eye(m)
         rp = self.rp.copy()
-        for _ in range(self.max_iter):
+        for it in range(2 * self.max_iter):
+            if it == self.max_iter:  # Newton from the last steady state failed: relax by plain cycles, retry
+                for _ in range(20):
+                    rp = ev.cycle(x[None], rp[None])[0][0]
+                if not np.all(np.isfinite(rp)):
+                    raise FloatingPointError("a candidate gait's cycle is not finite")
             starts = np.concatenate([rp[None], rp[None] + eps * eye, np.repeat(rp[None], p, axis=0)])
             P, g, w = ev.cycle(X, starts)
             y = np.concatenate([g, w[:, None]], axis=1)
@@ -371,7 +376,7 @@ class _Problem:
             if np.max(np.abs(step), initial=0.0) <= self.tol:
                 break
         else:
-            raise FloatingPointError(f"no periodic steady state after {self.max_iter} Newton steps")
+            raise FloatingPointError(f"no periodic steady state after {2 * self.max_iter} Newton steps")
         self.rp = rp
         out = self._outputs(ys[:, :3], ys[:, 3])
         self._val = out[0]
