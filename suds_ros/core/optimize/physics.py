@@ -250,7 +250,8 @@ class CycleEvaluator:
             rp = new
             if done:
                 return CycleResult(g_c=y0[:, :3], work=y0[:, 3], r_p=rp), phi, gy
-        raise FloatingPointError(f"no periodic steady state after {max_iter} Newton steps (|F| = {np.max(np.abs(F)):.3g})")
+        raise FloatingPointError(
+            f"no periodic steady state after {max_iter} Newton steps (|F| = {np.max(np.abs(F)):.3g})")
 
     def moved(self, X: FloatArray, base: CycleResult, phi: FloatArray, gy: FloatArray) -> CycleResult:
         """Candidates X (B, p) near a base gait: one cycle from the base's steady state, moved to their own.

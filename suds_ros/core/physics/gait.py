@@ -132,13 +132,13 @@ class Gait:
         return np.array(self.offset), np.array(self.cos), np.array(self.sin)
 
     def at_phase(self, s: FloatArray) -> FloatArray:
-        """r at gait time ``s`` in cycles (phase 2π·s), shape (len(s), na), rad."""
+        """Joint angles at gait time ``s`` in cycles (phase 2π·s), shape (len(s), na), rad."""
         off, c, sn = self.arrays()
         theta = 2 * np.pi * np.outer(np.asarray(s, dtype=float).ravel(), np.arange(1, self.order + 1))
         return off + np.cos(theta) @ c.T + np.sin(theta) @ sn.T
 
     def r(self, t: FloatArray) -> FloatArray:
-        """Joint angles r(t), shape (len(t), na), rad; ``t`` s from the start of a cycle."""
+        """Joint angles at times ``t`` (s from the start of a cycle), shape (len(t), na), rad."""
         return self.at_phase(np.asarray(t, dtype=float) * self.gait_hz)
 
     def rdot(self, t: FloatArray) -> FloatArray:

@@ -1,4 +1,7 @@
-"""The simulator driven by a gait: the nominal gait as a file reproduces the nominal run; the stream switches gait without a jump."""
+"""The simulator driven by a gait.
+
+The nominal gait as a gait reproduces the nominal run; the stream switches gait without a jump.
+"""
 
 from __future__ import annotations
 
