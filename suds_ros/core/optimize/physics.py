@@ -333,6 +333,7 @@ class _Problem:
         self.free = np.asarray(free)
         self.rp = np.array(rp0, dtype=float).reshape(-1)
         self.tol, self.max_iter = tol, max_iter
+        self.failed = 0  # evaluations without a steady state
         self._key: bytes | None = None
         self._val = np.empty(3)
         self._grad = np.empty((0, 3))
@@ -387,7 +388,15 @@ class _Problem:
         """[objective, constraint 1, constraint 2] at x (a copy: the caller may keep or change it)."""
         key = x.tobytes()
         if key != self._key:
-            self._evaluate(x)
+            try:
+                with np.errstate(all="ignore"):
+                    self._evaluate(x)
+            except (FloatingPointError, np.linalg.LinAlgError):
+                # a trial point without a steady state (far outside the bounds, or the integration
+                # broke down): much worse than anything seen and infeasible, so the line search backs off
+                self.failed += 1
+                self._val = np.array([10.0, -1.0, -1.0])
+                self._grad = np.zeros((self.free.size, 3))
             self._key = key
         return self._val.copy()
 
@@ -556,6 +565,8 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
             x_end, vals, msg = x0, start_vals, msg + "; kept the start, which was better"
         value = -float(vals[0]) * scale
         feasible = bool(np.all(vals[1:] >= -1e-6))
+        if prob.failed:
+            msg += f"; {prob.failed} trial point(s) without a steady state"
         report.append({"kind": kind, "value": value, "feasible": feasible, "iterations": nit, "message": msg})
         if log is not None:
             log(f"start {len(report)} ({kind}): {cfg.objective} {value:.6g}, "
