@@ -7,7 +7,9 @@ the net motion of the pose frame over that cycle (the pose starts at the identit
 * ``speed`` (m/s) = |translation of g_c|·f, subject to |angle of g_c| ≤ ``max_rotation`` rad;
 * ``turn`` (rad/s) = |angle of g_c|·f, subject to a speed ≥ the nominal gait's;
 * ``efficiency`` (m/J) = |translation of g_c| / W, W = ∫ τ_a·ṙ_a dt over the cycle (τ_a the
-  system's ``actuator_effort``), subject to the same rotation bound as ``speed``.
+  system's ``actuator_effort``), subject to the rotation bound of ``speed`` and, our addition
+  (the spec names none), a speed ≥ the nominal gait's: distance and work both scale as the
+  amplitude squared, so without it the best "efficiency" is a vanishing gait that goes nowhere.
 
 How it is made fast
 -------------------
@@ -22,8 +24,11 @@ How it is made fast
   single cycle from the base gait's steady state and moved to its own steady state by the
   base's linearisation: y* = y + G (I − Φ)⁻¹ (P − r_p*) (error second order in the step).
 * The joint range and speed bounds are linear in the Fourier coefficients: they enter SLSQP as
-  linear inequalities on a grid of ``points_per_harmonic``·K times per cycle; the gait returned
-  is scaled (if need be) to meet them on a 4096-point grid too.
+  linear inequalities on a grid of N = ``points_per_harmonic``·K times per cycle, tightened by
+  cos(π/N) (the most the fundamental can rise between grid points); the gait returned is scaled
+  (if need be) to meet them on a 4096-point grid as well.  The nonlinear constraints are met
+  with a relative margin of 1e-3 inside the optimiser (the speed floor is nominal·1.001, the
+  rotation bound 0.04995 rad), so that the final scaling cannot break them.
 
 Several starts — the nominal gait (padded to order K) and random feasible gaits — run SLSQP;
 the best feasible result is returned with its own steady-state evaluation.
@@ -57,6 +62,8 @@ from suds_ros.core.physics.gait import (
 from suds_ros.core.physics.sim import _rest_angles, _still, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 
+#: relative margin by which the optimiser meets the nonlinear constraints (rotation bound, speed floor)
+MARGIN = 1e-3
 #: code of an objective the physics cannot evaluate
 UNSUPPORTED_OBJECTIVE = "unsupported_objective"
 
@@ -336,21 +343,23 @@ class _Problem:
         self.failed = 0  # evaluations without a steady state
         self._key: bytes | None = None
         self._val = np.empty(3)
-        self._grad = np.empty((0, 3))
+        self._nc = {"speed": 2, "turn": 1, "efficiency": 3}[cfg.objective]
+        self._grad = np.empty((0, 1 + self._nc))
 
     def _outputs(self, g_c: FloatArray, work: FloatArray) -> FloatArray:
-        """Rows (B, 3): minimised objective (scaled), then the two nonlinear constraints (≥ 0)."""
+        """Rows (B, 1 + nc): minimised objective (scaled), then the nonlinear constraints (≥ 0).
+
+        speed: rotation within ±max_rotation; turn: speed ≥ the nominal's; efficiency: both.
+        """
         v = objective_values(CycleResult(g_c=g_c, work=work, r_p=np.empty((g_c.shape[0], 0))), self.ev.gait_hz)
         cfg = self.cfg
-        if cfg.objective == "turn":
-            obj = -self.sign * v["turn"]
-            c1 = v["speed"] / max(self.nominal_speed, 1e-12) - 1.0
-            c2 = c1
-        else:
-            obj = -v[cfg.objective]
-            c1 = 1.0 - v["rotation"] / cfg.max_rotation
-            c2 = 1.0 + v["rotation"] / cfg.max_rotation
-        return np.stack([obj / self.scale, c1, c2], axis=1)
+        cols = [(-self.sign * v["turn"] if cfg.objective == "turn" else -v[cfg.objective]) / self.scale]
+        rot = cfg.max_rotation * (1 - MARGIN)
+        if cfg.objective in ("speed", "efficiency"):
+            cols += [1.0 - v["rotation"] / rot, 1.0 + v["rotation"] / rot]
+        if cfg.objective in ("turn", "efficiency"):
+            cols.append(v["speed"] / (max(self.nominal_speed, 1e-12) * (1 + MARGIN)) - 1.0)
+        return np.stack(cols, axis=1)
 
     def _evaluate(self, x: FloatArray) -> None:
         ev, m, p = self.ev, self.ev.np, self.free.size
@@ -382,7 +391,7 @@ class _Problem:
         self.rp = rp
         out = self._outputs(ys[:, :3], ys[:, 3])
         self._val = out[0]
-        self._grad = (out[m + 1:] - out[0]) / step_fd  # (p, 3)
+        self._grad = (out[m + 1:] - out[0]) / step_fd  # (p, 1 + nc)
 
     def values(self, x: FloatArray) -> FloatArray:
         """[objective, constraint 1, constraint 2] at x (a copy: the caller may keep or change it)."""
@@ -395,13 +404,13 @@ class _Problem:
                 # a trial point without a steady state (far outside the bounds, or the integration
                 # broke down): much worse than anything seen and infeasible, so the line search backs off
                 self.failed += 1
-                self._val = np.array([10.0, -1.0, -1.0])
-                self._grad = np.zeros((self.free.size, 3))
+                self._val = np.array([10.0] + [-1.0] * self._nc)
+                self._grad = np.zeros((self.free.size, 1 + self._nc))
             self._key = key
         return self._val.copy()
 
     def grads(self, x: FloatArray) -> FloatArray:
-        """Their gradients (p_free, 3) at x (a copy)."""
+        """Their gradients (p_free, 1 + nc) at x (a copy)."""
         self.values(x)
         return self._grad.copy()
 
@@ -434,13 +443,17 @@ def _linear_bounds(gait: Gait, order: int, limits: GaitLimits, per_harmonic: int
     A = np.concatenate([np.ones((t.size, 1)), np.cos(th), np.sin(th)], axis=1)
     dA = np.concatenate([np.zeros((t.size, 1)), -np.sin(th) * w, np.cos(th) * w], axis=1)
     p = na * (2 * order + 1)
+    # between grid points the fundamental peaks at most 1/cos(π/N) above its largest grid value
+    # (N = per_harmonic·K points): the bounds are tightened by that factor (higher harmonics may
+    # still rise a little more; the final scaling on a 4096-point grid takes care of that)
+    margin = math.cos(math.pi / (per_harmonic * order))
     rows, bounds = [], []
     for j in range(na):
         for basis, bound in ((A, limits.limit[j]), (dA, limits.speed_limit[j])):
             block = np.zeros((t.size, p))
             block[:, j * (2 * order + 1):(j + 1) * (2 * order + 1)] = basis
             rows += [block / bound, -block / bound]  # rows scaled to bound 1 (well-conditioned QP)
-            bounds += [np.ones(t.size)] * 2
+            bounds += [np.full(t.size, margin)] * 2
     return np.concatenate(rows), np.concatenate(bounds)
 
 
@@ -510,7 +523,8 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
     if cfg.objective == "efficiency" and not (np.isfinite(nominal_value) and nom_res.work[0] > 0):
         raise SudsConfigError(f"`objective`: efficiency needs a positive actuator work per cycle; "
                               f"the nominal gait's is {nom_res.work[0]!r} J", code=UNSUPPORTED_OBJECTIVE)
-    scale = max(abs(nominal_value), 1e-9)
+    # objective scale: the nominal value (a nominal gait that does not turn: the rotation bound's rate)
+    scale = max(abs(nominal_value), cfg.max_rotation * nominal.gait_hz if cfg.objective == "turn" else 1e-9)
     M, b = _linear_bounds(nominal, K, limits, cfg.points_per_harmonic)
     rng = np.random.default_rng(cfg.seed)
     starts: list[tuple[str, FloatArray]] = [("nominal", x_nom)]
@@ -560,11 +574,11 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         x_end = x_end * _feasible_scale(g_end, limits)
         vals = prob.values(x_end)
         start_vals = prob.values(x0)
-        if (start_vals[0] < vals[0] and np.all(start_vals[1:] >= -1e-6)
+        if (start_vals[0] < vals[0] and np.all(start_vals[1:] >= -MARGIN)
                 and _feasible_scale(nominal.from_vector(x0, K), limits) == 1.0):
             x_end, vals, msg = x0, start_vals, msg + "; kept the start, which was better"
         value = -float(vals[0]) * scale
-        feasible = bool(np.all(vals[1:] >= -1e-6))
+        feasible = bool(np.all(vals[1:] >= -MARGIN))  # the true bounds, to ~1e-6
         if prob.failed:
             msg += f"; {prob.failed} trial point(s) without a steady state"
         report.append({"kind": kind, "value": value, "feasible": feasible, "iterations": nit, "message": msg})
@@ -574,7 +588,10 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         if feasible and (best is None or value > best[0]):
             best = (value, x_end)
     if best is None:
-        raise SudsConfigError(f"no start reached a gait within the constraints ({len(starts)} starts)")
+        extra = {"speed": "", "turn": " and a speed ≥ the nominal gait's",
+                 "efficiency": " and a speed ≥ the nominal gait's"}[cfg.objective]
+        raise SudsConfigError(f"`objective` {cfg.objective}: no start reached a gait within the joint bounds"
+                              f"{extra} ({len(starts)} starts, order {K}); try a higher --order or more --starts")
     gait = nominal.from_vector(best[1], K)
     res, _, _ = ev.steady(best[1][None], nom_res.r_p)
     vals = {k: float(v[0]) for k, v in objective_values(res, nominal.gait_hz).items()}

@@ -57,3 +57,14 @@ def test_bad_settings_are_refused() -> None:
         OptimizeConfig(objective="fast")
     with pytest.raises(SudsConfigError, match="`order`: expected 1..8, got 9"):
         OptimizeConfig(order=9)
+
+
+@pytest.mark.parametrize("objective", ["turn", "efficiency"])
+def test_turn_and_efficiency_keep_the_nominal_speed(objective: str) -> None:
+    system = make_system("purcell3")
+    res = optimize_gait(system, OptimizeConfig(objective=objective, order=3, starts=1))
+    assert res.values["speed"] >= res.nominal_values["speed"] * (1 - 1e-6)
+    assert res.value > res.nominal_value and res.gait.objective == objective
+    assert constraint_violations(res.gait, gait_limits(system)) == []
+    if objective == "efficiency":
+        assert abs(res.values["rotation"]) <= 0.05
