@@ -16,7 +16,9 @@ examples:
 
 The objective is read at the passive periodic steady state (shared/spec/gait.md): speed (m/s)
 at a net rotation ≤ 0.05 rad per cycle, turn (rad/s) at a speed ≥ the nominal gait's,
-efficiency (m/J: distance per cycle / actuator work per cycle).  Every gait honours
+efficiency (m/J: distance per cycle / actuator work per cycle) at both (a speed floor is our
+addition: distance and work both scale as the amplitude squared, so without one the best
+efficiency is a gait that barely moves).  Every gait honours
 |r_j| ≤ limit_j and |ṙ_j| ≤ speed_limit_j (the model file's `limit` / `speed_limit`, else the
 nominal gait's range and largest speed) at the frequency of the nominal gait.  The gait file
 written loads back with `suds simulate --gait`.
