@@ -60,6 +60,7 @@ CORE_ALLOWED = {
     "ident": ("phase",),
     "phase": (),
     "physics": (),
+    "optimize": ("physics",),
 }
 
 

@@ -50,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``suds``."""
-    from suds_ros.cli import diagnose, identify, import_tracks, inspect, model, monitor, simulate
+    from suds_ros.cli import diagnose, identify, import_tracks, inspect, model, monitor, optimize, simulate
 
     parser = _Parser(
         prog="suds",
@@ -66,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     monitor.add_parser(sub)
     model.add_parser(sub)
     import_tracks.add_parser(sub)
+    optimize.add_parser(sub)
     return parser
 
 

@@ -16,6 +16,7 @@ examples:
   suds simulate swimmer9 -o s9.mcap --cycles 30 --seed 4 --effect spring_rest_offset:joint_6:offset=0.25
   suds simulate nlink15 -o n15.mcap --noise 0             # a 15-link chain, noise free
   suds simulate --model robot.yaml -o robot.mcap           # your own robot (suds-robot/1 file)
+  suds simulate purcell3 -o opt.mcap --gait fast.yaml --ou-std 0  # a gait file, unperturbed
   suds simulate purcell3 -o lab.mcap --pose-rate 120 --pose-phase-ms 3.7 --jitter-ms 0.4 \
       --drop 0.01 --compression lz4                        # recorded the way a lab records
 
@@ -25,7 +26,10 @@ seed as the aligned run; an option not given is ideal (pose at the shape rate an
 no jitter, nothing dropped).
 
 The drive is r_a = r_ref(t) + η(t), η an Ornstein–Uhlenbeck process
-(dη = −κη dt + σ dW, σ = ou_std·√(2κ)), linearly interpolated between samples.
+(dη = −κη dt + σ dW, σ = ou_std·√(2κ)), linearly interpolated between samples; r_ref is the
+system's nominal gait or the --gait file (suds-gait/1: its `system` must be the simulated one
+and its joints the actuated ones; the bag then carries it in a `suds_gait` metadata record).
+--ou-std 0 switches the perturbation off.
 """
 
 
@@ -46,7 +50,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="stationary std of the OU drive perturbation, rad")
     p.add_argument("--kappa", type=float, default=8.0, help="OU attraction rate κ, 1/s (default 8)")
     p.add_argument("--gait-hz", type=float, default=None,
-                   help="gait frequency, Hz (default: the model file's gait_hz, else 1)")
+                   help="gait frequency, Hz (default: the gait file's, else the model file's gait_hz, else 1)")
+    p.add_argument("--gait", metavar="FILE",
+                   help="gait file (suds-gait/1) to drive the actuated joints instead of the nominal gait")
     p.add_argument("--rate", type=float, default=None, metavar="HZ",
                    help="shape (encoder) sample rate, Hz: a whole number of samples per gait cycle "
                         "(default 100 per cycle)")
@@ -148,11 +154,22 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not args.overwrite:
         raise SudsConfigError(f"output {str(out)!r} exists; pass --overwrite to replace it")
     system = load_system(_system_spec(args))
+    gait = None
+    if args.gait is not None:
+        from suds_ros.core.physics.gait import dump_gait, load_gait
+
+        if not Path(args.gait).is_file():
+            raise SudsConfigError(f"--gait: no such file {args.gait!r}")
+        gait = load_gait(args.gait, system)
+        if args.gait_hz is not None and args.gait_hz != gait.gait_hz:
+            raise SudsConfigError(f"--gait-hz {args.gait_hz:g}: the gait file {args.gait!r} runs at "
+                                  f"{gait.gait_hz:g} Hz; leave --gait-hz out or give the same")
     lab = lab_conditions(args)
     if lab is not None and args.effort:
         raise SudsConfigError("--effort: not recorded with the lab options (effort is defined on "
                               "the aligned sample grid)")
-    gait_hz = args.gait_hz or getattr(getattr(system, "model", None), "gait_hz", 1.0)
+    gait_hz = args.gait_hz or (gait.gait_hz if gait is not None
+                               else getattr(getattr(system, "model", None), "gait_hz", 1.0))
     pose_delay = 1e-3 * (args.sensor_offset_ms or 0.0)
     if args.effect:
         from suds_ros.core.physics.effects import apply_effects
@@ -169,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
                                   f"{gait_hz:g} Hz, got {args.rate:g} Hz")
     cfg = SimConfig(cycles=args.cycles, seed=args.seed, noise_std=args.noise, ou_std=args.ou_std,
                     kappa=args.kappa, substeps=args.substeps, gait_hz=gait_hz,
-                    pose_delay=pose_delay, samples_per_cycle=per_cycle)
+                    pose_delay=pose_delay, samples_per_cycle=per_cycle, gait=gait)
     progress = progress_bar(f"simulating {system.name}")
     if lab is None:
         blocks = simulate_blocks(system, cfg, progress=progress)
@@ -181,7 +198,8 @@ def run(args: argparse.Namespace) -> int:
     act = list(system.actuated)
     writer = RecordingWriter(out, system=system.name, joint_names=names,
                              actuated=[names[i] for i in act], passive=[names[i] for i in system.passive],
-                             gait_hz=gait_hz, overwrite=args.overwrite, compression=args.compression)
+                             gait_hz=gait_hz, overwrite=args.overwrite, compression=args.compression,
+                             gait_yaml=None if gait is None else dump_gait(gait))
     try:
         with writer:
             for b in blocks:
@@ -195,6 +213,7 @@ def run(args: argparse.Namespace) -> int:
         raise
     n_shape, n_pose = writer.counts
     poses = "" if lab is None else f", {n_pose} poses"
+    driven = "" if gait is None else f", gait {args.gait}"
     print(f"wrote {out}: {system.name}, {args.cycles} cycles at {gait_hz:g} Hz, {n_shape} samples"
-          f"{poses}, seed {args.seed}")
+          f"{poses}, seed {args.seed}{driven}")
     return 0

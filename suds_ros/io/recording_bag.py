@@ -46,6 +46,8 @@ SHAPE_TOPIC = "/suds/shape"
 POSE_TOPIC = "/suds/body_pose"
 # topics the suds_ros nodes add
 SYSTEM_TOPIC = "/suds/system"
+#: the gait in force (std_msgs/String, the suds-gait/1 text; latched), published by the simulator
+GAIT_TOPIC = "/suds/gait"
 MODEL_TOPIC = "/suds/model"
 STATUS_TOPIC = "/suds/status"
 PREDICTED_BODY_TOPIC = "/suds/predicted/body_velocity"
@@ -67,6 +69,10 @@ META_PASSIVE = "passive"
 META_GAIT_HZ = "gait_hz"
 #: optional: steady stretches of intermittent motion, ``t_first:t_last`` pairs (s), comma-joined
 META_BOUTS = "bouts"
+#: a second metadata record (not part of the ``suds`` record's contract): the gait that drove the run
+GAIT_METADATA_NAME = "suds_gait"
+#: its one key: the ``suds-gait/1`` file text
+META_GAIT_YAML = "yaml"
 #: frame of the recorded body pose
 WORLD_FRAME = "world"
 
@@ -571,6 +577,9 @@ class RecordingWriter:
         there are any).
     overwrite, compression, shape_topic, pose_topic
         As :func:`write_recording`.
+    gait_yaml : str or None
+        The ``suds-gait/1`` text of the gait that drove the run: written as its own metadata
+        record ``suds_gait`` (key ``yaml``), beside the contract's ``suds`` record.
 
     Raises
     ------
@@ -582,7 +591,7 @@ class RecordingWriter:
                  actuated: Sequence[str], passive: Sequence[str], gait_hz: float | None = None,
                  bouts: Sequence[tuple[float, float]] = (), overwrite: bool = False,
                  compression: str = "zstd", shape_topic: str = SHAPE_TOPIC,
-                 pose_topic: str = POSE_TOPIC) -> None:
+                 pose_topic: str = POSE_TOPIC, gait_yaml: str | None = None) -> None:
         self.joint_names = tuple(joint_names)
         self._topics = (shape_topic, pose_topic)
         meta = {META_SYSTEM: system, META_ACTUATED: ",".join(actuated), META_PASSIVE: ",".join(passive)}
@@ -598,6 +607,8 @@ class RecordingWriter:
         self._writer.add_topic(shape_topic, SHAPE_TYPE)
         self._writer.add_topic(pose_topic, POSE_TYPE)
         self._writer.write_metadata(METADATA_NAME, meta)
+        if gait_yaml is not None:  # its own record: readers of the contract never see it
+            self._writer.write_metadata(GAIT_METADATA_NAME, {META_GAIT_YAML: gait_yaml})
         nj = len(self.joint_names)
         # samples not yet written: stamps (ns) and values, per stream
         self._shape_ns, self._r = np.empty(0, dtype=np.int64), np.empty((0, nj))

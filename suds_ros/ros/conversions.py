@@ -38,7 +38,8 @@ from suds_ros.core.errors import (
 )
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.json_text import dumps
-from suds_ros.io.recording_bag import MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME, parse_system_info
+from suds_ros.core.physics.gait import Gait, dump_gait, loads_gait
+from suds_ros.io.recording_bag import GAIT_TOPIC, MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME, parse_system_info
 from suds_ros.io.stamps import float_to_ns, join_ns, ns_to_float, quaternion_yaw, split_ns, yaw_quaternion
 
 _INT32 = (-(2**31), 2**31 - 1)
@@ -446,3 +447,15 @@ def system_info_from_msg(msg: Any) -> dict[str, Any]:
         return parse_system_info(msg.data)
     except SudsDataError as exc:
         raise SudsConfigError(f"{SYSTEM_TOPIC}: {exc}") from None
+
+
+def gait_to_msg(gait: Gait) -> Any:
+    """``std_msgs/String`` holding the gait file text (``suds-gait/1`` YAML) of the gait in force."""
+    from std_msgs.msg import String
+
+    return String(data=dump_gait(gait))
+
+
+def gait_from_msg(msg: Any) -> Gait:
+    """Parse a ``suds/gait`` message; raises SudsConfigError (code ``bad_gait_file``) naming the key."""
+    return loads_gait(msg.data, source=GAIT_TOPIC)

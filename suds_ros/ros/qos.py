@@ -11,7 +11,8 @@
   500 Hz prediction stream);
 * the identified model → :data:`MODEL_QOS` (reliable, depth 1, transient local,
   so a late subscriber still gets the last model);
-* status / diagnostics → :data:`STATUS_QOS` (reliable, depth 10).
+* status / diagnostics → :data:`STATUS_QOS` (reliable, depth 10);
+* the gait in force → :data:`GAIT_QOS` (as the model: reliable, depth 1, transient local).
 
 A RELIABLE subscriber does not match a BEST_EFFORT publisher: subscribe to
 state topics with :data:`STATE_QOS` (or best effort) too.
@@ -42,6 +43,8 @@ MODEL_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: the gait in force (``suds/gait``): latched like the model, so a late subscriber gets the current one
+GAIT_QOS = MODEL_QOS
 #: Publisher QoS of the player: reliable matches both reliable and best-effort subscribers.
 REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

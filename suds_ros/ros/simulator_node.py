@@ -38,6 +38,18 @@ node waits (≤ 5 s) for reliable subscribers to acknowledge the tail and exits
 with code 0; with ``linger`` true it stays up instead (until SIGINT), so a subscriber
 that joins or restarts late still gets the transient-local history of the stream.
 
+Gait
+----
+``gait_file`` (settable while running) names a gait file (``suds-gait/1``) for the actuated
+joints instead of the nominal gait; its ``system`` must be the simulated one and its joints the
+actuated ones, and it runs at the stream's ``gait_hz`` (unset ``gait_hz`` at start: the gait's).
+A new value is checked at once (refused with the reason) and applied at the next cycle boundary:
+the set-points continue without a jump (the difference to the new gait fades out over one
+cycle, :meth:`~suds_ros.core.physics.stream.StreamingSimulator.set_gait`) and the stream goes
+on; the node logs ``gait <file> on from stamp <s>``.  Empty returns to the nominal gait.  The
+gait in force is published latched on ``suds/gait`` (std_msgs/String, the gait file text;
+reliable, transient local, depth 1) at start and at every switch.
+
 Effects at run time
 -------------------
 ``effects`` (JSON text, settable while running) lists catalogue effects
@@ -67,15 +79,22 @@ from rclpy.task import Future
 
 from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.physics.gait import Gait, load_gait, nominal_gait
 from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
-from suds_ros.ros.conversions import float_to_time, joint_state_to_msg, pose_to_msg, system_info_to_msg
+from suds_ros.ros.conversions import (
+    float_to_time,
+    gait_to_msg,
+    joint_state_to_msg,
+    pose_to_msg,
+    system_info_to_msg,
+)
 from suds_ros.ros.params import config_from_parameters, watch_parameters
-from suds_ros.ros.qos import MODEL_QOS, latched_state_qos, overriding_options
+from suds_ros.ros.qos import GAIT_QOS, MODEL_QOS, latched_state_qos, overriding_options
 from suds_ros.ros.runner import run_node
-from suds_ros.ros.topics import CLOCK, POSE, SHAPE, SYSTEM
+from suds_ros.ros.topics import CLOCK, GAIT, POSE, SHAPE, SYSTEM
 
 #: Stamp of the first sample when not running in real time (and ``t0`` is not set).
 DEFAULT_T0 = 1.7e9
@@ -129,6 +148,10 @@ class SimulatorConfig:
         "description": "JSON list of effects added to the nominal model from the next gait cycle on, e.g. "
                        '[{"name": "joint_coulomb_friction", "joint": "joint_2", "mu": 0.5}] (empty: none)',
         "read_only": False})
+    gait_file: str = field(default="", metadata={
+        "description": "gait file (suds-gait/1) driving the actuated joints instead of the nominal gait; "
+                       "a new value takes over at the next cycle boundary without a jump (empty: nominal)",
+        "read_only": False})
 
     def __post_init__(self) -> None:
         check_settings(self)  # the ranges in the field metadata
@@ -171,10 +194,10 @@ class SimulatorConfig:
             return float(self.t0)
         return time.time() if self.real_time_factor == 1.0 else DEFAULT_T0
 
-    def sim_config(self, t0: float) -> SimConfig:
-        """The :class:`SimConfig` of the stream whose first stamp is ``t0``."""
-        return SimConfig(samples_per_cycle=self.samples_per_cycle, gait_hz=self.gait_hz,
-                         noise_std=self.noise, seed=self.seed, t0=t0)
+    def sim_config(self, t0: float, gait: Gait | None = None) -> SimConfig:
+        """The :class:`SimConfig` of the stream whose first stamp is ``t0`` (driven by ``gait`` if given)."""
+        return SimConfig(samples_per_cycle=self.samples_per_cycle, gait_hz=self.gait_hz,  # type: ignore[arg-type]
+                         noise_std=self.noise, seed=self.seed, t0=t0, gait=gait)
 
 
 def parse_effects(text: str) -> list[dict[str, Any]]:
@@ -203,11 +226,16 @@ class SimulatorNode(Node):
         super().__init__("suds_simulator", **kwargs)
         params = config_from_parameters(self, SimulatorConfig)
         self.system = load_system(params.system_spec)
-        self.config = params.resolved(getattr(getattr(self.system, "model", None), "gait_hz", 1.0))
+        self.gait: Gait | None = load_gait(params.gait_file, self.system) if params.gait_file else None
+        default_hz = self.gait.gait_hz if self.gait is not None else getattr(
+            getattr(self.system, "model", None), "gait_hz", 1.0)
+        self.config = params.resolved(default_hz)
         watch_parameters(self, lambda: self.config, self._on_config)  # applied after a successful set
         self.add_on_set_parameters_callback(self._check_effects)
+        self.add_on_set_parameters_callback(self._check_gait)
         cfg = self.config
         self._pending_effects: list[dict[str, Any]] | None = parse_effects(cfg.effects) or None
+        self._pending_gait: tuple[str, Gait] | None = None
         self._restart_at(cfg.first_stamp())  # a bad start value of `effects` stops the node here
         names = self.system.joint_names
         self.names = tuple(names)
@@ -222,6 +250,10 @@ class SimulatorNode(Node):
         self._pose_pub = self.create_publisher(PoseStamped, POSE, qos,
                                                qos_overriding_options=overriding_options())
         self._system_pub = self.create_publisher(String, SYSTEM, MODEL_QOS)
+        self._gait_pub = self.create_publisher(String, GAIT, GAIT_QOS)
+        in_force = self.gait if self.gait is not None else self._nominal()
+        if in_force is not None:
+            self._gait_pub.publish(gait_to_msg(in_force))
         self._clock_cls = Clock
         self._clock_pub = self.create_publisher(Clock, CLOCK, 10)
         self._system_pub.publish(system_info_to_msg({
@@ -257,10 +289,41 @@ class SimulatorNode(Node):
                     return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
+    def _nominal(self) -> Gait | None:
+        """The system's nominal gait at the stream's frequency, None when it has no sinusoidal one."""
+        try:
+            return nominal_gait(self.system, self.config.gait_hz)
+        except SudsConfigError:
+            return None
+
+    def _gait_of(self, path: str) -> Gait:
+        """The gait of a ``gait_file`` value (empty: the nominal), checked against the system and frequency."""
+        gait = load_gait(path, self.system) if path else self._nominal()
+        if gait is None:
+            raise SudsConfigError(f"`gait_file`: {self.system.name!r} has no nominal gait to return to")
+        if gait.gait_hz != self.config.gait_hz:
+            raise SudsConfigError(f"`gait_file`: the gait runs at {gait.gait_hz:g} Hz, the stream at "
+                                  f"{self.config.gait_hz:g} Hz")
+        return gait
+
+    def _check_gait(self, params: list[Any]) -> Any:
+        """Refuse a ``gait_file`` that does not load, is for another robot or another frequency."""
+        from rcl_interfaces.msg import SetParametersResult
+
+        for p in params:
+            if p.name == "gait_file":
+                try:
+                    self._gait_of(str(p.value))
+                except SudsConfigError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
     def _on_config(self, new: SimulatorConfig) -> None:
         """Apply a config whose parameters were set (post-set: every check accepted them)."""
         if new.effects != self.config.effects:
             self._pending_effects = parse_effects(new.effects)
+        if new.gait_file != self.config.gait_file:
+            self._pending_gait = (new.gait_file, self._gait_of(new.gait_file))
         if new.real_time_factor != self.config.real_time_factor:
             self._anchor = None  # re-anchor the pacing at the next tick
             self.get_logger().info(f"real_time_factor → {new.real_time_factor:g}")
@@ -283,10 +346,17 @@ class SimulatorNode(Node):
             effects, self._pending_effects = self._pending_effects, None
             if effects is not None:
                 self.sim.set_effects(effects)
+            gait, self._pending_gait = self._pending_gait, None
+            if gait is not None:  # a chunk is one cycle: this is a cycle boundary
+                self.sim.set_gait(gait[1])
+                self.gait = gait[1]
+                self._gait_pub.publish(gait_to_msg(gait[1]))
             self._chunk = self.sim.step(self.config.samples_per_cycle)
             self._chunk_i = 0
             if effects is not None:
                 self.get_logger().info(f"effects {json.dumps(effects)} on from stamp {self._chunk.t[0]:.6f}")
+            if gait is not None:
+                self.get_logger().info(f"gait {gait[0] or '(nominal)'} on from stamp {self._chunk.t[0]:.6f}")
         c, i = self._chunk, self._chunk_i
         self._chunk_i += 1
         return float(c.t[i]), c.r[i], c.pose[i]
@@ -311,7 +381,7 @@ class SimulatorNode(Node):
     def _restart_at(self, t0: float) -> None:
         """A fresh stream whose first stamp is ``t0``, with the pending effects (nothing published yet)."""
         self.t0 = t0
-        self.sim = StreamingSimulator(self.system, self.config.sim_config(t0))
+        self.sim = StreamingSimulator(self.system, self.config.sim_config(t0, self.gait))
         if self._pending_effects:
             self.sim.set_effects(self._pending_effects)
 

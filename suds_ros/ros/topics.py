@@ -23,6 +23,8 @@ def relative(topic: str) -> str:
 SHAPE = relative(_bag.SHAPE_TOPIC)
 POSE = relative(_bag.POSE_TOPIC)
 SYSTEM = relative(_bag.SYSTEM_TOPIC)
+#: the gait in force (std_msgs/String: suds-gait/1 YAML, latched) of the simulator
+GAIT = relative(_bag.GAIT_TOPIC)
 MODEL = relative(_bag.MODEL_TOPIC)
 STATUS = relative(_bag.STATUS_TOPIC)
 PREDICTED_BODY = relative(_bag.PREDICTED_BODY_TOPIC)
@@ -39,7 +41,7 @@ MISMATCH = "suds/mismatch"
 CLOCK = "/clock"
 
 #: every topic a suds node publishes, relative (patterns excluded)
-PUBLISHED = (SHAPE, POSE, SYSTEM, MODEL, STATUS, PREDICTED_BODY, PREDICTED_PASSIVE,
+PUBLISHED = (SHAPE, POSE, SYSTEM, GAIT, MODEL, STATUS, PREDICTED_BODY, PREDICTED_PASSIVE,
              MEASURED_BODY, MEASURED_PASSIVE, DIAGNOSIS, MISMATCH)
 #: the recorder's default patterns (relative: resolved in the recorder's namespace)
 RECORDED = (SHAPE, POSE, SYSTEM, PREDICTED_PATTERN, MEASURED_PATTERN, MODEL, STATUS, DIAGNOSIS,

@@ -109,6 +109,11 @@ class ChainModel:
         Joint names head to tail; default ``joint_1`` … ``joint_{N-1}``.
     gait_hz : float
         Nominal gait frequency, Hz (cycles per second of the drive).
+    limit : tuple of nj (float or None)
+        Joint range bound |r_j| ≤ limit_j, rad, a gait optimiser honours (``shared/spec/gait.md``);
+        None (or an empty tuple: all None) leaves the default, the nominal gait's range.
+    speed_limit : tuple of nj (float or None)
+        Joint speed bound |ṙ_j| ≤ speed_limit_j, rad/s; None: the nominal gait's largest speed.
     """
 
     n_links: int
@@ -129,6 +134,8 @@ class ChainModel:
     pose_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     joint_names: tuple[str, ...] = ()
     gait_hz: float = 1.0
+    limit: tuple[float | None, ...] = ()
+    speed_limit: tuple[float | None, ...] = ()
 
     def __post_init__(self) -> None:
         if int(self.n_links) != self.n_links or self.n_links < 2:
@@ -174,6 +181,11 @@ class ChainModel:
                 f"`gait`: expected {len(act)} tuples (amplitude, frequency, phase, offset), got {gait}"
             )
         object.__setattr__(self, "gait", gait)
+        for name in ("limit", "speed_limit"):
+            values = tuple(getattr(self, name)) or (None,) * nj
+            if len(values) != nj or not all(v is None or (np.isfinite(v) and v > 0) for v in values):
+                raise SudsConfigError(f"`{name}`: expected {nj} bounds > 0 (or None), got {values}")
+            object.__setattr__(self, name, tuple(None if v is None else float(v) for v in values))
 
     @property
     def n_joints(self) -> int:

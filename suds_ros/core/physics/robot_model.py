@@ -34,7 +34,8 @@ _TOP_KEYS = {"format", "name", "gait_hz", "drag", "links", "body", "joints", "en
 _DRAG_KEYS = {"c_par", "c_perp"}
 _LINK_KEYS = {"length", "c_par", "c_perp"}
 _BODY_KEYS = {"link", "offset"}
-_JOINT_KEYS = {"name", "actuated", "gait", "stiffness", "rest", "damping", "k3", "coulomb"}
+_JOINT_KEYS = {"name", "actuated", "gait", "stiffness", "rest", "damping", "k3", "coulomb", "limit",
+               "speed_limit"}
 _GAIT_KEYS = {"amplitude", "phase", "offset"}
 _ENV_KEYS = {"flow"}
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -112,7 +113,7 @@ def _parse_joints(w: _Where, raw: Any, n_joints: int) -> dict[str, list[Any]]:
         found = len(raw) if isinstance(raw, list) else raw
         raise w.fail("joints", f"a list of {n_joints} joints (one fewer than the links)", found)
     out: dict[str, list[Any]] = {k: [] for k in ("name", "actuated", "gait", "stiffness", "rest",
-                                                 "damping", "k3", "coulomb")}
+                                                 "damping", "k3", "coulomb", "limit", "speed_limit")}
     defaults = default_joint_names(n_joints)
     for j, joint in enumerate(raw):
         key = f"joints[{j}]"
@@ -133,6 +134,9 @@ def _parse_joints(w: _Where, raw: Any, n_joints: int) -> dict[str, list[Any]]:
         out["damping"].append(_number(w, f"{key}.damping", joint.get("damping", 0.0), minimum=0.0))
         out["k3"].append(_number(w, f"{key}.k3", joint.get("k3", 0.0)))
         out["coulomb"].append(_number(w, f"{key}.coulomb", joint.get("coulomb", 0.0), minimum=0.0))
+        for lim in ("limit", "speed_limit"):  # optional bounds a gait optimiser honours (gait.md)
+            out[lim].append(None if joint.get(lim) is None
+                            else _number(w, f"{key}.{lim}", joint[lim], minimum=0.0, strict=True))
         if not actuated and not (out["stiffness"][-1] > 0 or out["damping"][-1] > 0 or out["coulomb"][-1] > 0):
             raise w.fail(key, "an actuated joint, or a passive one held by stiffness, damping or "
                               "coulomb > 0", {k: joint.get(k, 0) for k in ("stiffness", "damping", "coulomb")})
@@ -181,7 +185,7 @@ def model_from_dict(doc: Any, source: str = "<model>") -> ChainModel:
             link_length=tuple(lengths), c_par=tuple(c_par), c_perp=tuple(c_perp), flow=flow,
             body_link=link - 1, name=name, pose_offset=offset, joint_names=tuple(joints["name"]),
             gait=tuple((joints["gait"][j][0], 1.0, joints["gait"][j][1], joints["gait"][j][2]) for j in actuated),
-            gait_hz=gait_hz,
+            gait_hz=gait_hz, limit=tuple(joints["limit"]), speed_limit=tuple(joints["speed_limit"]),
         )
     except SudsConfigError as exc:  # a combination the key checks above did not catch
         raise SudsConfigError(f"{source}: {exc}", code=BAD_MODEL_FILE) from None
@@ -258,6 +262,10 @@ def model_to_dict(model: ChainModel) -> dict[str, Any]:
             value = float(getattr(model, key)[j])
             if value != 0.0 and j not in gait:
                 joint[key] = value
+        for key in ("limit", "speed_limit"):
+            bound = getattr(model, key)[j]
+            if bound is not None:
+                joint[key] = float(bound)
         joints.append(joint)
     doc: dict[str, Any] = {
         "format": FORMAT, "name": model.name, "gait_hz": float(model.gait_hz), "drag": drag, "links": links,

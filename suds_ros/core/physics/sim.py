@@ -8,7 +8,9 @@ the world position.
 
 The drive is r_a = r_ref(t) + η(t), η an Ornstein–Uhlenbeck process
 dη = −κη dt + σ dW discretised exactly at the sample times and started from its
-stationary law, independent per actuated joint.
+stationary law, independent per actuated joint.  r_ref is the system's nominal gait, or
+``SimConfig.gait`` (a :class:`~suds_ros.core.physics.gait.Gait`) when set; ``ou_std`` = 0
+switches the perturbation off.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.physics.gait import Gait, check_gait
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.recording import Recording
 from suds_ros.core.physics.system import SudsSystem
@@ -56,6 +59,9 @@ class SimConfig:
         Seed: ``SeedSequence(seed).spawn(2)`` gives the OU and the noise streams.
     pose_delay : float
         Pose stamps late by this much, s (``sensor_time_offset``): the pose stamped s is the true pose at s − delay.
+    gait : Gait or None
+        The reference r_ref (``suds-gait/1``) instead of the system's nominal gait; its
+        ``gait_hz`` must equal ``gait_hz``.  None: the nominal gait.
     """
 
     cycles: int = 60
@@ -69,6 +75,7 @@ class SimConfig:
     t0: float = 1.7e9
     seed: int = 0
     pose_delay: float = 0.0
+    gait: Gait | None = None
 
     def __post_init__(self) -> None:
         checks = [
@@ -84,6 +91,9 @@ class SimConfig:
         for name, ok in checks:
             if not ok:
                 raise SudsConfigError(f"`{name}`: value {getattr(self, name)!r} is out of range")
+        if self.gait is not None and not (isinstance(self.gait, Gait) and self.gait.gait_hz == self.gait_hz):
+            found = self.gait.gait_hz if isinstance(self.gait, Gait) else self.gait
+            raise SudsConfigError(f"`gait`: expected a Gait at `gait_hz` = {self.gait_hz:g} Hz, got {found!r}")
 
     @property
     def dt(self) -> float:
@@ -319,6 +329,19 @@ def simulate(
     return recording_from_blocks(system, config.gait_hz, blocks)
 
 
+def reference_of(system: SudsSystem, config: SimConfig) -> Callable[[FloatArray], FloatArray]:
+    """r_ref at gait time s (cycles) → (len(s), na): ``config.gait`` (checked against ``system``) or the nominal.
+
+    Raises
+    ------
+    SudsConfigError
+        (code ``model_mismatch``) a gait of another system or other joints.
+    """
+    if config.gait is None:
+        return system.reference
+    return check_gait(config.gait, system).at_phase
+
+
 class OUDrive:
     """The drive r_ref(k·dt) + η_k at sample indices k = k0, k0 + 1, …, handed out in order.
 
@@ -327,18 +350,18 @@ class OUDrive:
     """
 
     def __init__(self, system: SudsSystem, config: SimConfig, rng: np.random.Generator, k0: int) -> None:
-        self._system, self._config, self._rng = system, config, rng
+        self._reference, self._config, self._rng = reference_of(system, config), config, rng
         self._k = k0
         self._eta: FloatArray | None = None
         # evaluated now, so that a system without a gait is refused before anything is written
-        self.dim = int(system.reference(np.array([k0 * config.dt * config.gait_hz])).shape[1])
+        self.dim = int(self._reference(np.array([k0 * config.dt * config.gait_hz])).shape[1])
 
     def take(self, m: int) -> FloatArray:
         """The next ``m`` set-points, shape (m, na)."""
         cfg = self._config
         k = np.arange(self._k, self._k + m)
         self._k += m
-        ref = self._system.reference(k * cfg.dt * cfg.gait_hz)
+        ref = self._reference(k * cfg.dt * cfg.gait_hz)
         eta = ou_path(self._rng, m, self.dim, cfg.dt, cfg.kappa, cfg.ou_std, prev=self._eta)
         if m:
             self._eta = eta[-1]

@@ -9,6 +9,11 @@ Effects (``shared/spec/effects.md``) can be switched on while it runs
 integrates the nominal model with the effects applied, from the state the previous
 step left (drive, passive joints, pose), so the change is a step in the physics at a
 sample boundary, not a jump in the state.
+
+The reference gait can be switched too (:meth:`StreamingSimulator.set_gait`, called at a cycle
+boundary by the node): from the next sample on r_ref is the new gait plus the difference
+Δ = r_old − r_new at that sample, faded out over one cycle with a raised-cosine weight, so the
+actuated set-points continue without a jump and settle on the new gait a cycle later.
 """
 
 from __future__ import annotations
@@ -20,7 +25,8 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.physics.sim import SimConfig, _rest_angles, _still, auto_substeps, integrate
+from suds_ros.core.physics.gait import Gait, check_gait
+from suds_ros.core.physics.sim import SimConfig, _rest_angles, _still, auto_substeps, integrate, reference_of
 from suds_ros.core.physics.system import SudsSystem
 
 
@@ -57,6 +63,9 @@ class StreamingSimulator:
         self.nominal = system
         self.config = config
         self.effects: tuple[dict[str, object], ...] = ()
+        self.gait = config.gait
+        self._base = reference_of(system, config)  # r_ref at gait time (cycles) without the fade
+        self._fade: tuple[float, FloatArray] | None = None  # (gait time of the switch, Δ there)
         self._still, self._flow = _still(system)
         self._drift = np.zeros(2)  # position offset that keeps the pose continuous across flow changes
         ss = np.random.SeedSequence(config.seed)
@@ -105,9 +114,43 @@ class StreamingSimulator:
         self.system, self._still, self._flow, self.effects = system, still, flow, effects
         self._substeps = self.config.substeps or auto_substeps(still, self._dt)
 
+    def set_gait(self, gait: Gait) -> float:
+        """Follow ``gait`` from the next sample on, without a jump in the set-points (see the module docstring).
+
+        Returns
+        -------
+        float
+            Gait time (cycles since the first emitted sample) of the first sample on the new gait.
+
+        Raises
+        ------
+        SudsConfigError
+            A gait of another system or joints (code ``model_mismatch``), or at another frequency.
+        """
+        gait = check_gait(gait, self.nominal)
+        if gait.gait_hz != self.config.gait_hz:
+            raise SudsConfigError(f"`gait_hz`: the gait runs at {gait.gait_hz:g} Hz, the stream at "
+                                  f"{self.config.gait_hz:g} Hz")
+        s0 = (self._k + 1) * self._dt * self.config.gait_hz
+        old = self.reference(np.array([s0]))[0]
+        self._base = gait.at_phase
+        self._fade = (s0, old - gait.at_phase(np.array([s0]))[0])
+        self.gait = gait
+        return s0
+
+    def reference(self, s: FloatArray) -> FloatArray:
+        """r_ref at gait times ``s`` (cycles) → (len(s), na), the fade of the last switch included."""
+        s = np.asarray(s, dtype=float)
+        ref = self._base(s)
+        if self._fade is not None:
+            s0, delta = self._fade
+            u = np.clip(s - s0, 0.0, 1.0)
+            ref = ref + np.outer(0.5 * (1.0 + np.cos(np.pi * u)), delta)
+        return ref
+
     def _setpoint(self, k: int) -> FloatArray:
         t = k * self._dt * self.config.gait_hz
-        return self.system.reference(np.array([t]))[0] + self._eta
+        return self.reference(np.array([t]))[0] + self._eta
 
     def _advance(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Integrate n more samples; returns sample indices (n,), r (n, nj), still-fluid pose (n, 3)."""

@@ -1,0 +1,1 @@
+"""Gait optimisation: model-based on the physics (:mod:`.physics`)."""

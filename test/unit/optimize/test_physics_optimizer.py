@@ -1,0 +1,70 @@
+"""The model-based gait optimiser: steady state, gradients, and a better purcell3 gait within the bounds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.optimize.physics import (
+    CycleEvaluator,
+    OptimizeConfig,
+    evaluate_gait,
+    optimize_gait,
+    phase_pinned,
+)
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import make_system
+
+
+def test_steady_state_is_periodic_and_matches_the_simulator() -> None:
+    system = make_system("purcell3")
+    g = nominal_gait(system)
+    ev = CycleEvaluator(system, 1.0, 1, 128)
+    res, _, _ = ev.steady(g.to_vector()[None], np.zeros((1, 1)))
+    rp_end, _, _ = ev.cycle(g.to_vector()[None], res.r_p)
+    np.testing.assert_allclose(rp_end, res.r_p, atol=1e-9)
+    # the simulator's run (piecewise-linear set-points at 400 samples per cycle) after its warm-up
+    rec = simulate(system, SimConfig(cycles=2, samples_per_cycle=400, ou_std=0.0, noise_std=0.0, warmup=6.0))
+    dx = np.hypot(*(rec.truth["pose"][400, :2] - rec.truth["pose"][0, :2]))
+    assert dx == pytest.approx(evaluate_gait(system, g)["speed"], rel=1e-3)
+
+
+def test_phase_pin_keeps_the_gait_up_to_a_time_shift() -> None:
+    system = make_system("swimmer9")
+    g = nominal_gait(system)
+    x = phase_pinned(g.to_vector(2), 4, 2)
+    assert x[1] == 0.0 and x[3] > 0
+    a, b = evaluate_gait(system, g, steps=64), evaluate_gait(system, g.from_vector(x, 2), steps=64)
+    assert b["speed"] == pytest.approx(a["speed"], rel=1e-9)
+
+
+def test_optimiser_improves_purcell3_within_the_bounds() -> None:
+    system = make_system("purcell3")
+    res = optimize_gait(system, OptimizeConfig(order=3, starts=2, seed=1))
+    assert res.nominal_value == pytest.approx(evaluate_gait(system, nominal_gait(system))["speed"], rel=1e-4)
+    assert res.value > 1.005 * res.nominal_value
+    assert constraint_violations(res.gait, gait_limits(system)) == []
+    assert abs(res.values["rotation"]) <= 0.05 + 1e-9
+    assert res.gait.objective == "speed" and dict(res.gait.predicted)["speed"] == res.value
+    # the value it reports is the gait's own, evaluated from scratch
+    assert evaluate_gait(system, res.gait)["speed"] == pytest.approx(res.value, rel=1e-6)
+
+
+def test_bad_settings_are_refused() -> None:
+    with pytest.raises(SudsConfigError, match="`objective`: expected one of"):
+        OptimizeConfig(objective="fast")
+    with pytest.raises(SudsConfigError, match="`order`: expected 1..8, got 9"):
+        OptimizeConfig(order=9)
+
+
+@pytest.mark.parametrize("objective", ["turn", "efficiency"])
+def test_turn_and_efficiency_keep_the_nominal_speed(objective: str) -> None:
+    system = make_system("purcell3")
+    res = optimize_gait(system, OptimizeConfig(objective=objective, order=3, starts=1))
+    assert res.values["speed"] >= res.nominal_values["speed"] * (1 - 1e-6)
+    assert res.value > res.nominal_value and res.gait.objective == objective
+    assert constraint_violations(res.gait, gait_limits(system)) == []
+    if objective == "efficiency":
+        assert abs(res.values["rotation"]) <= 0.05
