@@ -306,6 +306,13 @@ def parse_joint_state(
     ValueError, struct.error, UnicodeDecodeError
         If ``data`` is not a well-formed message.
     """
+    return _parse_joint_state(data)[:6]
+
+
+def _parse_joint_state(
+    data: bytes,
+) -> tuple[int, int, tuple[str, ...], tuple[float, ...], tuple[float, ...], tuple[float, ...], int]:
+    """:func:`parse_joint_state` and the offset where the names end (the position sequence starts)."""
     e = _prefix(data)
     sec, nanosec = struct.unpack_from(e + "iI", data, 4)
     _, pos = _read_string(data, 12, e)
@@ -318,12 +325,47 @@ def parse_joint_state(
     for _ in range(count):
         name, pos = _read_string(data, pos, e)
         names.append(name)
+    names_end = pos
+    position, velocity, effort = _joint_values(data, pos, e)
+    return sec, nanosec, tuple(names), position, velocity, effort, names_end
+
+
+def _joint_values(data: bytes, pos: int, e: str
+                  ) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
     position, pos = _read_f64_seq(data, pos, e)
     velocity, pos = _read_f64_seq(data, pos, e)
     effort, pos = _read_f64_seq(data, pos, e)
     if pos + 3 < len(data):
         raise ValueError(f"{len(data) - pos} unread bytes after JointState")
-    return sec, nanosec, tuple(names), position, velocity, effort
+    return position, velocity, effort
+
+
+class JointStateParser:
+    """:func:`parse_joint_state` for a stream of messages that mostly repeat their frame and names.
+
+    The bytes from the frame id to the end of the names are compared with the previous
+    message's; when they are the same, only the stamp and the three value sequences are
+    decoded (the names are the same tuple).  Results are those of :func:`parse_joint_state`.
+    """
+
+    def __init__(self) -> None:
+        self._key: bytes | None = None
+        self._names: tuple[str, ...] = ()
+        self._end = 0
+        self._head = b""
+        self._e = "<"
+
+    def __call__(self, data: bytes) -> tuple[int, int, tuple[str, ...], tuple[float, ...],
+                                             tuple[float, ...], tuple[float, ...]]:
+        key, end = self._key, self._end
+        if key is not None and len(data) > end and data[:2] == self._head and data[12:end] == key:
+            e = self._e
+            sec, nanosec = struct.unpack_from(e + "iI", data, 4)
+            return (sec, nanosec, self._names, *_joint_values(data, end, e))
+        sec, nanosec, names, position, velocity, effort, end = _parse_joint_state(data)
+        self._key, self._names, self._end = bytes(data[12:end]), names, end
+        self._head, self._e = bytes(data[:2]), _prefix(data)
+        return sec, nanosec, names, position, velocity, effort
 
 
 def parse_pose_stamped(data: bytes) -> tuple[int, int, str, tuple[float, ...]]:

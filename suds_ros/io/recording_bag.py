@@ -191,11 +191,14 @@ class _Topic:
     def add(self, k: int, schema: bytes, data: bytes) -> None:
         raise NotImplementedError
 
-    def order(self) -> np.ndarray:
-        """Indices that sort the messages by log time, stably."""
-        return np.argsort(np.frombuffer(self.log, dtype=np.int64), kind="stable")
+    def order(self) -> np.ndarray | slice:
+        """Indices that sort the messages by log time, stably (a slice when they already are)."""
+        log = np.frombuffer(self.log, dtype=np.int64)
+        if np.all(log[1:] >= log[:-1]):
+            return slice(None)  # in order (as written): no reordered copy of the values
+        return np.argsort(log, kind="stable")
 
-    def stamps(self, order: np.ndarray) -> np.ndarray:
+    def stamps(self, order: np.ndarray | slice) -> np.ndarray:
         return join_ns(np.frombuffer(self.sec, dtype=np.int64)[order], np.frombuffer(self.nsec, dtype=np.int64)[order])
 
 
@@ -210,10 +213,11 @@ class _ShapeTopic(_Topic):
         self.pos = array("d")
         self.eff = array("d")
         self.all_effort = True
+        self._parse = cdr.JointStateParser()
 
     def add(self, k: int, schema: bytes, data: bytes) -> None:
         try:
-            s, ns, names, p, v, e = cdr.parse_joint_state(data)
+            s, ns, names, p, v, e = self._parse(data)
         except (ValueError, struct.error, UnicodeDecodeError):
             m = _decode(SHAPE_TYPE, schema, data, f"{self.path}: {self.topic}: sample {k}")
             s, ns = m.header.stamp.sec, m.header.stamp.nanosec
@@ -242,7 +246,7 @@ class _ShapeTopic(_Topic):
         """Stamps (n,) int ns, joint names, positions (n, nj) and efforts (n, nj) or None, by log time."""
         assert self.names is not None
         nj, o = len(self.names), self.order()
-        r = np.frombuffer(self.pos, dtype=float).reshape(-1, nj)[o] if nj else np.zeros((o.size, 0))
+        r = np.frombuffer(self.pos, dtype=float).reshape(-1, nj)[o] if nj else np.zeros((len(self.log), 0))
         effort = np.frombuffer(self.eff, dtype=float).reshape(-1, nj)[o] if self.all_effort and nj else None
         return self.stamps(o), self.names, r, effort
 
@@ -289,7 +293,8 @@ class _RawTopic(_Topic):
 
     def last(self) -> tuple[int, bytes, bytes]:
         """The last message by log time."""
-        return self.raw[int(self.order()[-1])]
+        o = self.order()
+        return self.raw[-1 if isinstance(o, slice) else int(o[-1])]
 
 
 def _check_series(path: Path, topic: str, t_ns: np.ndarray, values: np.ndarray) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 from _bags import JS, PS
@@ -182,3 +184,23 @@ def test_fast_parsers_read_big_endian() -> None:
     assert cdr.parse_joint_state(be) == (3, 7, ("a",), (2.5,), (), ())
     m = cdr.decode(JS, be)  # rosbags reads big-endian CDR too
     assert (m.header.stamp.sec, m.name, list(m.position)) == (3, ["a"], [2.5])
+
+
+def test_joint_state_parser_equals_parse_joint_state_as_names_and_frames_change() -> None:
+    """The cached-names parser gives parse_joint_state's result for every message of a stream."""
+    msgs = [cdr.joint_state(k, names, np.arange(len(names)) + k, (), eff, frame_id=frame)
+            for k, (names, eff, frame) in enumerate([
+                (["a", "bb"], (), ""), (["a", "bb"], (), ""), (["a", "bb"], (1.0, 2.0), ""),
+                (["a", "bc"], (), ""), (["a", "bc"], (), "f"), (["a", "bc", "d"], (), "f"),
+                (["a", "bc", "d"], (), "f")])]
+    msgs.append(cdr.joint_state(9, ["a"], [1.0], frame_id="f")[:1] + b"\x00" + msgs[-1][2:])  # big endian tag
+    parse = cdr.JointStateParser()
+    for data in msgs:
+        try:
+            want = cdr.parse_joint_state(data)
+        except (ValueError, struct.error) as exc:
+            with pytest.raises(type(exc)):
+                parse(data)
+            continue
+        assert parse(data) == want
+        assert parse(memoryview(data)) == want
