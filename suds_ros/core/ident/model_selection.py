@@ -40,8 +40,8 @@ from suds_ros.core.ident.sysid import FeatureLayout, SudsConfig, feature_layout
 
 #: designs with at most this many elements are built whole (80 MB of float64)
 DENSE_LIMIT = 10_000_000
-#: rows per block when a design is streamed
-BLOCK_ROWS = 20_000
+#: rows per block when a design is streamed (a block of the largest swimmer9 design: ~60 MB)
+BLOCK_ROWS = 5_000
 
 
 @dataclass(frozen=True)
