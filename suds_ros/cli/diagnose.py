@@ -96,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _experiments(rep, rec, model, system, config, out: Path) -> tuple[list[dict[str, object]], list[str]]:  # type: ignore[no-untyped-def]
+def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def]
+                 out: Path) -> tuple[list[dict[str, object]], list[str]]:
     """Propose a settling experiment for each alternative of the finding; write the gaits to ``out``.
 
     Returns the JSON entries and the report lines.  Nothing is overwritten: an existing file of

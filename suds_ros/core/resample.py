@@ -146,7 +146,8 @@ def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
 def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
     """Least-squares linear spline of the samples ``Y`` (m, c) at stamps ``ts``, evaluated at ``grid``.
 
-    Knots: the grid points that have a sample within half a grid step (and both ends).  Rows √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
+    Knots: the grid points that have a sample within half a grid step (and both ends).  Rows
+    √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
     """
     near = _near(ts, grid)
     near[0] = near[-1] = True
@@ -180,6 +181,11 @@ def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) 
     return float(np.sqrt(np.mean((G[w:] - G[:-w]) ** 2)))
 
 
+#: a segment's operator: rows to the knots, the knots' factorised normal matrix, knots to the grid,
+#: and the first and last grid point with a stream sample
+_SegmentOp = tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix, tuple[int, int]]
+
+
 class StreamSampling:
     """How a stream with stamps ``ts`` sees a signal given on (a segment of) the uniform ``grid``.
 
@@ -195,8 +201,7 @@ class StreamSampling:
     def __init__(self, ts: FloatArray, grid: FloatArray) -> None:
         self.ts = np.asarray(ts, dtype=float)
         self.grid = np.asarray(grid, dtype=float)
-        self._ops: dict[tuple[int, int], tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix,
-                                              tuple[int, int]]] = {}
+        self._ops: dict[tuple[int, int], _SegmentOp] = {}
 
     @staticmethod
     def _hat(x: FloatArray, nodes: FloatArray) -> scipy.sparse.csr_matrix:
@@ -208,7 +213,7 @@ class StreamSampling:
                                         (rows, np.stack([j, j + 1], axis=1).ravel())),
                                        shape=(x.size, nodes.size))
 
-    def _op(self, s0: int, m: int) -> tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix, tuple[int, int]]:
+    def _op(self, s0: int, m: int) -> _SegmentOp:
         key = (s0, m)
         hit = self._ops.get(key)
         if hit is not None:
@@ -225,11 +230,11 @@ class StreamSampling:
         near[0] = near[-1] = True
         kidx = np.flatnonzero(near)
         knots = T[kidx]
-        I = self._hat(s, T)  # grid → stamps
+        at_stamps = self._hat(s, T)  # grid → stamps
         A = self._hat(s, knots)  # knots → stamps
         prior = self._hat(knots, s) if s.size >= 2 else scipy.sparse.csr_matrix((knots.size, s.size))
         N = (A.T @ A + _RIDGE * scipy.sparse.identity(knots.size)).tocsc()
-        R = ((A.T + _RIDGE * prior) @ I).tocsr()
+        R = ((A.T + _RIDGE * prior) @ at_stamps).tocsr()
         L = self._hat(T, knots)  # knots → grid
         op = (R, scipy.sparse.linalg.splu(N), L, ends)
         if len(self._ops) > 512:

@@ -42,7 +42,8 @@ from suds_ros.core.diagnosis.replay import measure
 from suds_ros.core.diagnosis.report import Alternative, DiagnoseConfig, DiagnosisReport, FittedEffect
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
-from suds_ros.core.physics.gait import Gait, GaitLimits, constraint_grid, constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.gait import Gait, GaitLimits, constraint_grid, constraint_violations, gait_limits
+from suds_ros.core.physics.gait import nominal_gait
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import auto_substeps

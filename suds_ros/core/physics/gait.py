@@ -29,7 +29,7 @@ import yaml
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError
-from suds_ros.core.physics.robot_model import _StrictLoader
+from suds_ros.core.physics.robot_model import load_strict_yaml
 from suds_ros.core.physics.system import SudsSystem
 
 FORMAT = "suds-gait/1"
@@ -252,14 +252,7 @@ def loads_gait(text: str, source: str = "<gait>") -> Gait:
     SudsConfigError
         (code ``bad_gait_file``) for invalid YAML or any key that does not follow the format.
     """
-    try:
-        doc = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader subclass)
-    except yaml.YAMLError as exc:
-        where = getattr(exc, "problem_mark", None)
-        line = f" (line {where.line + 1})" if where is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise SudsConfigError(f"{source}: not valid YAML{line}: {problem}", code=BAD_GAIT_FILE) from None
-    return gait_from_dict(doc, source)
+    return gait_from_dict(load_strict_yaml(text, source, BAD_GAIT_FILE), source)
 
 
 def load_gait(path: str | Path, system: SudsSystem | None = None) -> Gait:

@@ -69,6 +69,20 @@ def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool
 _StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+def load_strict_yaml(text: str, source: str, code: str) -> Any:
+    """``text`` parsed as YAML with duplicate keys refused.
+
+    A parse error is a :class:`SudsConfigError` (``code``) naming ``source`` and the line.
+    """
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader subclass)
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        line = f" (line {where.line + 1})" if where is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise SudsConfigError(f"{source}: not valid YAML{line}: {problem}", code=code) from None
+
+
 def _mapping(w: _Where, key: str, value: Any, allowed: set[str]) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise w.fail(key, "a mapping", value)
@@ -206,14 +220,7 @@ def load_model(path: str | Path) -> ChainModel:
     except (OSError, UnicodeDecodeError) as exc:
         raise SudsConfigError(f"{p}: cannot read the model file ({exc.__class__.__name__}: {exc})",
                               code=BAD_MODEL_FILE) from None
-    try:
-        doc = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 (a SafeLoader subclass)
-    except yaml.YAMLError as exc:
-        where = getattr(exc, "problem_mark", None)
-        line = f" (line {where.line + 1})" if where is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise SudsConfigError(f"{p}: not valid YAML{line}: {problem}", code=BAD_MODEL_FILE) from None
-    return model_from_dict(doc, str(p))
+    return model_from_dict(load_strict_yaml(text, str(p), BAD_MODEL_FILE), str(p))
 
 
 def _common(values: tuple[float, ...]) -> float:
