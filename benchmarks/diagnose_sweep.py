@@ -140,7 +140,15 @@ def judge(effects: list[dict], rep) -> tuple[bool, bool, str]:  # type: ignore[n
     alts = {(a.name, a.target) for e in rep.effects for a in e.alternatives}
     alts |= {(n, t) for e in rep.effects for a in e.alternatives for n, t, _ in a.with_effects}
     injected = {(e["name"], _target(e)) for e in effects}
-    false = bool(named - injected - alts) if rep.mismatch else False
+    # a named effect that an alternative holding an injected effect would replace is one side of an
+    # "A or B" finding, not a false discovery
+    replaced: set[tuple[str, str | None]] = set()
+    for e in rep.effects:
+        for a in e.alternatives:
+            if ({(a.name, a.target)} | {(n, t) for n, t, _ in a.with_effects}) & injected:
+                replaced |= {(lbl.split(":", 1)[0], lbl.split(":", 1)[1] if ":" in lbl else None)
+                             for lbl in a.instead_of}
+    false = bool(named - injected - alts - replaced) if rep.mismatch else False
     if not effects:
         return (not rep.mismatch), bool(rep.effects), ("no mismatch" if not rep.mismatch else
                                                        f"false alarm: {[e.name for e in rep.effects]}")
