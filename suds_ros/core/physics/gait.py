@@ -29,7 +29,7 @@ import yaml
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError
-from suds_ros.core.physics.robot_model import load_strict_yaml
+from suds_ros.core.physics.robot_model import load_strict_yaml, read_text
 from suds_ros.core.physics.system import SudsSystem
 
 FORMAT = "suds-gait/1"
@@ -265,12 +265,7 @@ def load_gait(path: str | Path, system: SudsSystem | None = None) -> Gait:
         system, a missing actuated or a passive joint.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SudsConfigError(f"{p}: cannot read the gait file ({exc.__class__.__name__}: {exc})",
-                              code=BAD_GAIT_FILE) from None
-    gait = loads_gait(text, str(p))
+    gait = loads_gait(read_text(p, "gait file", BAD_GAIT_FILE), str(p))
     if system is not None:
         gait = check_gait(gait, system, source=str(p))
     return gait

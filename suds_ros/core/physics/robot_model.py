@@ -69,6 +69,15 @@ def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool
 _StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+def read_text(path: str | Path, what: str, code: str) -> str:
+    """The text of the file ``path``; an unreadable file is a :class:`SudsConfigError` (``code``) naming ``what``."""
+    p = Path(path)
+    try:
+        return p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SudsConfigError(f"{p}: cannot read the {what} ({exc.__class__.__name__}: {exc})", code=code) from None
+
+
 def load_strict_yaml(text: str, source: str, code: str) -> Any:
     """``text`` parsed as YAML with duplicate keys refused.
 
@@ -215,11 +224,7 @@ def load_model(path: str | Path) -> ChainModel:
         key that does not follow the format.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SudsConfigError(f"{p}: cannot read the model file ({exc.__class__.__name__}: {exc})",
-                              code=BAD_MODEL_FILE) from None
+    text = read_text(p, "model file", BAD_MODEL_FILE)
     return model_from_dict(load_strict_yaml(text, str(p), BAD_MODEL_FILE), str(p))
 
 
