@@ -170,3 +170,21 @@ class Probe:
         self._thread.join(10.0)
         self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
+
+
+def set_simulator_parameter(probe, name: str, value: str):  # type: ignore[no-untyped-def]
+    """Set a string parameter of the running simulator through its parameter service.
+
+    Returns the SetParametersResult.
+    """
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    with probe._lock:  # entities are created while the probe's executor is not waiting
+        client = probe.node.create_client(SetParameters, "/suds_simulator/set_parameters")
+    wait_for(lambda: client.service_is_ready(), 30, "the simulator's parameter service")
+    req = SetParameters.Request(parameters=[Parameter(name=name, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=value))])
+    future = client.call_async(req)
+    wait_for(future.done, 30, "the answer of set_parameters")
+    return future.result().results[0]

@@ -15,9 +15,9 @@ import re
 import pytest
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from ._ros_helpers import stop, wait_for
+    from ._ros_helpers import set_simulator_parameter, stop, wait_for
 except ImportError:
-    from _ros_helpers import stop, wait_for
+    from _ros_helpers import set_simulator_parameter, stop, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -27,18 +27,8 @@ FRICTION = [{"name": "joint_coulomb_friction", "joint": "joint_2", "mu": MU}]
 
 
 def set_effects(probe, value: str):
-    """Set the simulator's ``effects`` through its parameter service; returns the SetParametersResult."""
-    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    with probe._lock:  # entities are created while the probe's executor is not waiting
-        client = probe.node.create_client(SetParameters, "/suds_simulator/set_parameters")
-    wait_for(lambda: client.service_is_ready(), 30, "the simulator's parameter service")
-    req = SetParameters.Request(parameters=[Parameter(name="effects", value=ParameterValue(
-        type=ParameterType.PARAMETER_STRING, string_value=value))])
-    future = client.call_async(req)
-    wait_for(future.done, 30, "the answer of set_parameters")
-    return future.result().results[0]
+    """Set the simulator's ``effects``; returns the SetParametersResult."""
+    return set_simulator_parameter(probe, "effects", value)
 
 
 def test_friction_appearing_mid_run_is_flagged_and_named(start_process, node_command, probe):

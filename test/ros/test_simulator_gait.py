@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
-    from ._ros_helpers import stop, wait_for
+    from ._ros_helpers import set_simulator_parameter, stop, wait_for
 except ImportError:
-    from _ros_helpers import stop, wait_for
+    from _ros_helpers import set_simulator_parameter, stop, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -22,18 +22,8 @@ RATE = 50.0  # samples per second = per cycle at 1 Hz
 
 
 def set_gait_file(probe, value: str):
-    """Set the simulator's ``gait_file`` through its parameter service; returns the SetParametersResult."""
-    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    with probe._lock:  # entities are created while the probe's executor is not waiting
-        client = probe.node.create_client(SetParameters, "/suds_simulator/set_parameters")
-    wait_for(lambda: client.service_is_ready(), 30, "the simulator's parameter service")
-    req = SetParameters.Request(parameters=[Parameter(name="gait_file", value=ParameterValue(
-        type=ParameterType.PARAMETER_STRING, string_value=value))])
-    future = client.call_async(req)
-    wait_for(future.done, 30, "the answer of set_parameters")
-    return future.result().results[0]
+    """Set the simulator's ``gait_file``; returns the SetParametersResult."""
+    return set_simulator_parameter(probe, "gait_file", value)
 
 
 def test_gait_switch_without_a_jump(start_process, node_command, probe, tmp_path: Path):
