@@ -143,28 +143,56 @@ def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
     return ~_near(ts, grid) & (span > 1.5 * period)
 
 
-def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
-    """Least-squares linear spline of the samples ``Y`` (m, c) at stamps ``ts``, evaluated at ``grid``.
+def _interp_matrix(x: FloatArray, nodes: FloatArray) -> scipy.sparse.csr_matrix:
+    """Rows: linear interpolation at ``x`` of values given at ``nodes`` (clamped at the ends)."""
+    j = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+    u = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+    rows = np.repeat(np.arange(x.size), 2)
+    return scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
+                                    (rows, np.stack([j, j + 1], axis=1).ravel())),
+                                   shape=(x.size, nodes.size))
 
-    Knots: the grid points that have a sample within half a grid step (and both ends).  Rows
-    √ridge·(c_k − linear interpolation at knot k) keep every knot determined.
+
+#: :func:`knot_fit` as an operator on the samples ``Y[lo:hi]``: the rows from those samples to the
+#: knots' right-hand side, the knots' factorised normal matrix, knots to the grid, and the first
+#: and last grid point with a sample within half a step
+_KnotOp = tuple[int, int, scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix, tuple[int, int]]
+
+
+def _knot_operator(ts: FloatArray, grid: FloatArray, margin: int) -> _KnotOp:
+    """The linear operator of :func:`knot_fit` for sorted stamps ``ts`` on ``grid``.
+
+    The samples within the grid's span are fitted; the ridge rows' linear interpolation of the
+    samples at the knots also sees ``margin`` samples beyond each end of the span (it matters
+    only at an end knot without a sample of its own).
     """
-    near = _near(ts, grid)
+    a = int(np.searchsorted(ts, grid[0], side="left"))
+    b = int(np.searchsorted(ts, grid[-1], side="right"))
+    lo, hi = max(a - margin, 0), min(b + margin, ts.size)
+    s = ts[a:b]
+    near = _near(s, grid) if s.size else np.zeros(grid.size, dtype=bool)
+    has = np.flatnonzero(near)
+    ends = (int(has[0]), int(has[-1])) if has.size else (grid.size, -1)
     near[0] = near[-1] = True
     knots = grid[near]
-    K = knots.size
-    inside = (ts >= knots[0]) & (ts <= knots[-1])
-    s, y = ts[inside], Y[inside]
-    j = np.clip(np.searchsorted(knots, s, side="right") - 1, 0, K - 2)
-    u = (s - knots[j]) / (knots[j + 1] - knots[j])
-    rows = np.repeat(np.arange(s.size), 2)
-    A = scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
-                                 (rows, np.stack([j, j + 1], axis=1).ravel())), shape=(s.size, K))
-    prior = np.stack([np.interp(knots, ts, Y[:, c]) for c in range(Y.shape[1])], axis=1)
-    N = (A.T @ A + _RIDGE * scipy.sparse.identity(K)).tocsc()
-    rhs = A.T @ y + _RIDGE * prior
-    coef = scipy.sparse.linalg.splu(N).solve(np.asarray(rhs, dtype=float))
-    return np.stack([np.interp(grid, knots, coef[:, c]) for c in range(Y.shape[1])], axis=1)
+    A = scipy.sparse.vstack([scipy.sparse.csr_matrix((a - lo, knots.size)), _interp_matrix(s, knots),
+                             scipy.sparse.csr_matrix((hi - b, knots.size))]).tocsr()  # knots → samples lo:hi
+    prior = (_interp_matrix(knots, ts[lo:hi]) if hi - lo >= 2
+             else scipy.sparse.csr_matrix((knots.size, hi - lo)))
+    N = (A.T @ A + _RIDGE * scipy.sparse.identity(knots.size)).tocsc()
+    rows = (A.T + _RIDGE * prior).tocsr()
+    return lo, hi, rows, scipy.sparse.linalg.splu(N), _interp_matrix(grid, knots), ends
+
+
+def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
+    """Least-squares linear spline of the samples ``Y`` (m, c) at sorted stamps ``ts``, evaluated at ``grid``.
+
+    Knots: the grid points that have a sample within half a grid step (and both ends); the
+    samples within the grid's span are fitted.  Rows √ridge·(c_k − linear interpolation of the
+    samples at knot k) keep every knot determined.
+    """
+    lo, hi, rows, lu, to_grid, _ = _knot_operator(ts, grid, margin=1)
+    return np.asarray(to_grid @ lu.solve(np.asarray(rows @ Y[lo:hi], dtype=float)))  # type: ignore[attr-defined]
 
 
 def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) -> float:
@@ -181,8 +209,8 @@ def xi_noise_gain(pose_t: FloatArray, grid: FloatArray, w: int, draws: int = 8) 
     return float(np.sqrt(np.mean((G[w:] - G[:-w]) ** 2)))
 
 
-#: a segment's operator: rows to the knots, the knots' factorised normal matrix, knots to the grid,
-#: and the first and last grid point with a stream sample
+#: a segment's operator: grid values to the knots' right-hand side, the knots' factorised normal
+#: matrix, knots to the grid, and the first and last grid point with a stream sample
 _SegmentOp = tuple[scipy.sparse.csr_matrix, object, scipy.sparse.csr_matrix, tuple[int, int]]
 
 
@@ -203,40 +231,16 @@ class StreamSampling:
         self.grid = np.asarray(grid, dtype=float)
         self._ops: dict[tuple[int, int], _SegmentOp] = {}
 
-    @staticmethod
-    def _hat(x: FloatArray, nodes: FloatArray) -> scipy.sparse.csr_matrix:
-        """Rows: linear interpolation at ``x`` of values given at ``nodes`` (clamped at the ends)."""
-        j = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
-        u = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
-        rows = np.repeat(np.arange(x.size), 2)
-        return scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
-                                        (rows, np.stack([j, j + 1], axis=1).ravel())),
-                                       shape=(x.size, nodes.size))
-
     def _op(self, s0: int, m: int) -> _SegmentOp:
         key = (s0, m)
         hit = self._ops.get(key)
         if hit is not None:
             return hit
         T = self.grid[s0:s0 + m]
-        lo = int(np.searchsorted(self.ts, T[0], side="left"))
-        hi = int(np.searchsorted(self.ts, T[-1], side="right"))
-        s = self.ts[lo:hi]
-        near = _near(s, T) if s.size else np.zeros(m, dtype=bool)
-        has = np.flatnonzero(near)
-        # grid points outside the first and last knot that holds a sample: the recording's fit
-        # (over the whole grid) reaches past the segment there, which the segment cannot
-        ends = (int(has[0]), int(has[-1])) if has.size else (m, -1)
-        near[0] = near[-1] = True
-        kidx = np.flatnonzero(near)
-        knots = T[kidx]
-        at_stamps = self._hat(s, T)  # grid → stamps
-        A = self._hat(s, knots)  # knots → stamps
-        prior = self._hat(knots, s) if s.size >= 2 else scipy.sparse.csr_matrix((knots.size, s.size))
-        N = (A.T @ A + _RIDGE * scipy.sparse.identity(knots.size)).tocsc()
-        R = ((A.T + _RIDGE * prior) @ at_stamps).tocsr()
-        L = self._hat(T, knots)  # knots → grid
-        op = (R, scipy.sparse.linalg.splu(N), L, ends)
+        # the grid points outside the first and last knot that holds a sample (``ends``): the
+        # recording's fit (over the whole grid) reaches past the segment there, which the segment cannot
+        lo, hi, rows, lu, to_grid, ends = _knot_operator(self.ts, T, margin=0)
+        op = ((rows @ _interp_matrix(self.ts[lo:hi], T)).tocsr(), lu, to_grid, ends)
         if len(self._ops) > 512:
             self._ops.clear()
         self._ops[key] = op
