@@ -38,11 +38,12 @@ import numpy as np
 import scipy.optimize
 
 from suds_ros.core._typing import FloatArray
+from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import measure
 from suds_ros.core.diagnosis.report import Alternative, DiagnoseConfig, DiagnosisReport, FittedEffect
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
-from suds_ros.core.physics.gait import Gait, GaitLimits, constraint_grid, constraint_violations, gait_limits
+from suds_ros.core.physics.gait import Gait, GaitLimits, checked_extremes, constraint_violations, gait_limits
 from suds_ros.core.physics.gait import nominal_gait
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -192,8 +193,7 @@ class _Simulator:
 def _admissible(x: FloatArray, template: Gait, order: int, limits: GaitLimits) -> Gait:
     """The gait of flat parameters ``x`` shrunk per joint (towards zero) until it meets the limits."""
     g = template.from_vector(x, order, objective=None, predicted=())
-    t = constraint_grid(order, g.gait_hz)
-    r, v = np.abs(g.r(t)).max(axis=0), np.abs(g.rdot(t)).max(axis=0)
+    r, v = checked_extremes(g)
     lim, spd = np.asarray(limits.limit), np.asarray(limits.speed_limit)
     s = np.minimum(1.0, np.minimum(lim / np.maximum(r, 1e-300), spd / np.maximum(v, 1e-300))) * (1 - 1e-9)
     m = np.asarray(x, dtype=float).reshape(len(g.joints), 2 * order + 1) * s[:, None]
@@ -203,26 +203,15 @@ def _admissible(x: FloatArray, template: Gait, order: int, limits: GaitLimits) -
 def _refit(sim: _Simulator, fixed: Sequence[Effect], free: Sequence[Effect], gait: Gait) -> float:
     """Nats per cycle between ``fixed`` and ``free`` under ``gait`` after refitting ``free``'s parameters."""
     target = sim.outputs(fixed, [gait])
-    names = [(e, [p for p in EFFECTS[str(e["name"])].param_names]) for e in free]
-    x0 = np.array([float(e[p]) for e, ps in names for p in ps])  # type: ignore[arg-type]
-    lo = np.array([q.lower for e, _ in names for q in EFFECTS[str(e["name"])].params])
-    hi = np.array([q.upper for e, _ in names for q in EFFECTS[str(e["name"])].params])
-    scale = np.array([q.scale for e, _ in names for q in EFFECTS[str(e["name"])].params])
+    cand = Candidate(tuple((str(e["name"]), e.get("joint") or e.get("link")) for e in free))  # type: ignore[misc]
+    x0 = np.array([float(e[p]) for e in free for p in EFFECTS[str(e["name"])].param_names])  # type: ignore[arg-type]
+    lo, hi = (np.asarray(b, dtype=float) for b in cand.bounds())
+    scale = cand.scales()
     x0 = np.clip(x0, lo + 1e-6 * scale, hi - 1e-6 * scale)
-
-    def effects(x: FloatArray) -> list[Effect]:
-        out, i = [], 0
-        for e, ps in names:
-            d = dict(e)
-            for p in ps:
-                d[p] = float(x[i])
-                i += 1
-            out.append(d)
-        return out
 
     def resid(x: FloatArray) -> FloatArray:
         try:
-            rp, xi = sim.outputs(effects(x), [gait])
+            rp, xi = sim.outputs(cand.effects(x), [gait])
         except (SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
             return np.full(target[0].size + target[1].size, 1e3)
         drp = ((rp - target[0]) / sim.sig_rp).ravel() if sim.pas.size else np.zeros(0)
@@ -281,7 +270,6 @@ def propose(
     if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
         raise SudsConfigError(f"proposed gait violates its limits: {bad}")
     cycles = max(config.min_cycles, int(math.ceil(2.0 * threshold / nats)))
-    gait = Gait(gait.system, gait.gait_hz, gait.joints, gait.offset, gait.cos, gait.sin)
     return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold)
 
 

@@ -388,6 +388,14 @@ def constraint_grid(order: int, gait_hz: float, per_harmonic: int = 64) -> Float
     return np.arange(n) / (n * gait_hz)
 
 
+def checked_extremes(gait: Gait, per_harmonic: int = 64) -> tuple[FloatArray, FloatArray]:
+    """Largest |r_j| and |ṙ_j| as the constraints are checked: on :func:`constraint_grid`, exact for K = 1."""
+    t = constraint_grid(gait.order, gait.gait_hz, per_harmonic)
+    r_max = np.maximum(np.abs(gait.r(t)).max(axis=0), _extremes(gait)[0] if gait.order == 1 else 0.0)
+    v_max = np.maximum(np.abs(gait.rdot(t)).max(axis=0), _extremes(gait)[1] if gait.order == 1 else 0.0)
+    return r_max, v_max
+
+
 def constraint_violations(gait: Gait, limits: GaitLimits, per_harmonic: int = 64) -> list[str]:
     """Phrases naming each joint whose range or speed bound the gait breaks (empty: it meets them).
 
@@ -395,9 +403,7 @@ def constraint_violations(gait: Gait, limits: GaitLimits, per_harmonic: int = 64
     """
     if tuple(limits.joints) != tuple(gait.joints):
         raise SudsConfigError(f"`limits`: joints {limits.joints} differ from the gait's {gait.joints}")
-    t = constraint_grid(gait.order, gait.gait_hz, per_harmonic)
-    r_max = np.maximum(np.abs(gait.r(t)).max(axis=0), _extremes(gait)[0] if gait.order == 1 else 0.0)
-    v_max = np.maximum(np.abs(gait.rdot(t)).max(axis=0), _extremes(gait)[1] if gait.order == 1 else 0.0)
+    r_max, v_max = checked_extremes(gait, per_harmonic)
     out = []
     for j, name in enumerate(gait.joints):
         if r_max[j] > limits.limit[j] * (1 + _SLACK):
