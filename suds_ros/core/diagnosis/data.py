@@ -6,14 +6,14 @@ onto one uniform grid at the nominal shape rate; aligned uniform recordings are 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
-from suds_ros.core.resample import Grid
-from suds_ros.core.resample import StreamSampling
+from suds_ros.core.resample import Grid, StreamSampling
 from suds_ros.core.resample import xi_noise_gain as grid_xi_noise_gain
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.rft import ChainModel
@@ -47,8 +47,11 @@ class Data:
     shape_gap: BoolArray | None = None  # (n,) shape unreliable: no sample within half a step (or next to such a point)
     pose_gap: BoolArray | None = None  # (n,) the same for the pose stream
     resampled: bool = False  # the streams were brought onto a grid (not aligned and uniform)
-    # how the pose stream sees a signal on the grid (None: the pose is recorded on the grid itself)
-    pose_sampling: StreamSampling | None = None
+
+    @functools.cached_property
+    def pose_sampling(self) -> StreamSampling | None:
+        """How the pose stream sees a signal on the grid (None: the pose is recorded on the grid itself)."""
+        return StreamSampling(self.pose_t, self.t) if self.resampled else None
 
 
 def prepare(rec: Recording, model: ChainModel) -> Data:
@@ -103,7 +106,6 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         shape_gap=grid.unreliable(rec.t),
         pose_gap=grid.unreliable(rec.pose_t),
         resampled=grid.resampled,
-        pose_sampling=StreamSampling(rec.pose_t, t) if grid.resampled else None,
     )
 
 

@@ -83,5 +83,4 @@ def null_recording(
     sxy, sth = pose_sigma(floors, w, data.dt, float(np.sqrt(2.0)))
     pose = data.pose.copy()
     pose[:n] = stitched_pose(data, rep.pose, starts) + rng.standard_normal((n, 3)) * np.array([sxy, sxy, sth])
-    return dataclasses.replace(data, r=r, pose=pose, pose_t=data.t.copy(), pose_raw=pose, resampled=False,
-                               pose_sampling=None)
+    return dataclasses.replace(data, r=r, pose=pose, pose_t=data.t.copy(), pose_raw=pose, resampled=False)
