@@ -30,6 +30,9 @@ class _EqError:
     Interval i (sample k → k+1): midpoint shape r̄_i, ṙ_i = Δr/Δt (exact for the piecewise-linear
     servo stream).  Torque residuals are per interval (so Coulomb's stick/slip switching is not
     smeared); body velocities are compared over windows of w intervals (SE(2) composition).
+    The nominal model's own passive-joint terms (its damping, cubic spring, dry friction and
+    stiffness scale, as in :class:`~suds_ros.core.physics.rft.RFTChain`) are part of every
+    residual; a candidate's terms add to them, as its ``apply`` adds to the model.
     """
 
     def __init__(self, data: Data, model: ChainModel, lo: int, hi: int, w: int) -> None:
@@ -41,8 +44,13 @@ class _EqError:
         self.rdot = np.diff(r, axis=0) / data.dt
         self.pas = data.pas
         self.act = data.act
-        self.k = np.asarray(model.stiffness)[data.pas]
-        self.rest = np.asarray(model.rest)[data.pas]
+        self.k = np.asarray(model.stiffness, dtype=float)[data.pas]
+        self.rest = np.asarray(model.rest, dtype=float)[data.pas]
+        # the nominal model's passive terms beside the linear spring (zero for the built-in swimmers)
+        self.k3 = np.asarray(model.k3, dtype=float)[data.pas]
+        self.d = np.asarray(model.damping, dtype=float)[data.pas]
+        self.mu = np.asarray(model.coulomb, dtype=float)[data.pas]
+        self.kscale = float(model.stiffness_scale)
         self.t = data.t[lo:hi]
         self.pose_t = data.pose_t
         self.pose_raw = data.pose_raw
@@ -135,14 +143,15 @@ class _EqError:
         """Torque residuals, shape (nint, np), and body-velocity residuals, shape (nwin, 3), under parameters ``p``."""
         tau, xi_w = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
-        spring = -p.scale * p.kscale * self.k * e_spring - p.scale * p.k3 * e_spring**3
-        e = tau + p.d * self.rdot_p - spring
+        scale = p.scale * self.kscale
+        spring = -scale * p.kscale * self.k * e_spring - scale * (self.k3 + p.k3) * e_spring**3
+        e = tau + (self.d + p.d) * self.rdot_p - spring
         # Intervals where a joint's measured velocity is within noise of zero are left out of its
         # torque channel for every candidate: there the joint may be stuck (any friction torque
         # in [−mu, mu] is admissible) and sign(ṙ) is noise, so a dead zone would "explain" noise.
         v = self.rdot_p
         slip = np.abs(v) > rdot_thr
-        e = np.where(slip, e + p.mu * np.sign(v), 0.0)
+        e = np.where(slip, e + (self.mu + p.mu) * np.sign(v), 0.0)
         xi_pred = xi_w
         if p.flow[0] != 0.0 or p.flow[1] != 0.0:
             c, s = np.cos(self.yaw_mid), np.sin(self.yaw_mid)

@@ -72,3 +72,22 @@ def test_a_model_parameter_has_the_same_physics_in_both_forms(swimmer9_run) -> N
     applied, _ = apply_effects(model, [dict(name="link_length_error", link="link_9", scale=1.3)])
     assert t.chain_model(model).link_length == pytest.approx(applied.link_length)
     assert applied.link_length[8] == pytest.approx(1.3)
+
+
+def test_the_nominal_models_own_joint_terms_are_in_the_equation_error() -> None:
+    """A model with its own damping, cubic spring and dry friction leaves no torque residual.
+
+    The equation error once left the nominal model's damping, k3 and Coulomb terms out, so on a
+    robot whose passive joint carries them the nominal model "lacked" a damping of exactly its own.
+    """
+    from suds_ros.core.diagnosis.naming import Scorer
+
+    base = purcell3_model()
+    model = base.with_(damping=(0.0, 0.05), k3=(0.0, 0.4), coulomb=(0.0, 0.004))
+    data = prepare(simulate(RFTChain(model), SimConfig(cycles=6, seed=4)), model)
+    sc = Scorer(data, model, 10, np.full(data.pas.size, 1e-4))
+    x, _, g_te = sc.fit(Candidate((("joint_viscous_damping", base.joint_names[1]),)))
+    assert abs(x[0]) < 5e-3 and g_te < 5.0
+    # the model without its own terms is what a robot carrying them is measured against
+    bare = Scorer(data, base, 10, np.full(data.pas.size, 1e-4))
+    assert bare.rss0_train[0] > 3 * sc.rss0_train[0]
