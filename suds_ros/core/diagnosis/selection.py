@@ -98,7 +98,13 @@ class _Selector:
             x, _, g_te = self.scorer.fit(cand, s.x, fixed=cur.x, quick=True)
             screened.append((g_te - self.pen_unit * x.size, cand, x))
         screened.sort(key=lambda t: -t[0])
-        out = [self.fit(cand, x) for _, cand, x in screened[: self.config.step_candidates]]
+        # a joint effect on a joint the set already acts on is refitted jointly whatever its screen:
+        # with the member held, its screen is blind to the member's share (a damping fitted alone
+        # absorbs a friction on its joint; the friction then earns nothing with the damping held)
+        joints = {t for n, t in cur.cand.parts if t is not None and EFFECTS[n].needs_joint}
+        keep = [t for k, t in enumerate(screened)
+                if k < self.config.step_candidates or _joint_of(t[1].parts[-1]) in joints]
+        out = [self.fit(cand, x) for _, cand, x in keep]
         return sorted(out, key=lambda r: -r.score.score)
 
     def without(self, cur: Ranked, k: int) -> Ranked:
@@ -118,6 +124,11 @@ class _Selector:
             rest = self.without(cur, k)
             out.append((cur.score.score - rest.score.score, rest))
         return out
+
+
+def _joint_of(part: tuple[str, str | None]) -> str | None:
+    """The passive joint a joint effect acts on (None for link and global effects)."""
+    return part[1] if EFFECTS[part[0]].needs_joint else None
 
 
 def _compatible(cand: Candidate, part: tuple[str, str | None]) -> bool:
