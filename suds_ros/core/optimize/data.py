@@ -357,6 +357,38 @@ class LearnedCycle(PeriodicShooting):
         return self.steady(x[None], rp)[0]
 
 
+def shifted(gait: Gait, s0: float) -> Gait:
+    """The same gait started ``s0`` cycles later: r'(s) = r(s + s0) (every objective is unchanged)."""
+    off, c, sn = gait.arrays()
+    a = 2 * np.pi * np.arange(1, gait.order + 1) * s0
+    ca, sa = np.cos(a), np.sin(a)
+    return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
+                cos=tuple(map(tuple, c * ca + sn * sa)), sin=tuple(map(tuple, sn * ca - c * sa)),
+                objective=gait.objective, predicted=gait.predicted)
+
+
+def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gait:
+    """``gait`` shifted in time so that gait time s matches the model's phase 2π·s (least squares on the template).
+
+    The phaser's phase zero is arbitrary; a gait given in the robot's own time (the drive that made
+    the recording) is moved onto the model's phase by the shift that brings its actuated joints
+    closest to the template θ_a.
+
+    Raises
+    ------
+    SudsConfigError
+        A gait of other joints than the model's actuated joints.
+    """
+    if tuple(gait.joints) != tuple(model.actuated):
+        raise SudsConfigError(f"`gait`: joints {list(gait.joints)} differ from the recording's actuated joints "
+                              f"{list(model.actuated)}")
+    s = np.arange(256) / 256
+    target = model.theta(2 * np.pi * s)[0][:, model.act]  # (256, na)
+    shifts = np.arange(n_shifts) / n_shifts
+    err = [float(np.sum((gait.at_phase(s + s0) - target) ** 2)) for s0 in shifts]
+    return shifted(gait, float(shifts[int(np.argmin(err))]))
+
+
 def trust_bounds(model: LearnedModel, gait: Gait, order: int, trust: float,
                  per_harmonic: int) -> tuple[FloatArray, FloatArray]:
     """M (rows, p), b (rows,) with M x ≤ b: |δ_a| ≤ κσ_δ and |δ̇_a| ≤ κσ_δ̇ on the constraint grid.
@@ -478,7 +510,8 @@ def _passive_excursion(ev: LearnedCycle, x: FloatArray, res: CycleResult) -> flo
 
 
 def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOptimizeConfig(), *,
-                       limits: GaitLimits | None = None, gait_hz: float | None = None) -> DataOptimizeResult:
+                       limits: GaitLimits | None = None, gait_hz: float | None = None,
+                       start: Gait | None = None) -> DataOptimizeResult:
     """One trust-region step from the recorded gait on the learned model (module docstring).
 
     Parameters
@@ -491,6 +524,9 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
         recorded gait's own range and speed (:func:`recorded_limits`).
     gait_hz : float, optional
         Frequency of the proposed gait (default the recording's).
+    start : Gait, optional
+        The gait that drove the recording, in the robot's time (moved onto the model's phase by
+        :func:`align_to_model`); default: the template's actuated part truncated to K harmonics.
 
     Raises
     ------
@@ -504,7 +540,10 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     if cfg.objective == "efficiency" and not model.torque:
         raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape; "
                               "efficiency is unavailable from this data", code=UNSUPPORTED_OBJECTIVE)
-    recorded = model.recorded_gait(K)
+    if start is not None and start.order > K:
+        raise SudsConfigError(f"`order`: the start gait has {start.order} harmonics, more than {K}")
+    recorded = model.recorded_gait(K) if start is None else align_to_model(model, start)
+    recorded = recorded.from_vector(recorded.to_vector(K), K, objective=None, predicted=())
     if gait_hz is not None:
         recorded = Gait(system=recorded.system, gait_hz=gait_hz, joints=recorded.joints, offset=recorded.offset,
                         cos=recorded.cos, sin=recorded.sin)
