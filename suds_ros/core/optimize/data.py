@@ -16,13 +16,15 @@ The step
 The model is local to the recorded gait: it was fitted on the shapes the robot visited.  The
 **trust region** is the data's spread around the template: on the constraint grid, every actuated
 joint's |δ_a(t)| ≤ κ·σ_δ,j and |δ̇_a(t)| ≤ κ·σ_δ̇,j, with σ the standard deviations of δ_a and δ̇_a
-over the recording (κ = ``trust``, default 2).  Both are linear in the gait's coefficients, so they
-enter SLSQP as linear inequalities beside the joint range and speed bounds (the same bounds and
-code as the physics optimiser, :func:`~suds_ros.core.optimize.physics.linear_bounds`).  The start
-is the template's actuated part truncated to K harmonics (the recorded gait), scaled into the
-bounds if it leaves them.  The returned gait meets the bounds on a 4096-point grid (the step is
-shortened towards the start until it does); a step that is not predicted to be better is not
-taken.
+over the recording (κ = ``trust``, default 2; widened to hold the start gait if it lies
+further out, e.g. a nominal drive the phaser's template does not follow exactly).  Both are
+linear in the gait's coefficients, so they enter SLSQP as linear inequalities beside the joint
+range and speed bounds (the same bounds and code as the physics optimiser,
+:func:`~suds_ros.core.optimize.physics.linear_bounds`).  The start is the gait that drove the
+recording, moved onto the model's phase (:func:`align_to_model`), or else the template's actuated
+part truncated to K harmonics; it is scaled into the bounds if it leaves them.  The returned
+gait meets the bounds on a 4096-point grid (the step is shortened towards the start until it
+does); a step that is not predicted to be better is not taken.
 
 Uncertainty
 -----------
@@ -451,7 +453,9 @@ class DataOptimizeResult:
     values, recorded_values : dict
         Predicted speed, turn, rotation, efficiency, distance of each.
     trust_used : float
-        Largest |δ_a|/σ or |δ̇_a|/σ of the proposed gait (≤ κ up to the constraint grid).
+        Largest |δ_a|/σ or |δ̇_a|/σ of the proposed gait (≤ ``trust_radius`` up to the constraint grid).
+    trust_radius : float
+        The radius used: κ, or the start's own distance if that is larger.
     passive_excursion : float
         Largest predicted |δ_p|/σ_δp over the proposed gait's cycle (how far the passive joints
         leave the data; not bounded, reported).
@@ -473,6 +477,7 @@ class DataOptimizeResult:
     values: dict[str, float]
     recorded_values: dict[str, float]
     trust_used: float
+    trust_radius: float
     passive_excursion: float
     step_taken: bool
     message: str
@@ -571,7 +576,8 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     free = np.arange(x0.size)  # no phase pinning: the model is local to the recorded phase
     prob = SteadyStateProblem(ev, ocfg, rec_vals["speed"], scale, sign, base.r_p[0], free)
     M, b = linear_bounds(recorded, K, limits, cfg.points_per_harmonic)
-    T, c = trust_bounds(model, recorded, K, cfg.trust, cfg.points_per_harmonic)
+    radius = max(cfg.trust, trust_used(model, recorded) * (1 + 1e-3))  # the region always holds the start
+    T, c = trust_bounds(model, recorded, K, radius, cfg.points_per_harmonic)
     L, lb = np.concatenate([M, T]), np.concatenate([b, c])
     cons = [{"type": "ineq", "fun": lambda z: lb - L @ z, "jac": lambda z: -L},
             {"type": "ineq", "fun": lambda z: prob.values(z)[1:],
@@ -618,6 +624,6 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
         value_std=None if arr is None else float(arr[:, 1].std(ddof=1)) if len(arr) > 1 else None,
         recorded_std=None if arr is None else float(arr[:, 0].std(ddof=1)) if len(arr) > 1 else None,
         gain_std=None if arr is None else float((arr[:, 1] - arr[:, 0]).std(ddof=1)) if len(arr) > 1 else None,
-        values=new_vals, recorded_values=rec_vals, trust_used=trust_used(model, proposed),
+        values=new_vals, recorded_values=rec_vals, trust_used=trust_used(model, proposed), trust_radius=radius,
         passive_excursion=_passive_excursion(ev, x_end, res), step_taken=step_taken, message=msg, limits=limits,
         seconds=time.perf_counter() - t0, draws=draws)
