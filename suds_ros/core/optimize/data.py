@@ -90,6 +90,9 @@ class DataOptimizeConfig:
         Trust-region radius κ in standard deviations of the data's δ_a and δ̇_a spread (> 0).
     draws : int
         Coefficient draws for the predicted objective's uncertainty (0: none).
+    min_gain_sigmas : float
+        With draws, the step is taken only when its predicted gain is at least this many standard
+        deviations (over the draws) above zero; else the start gait is returned (0: always).
     seed : int
         Seed of the draws.
     max_rotation : float
@@ -108,6 +111,7 @@ class DataOptimizeConfig:
     order: int = DEFAULT_MAX_ORDER
     trust: float = 2.0
     draws: int = 16
+    min_gain_sigmas: float = 1.0
     seed: int = 0
     max_rotation: float = 0.05
     points_per_harmonic: int = 64
@@ -120,7 +124,8 @@ class DataOptimizeConfig:
             raise SudsConfigError(f"`objective`: expected one of {list(OBJECTIVES)}, got {self.objective!r}")
         checks = [("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"),
                   ("trust", math.isfinite(self.trust) and self.trust > 0, "> 0"),
-                  ("draws", self.draws >= 0, "≥ 0"), ("max_rotation", self.max_rotation > 0, "> 0"),
+                  ("draws", self.draws >= 0, "≥ 0"),
+                  ("min_gain_sigmas", math.isfinite(self.min_gain_sigmas) and self.min_gain_sigmas >= 0, "≥ 0"), ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
                   ("maxiter", self.maxiter >= 1, "≥ 1"), ("ftol", self.ftol > 0, "> 0"),
                   ("fd_step", self.fd_step > 0, "> 0")]
@@ -618,6 +623,13 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
             pair = (abs(v["turn"]) if cfg.objective == "turn" else v[cfg.objective])
             draws.append((float(pair[0]), float(pair[1])))
     arr = np.asarray(draws) if draws else None
+    if step_taken and arr is not None and len(arr) > 1 and cfg.min_gain_sigmas > 0:
+        sd = float((arr[:, 1] - arr[:, 0]).std(ddof=1))
+        if value - rec_value < cfg.min_gain_sigmas * sd:
+            msg += (f"; predicted gain {value - rec_value:.4g} below {cfg.min_gain_sigmas:g} σ ({sd:.3g}) of the "
+                    "coefficient draws: the recorded gait is returned")
+            step_taken, x_end, res, new_vals, value = False, x0, base, rec_vals, rec_value
+            arr = np.stack([arr[:, 0], arr[:, 0]], axis=1)
     proposed = with_predicted(recorded.from_vector(x_end, K), cfg.objective, {cfg.objective: value})
     return DataOptimizeResult(
         gait=proposed, recorded=recorded, value=value, recorded_value=rec_value,

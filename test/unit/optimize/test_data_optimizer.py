@@ -49,7 +49,7 @@ def test_step_stays_in_bounds_and_trust_region_and_does_not_hurt(purcell: tuple[
     system, model = purcell
     limits = gait_limits(system)  # type: ignore[arg-type]
     start = nominal_gait(system)  # type: ignore[arg-type]
-    res = optimize_from_data(model, DataOptimizeConfig(draws=6), limits=limits, start=start)
+    res = optimize_from_data(model, DataOptimizeConfig(draws=6, min_gain_sigmas=0.0), limits=limits, start=start)
     assert constraint_violations(res.gait, limits) == []
     assert res.trust_used <= 2.0 * 1.01 and res.step_taken
     assert res.value >= res.recorded_value
@@ -57,6 +57,9 @@ def test_step_stays_in_bounds_and_trust_region_and_does_not_hurt(purcell: tuple[
     true_new = evaluate_gait(system, res.gait)["speed"]  # type: ignore[arg-type]
     true_old = evaluate_gait(system, start)["speed"]  # type: ignore[arg-type]
     assert true_new >= true_old * 0.99
+    # a gain within the draws' spread is not trusted: the start gait comes back
+    gated = optimize_from_data(model, DataOptimizeConfig(draws=6, min_gain_sigmas=1e3), limits=limits, start=start)
+    assert not gated.step_taken and "below 1000 σ" in gated.message and gated.value == gated.recorded_value
     small = optimize_from_data(model, DataOptimizeConfig(trust=0.3, draws=0), limits=limits, start=start)
     radius = max(0.3, trust_used(model, small.recorded) * 1.001)  # widened to hold the start
     assert small.trust_radius == pytest.approx(radius) and small.value_std is None
