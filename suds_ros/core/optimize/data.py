@@ -125,7 +125,8 @@ class DataOptimizeConfig:
         checks = [("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"),
                   ("trust", math.isfinite(self.trust) and self.trust > 0, "> 0"),
                   ("draws", self.draws >= 0, "≥ 0"),
-                  ("min_gain_sigmas", math.isfinite(self.min_gain_sigmas) and self.min_gain_sigmas >= 0, "≥ 0"), ("max_rotation", self.max_rotation > 0, "> 0"),
+                  ("min_gain_sigmas", math.isfinite(self.min_gain_sigmas) and self.min_gain_sigmas >= 0, "≥ 0"),
+                  ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
                   ("maxiter", self.maxiter >= 1, "≥ 1"), ("ftol", self.ftol > 0, "> 0"),
                   ("fd_step", self.fd_step > 0, "> 0")]
