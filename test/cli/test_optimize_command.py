@@ -58,7 +58,8 @@ def test_optimize_from_a_recording(p3_bag: Path, tmp_path: Path, capsys: pytest.
     doc = json.loads(capsys.readouterr().out)
     assert doc["start"] == "the robot's nominal gait" and doc["cycles_used"] == pytest.approx(10.0)
     pred, sim = doc["predicted"], doc["simulated"]
-    assert pred["proposed"] >= pred["recorded"] and pred["proposed_std"] > 0 and pred["gain_std"] > 0
+    assert pred["proposed"] >= pred["recorded"] and pred["proposed_std"] > 0 and pred["gain_std"] >= 0
+    assert doc["step_taken"] or pred["proposed"] == pred["recorded"]  # a gain under 1 σ of the draws: no step
     assert sim["recorded"] == pytest.approx(0.08665, rel=1e-3)  # the nominal gait on the physics
     assert sim["proposed"] >= 0.99 * sim["recorded"] and doc["trust_used"] <= doc["trust_radius"] * 1.01
     system = make_system("purcell3")
