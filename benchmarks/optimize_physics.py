@@ -22,7 +22,7 @@ from scipy.optimize import minimize
 from suds_ros.core.optimize.physics import (
     CycleEvaluator,
     OptimizeConfig,
-    _linear_bounds,
+    linear_bounds,
     evaluate_gait,
     optimize_gait,
 )
@@ -58,7 +58,7 @@ def cobyla(name: str, order: int) -> tuple[float, float, int]:
     system = make_system(name)
     nominal = nominal_gait(system)
     limits = gait_limits(system, nominal)
-    M, b = _linear_bounds(nominal, order, limits, 64)
+    M, b = linear_bounds(nominal, order, limits, 64)
     ev = CycleEvaluator(system, nominal.gait_hz, order, 64)
     free = np.flatnonzero(np.arange(M.shape[1]) != 1)
     state = {"rp": np.zeros((1, len(system.passive))), "n": 0}

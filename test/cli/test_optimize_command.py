@@ -1,4 +1,4 @@
-"""`suds optimize --physics`: writes a gait within the bounds that loads back; one JSON object; one ERROR line."""
+"""`suds optimize --physics` and `suds optimize BAG`: a gait within the bounds that loads back; JSON; one ERROR line."""
 
 from __future__ import annotations
 
@@ -27,7 +27,10 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["optimize", "--system", "purcell3", "-o", "{tmp}/g.yaml"], "--physics: required"),
+    (["optimize", "--system", "purcell3", "-o", "{tmp}/g.yaml"], "nothing to optimise on: give --physics"),
+    (["optimize", "{tmp}/none.mcap", "--physics", "--system", "purcell3", "-o", "{tmp}/g.yaml"],
+     "--physics and BAG"),
+    (["optimize", "{tmp}/none.mcap", "-o", "{tmp}/g.yaml"], "no such file"),
     (["optimize", "--physics", "-o", "{tmp}/g.yaml"], "no robot: give --model FILE or --system ID"),
     (["optimize", "--physics", "--model", "{tmp}/none.yaml", "-o", "{tmp}/g.yaml"], "--model: no such file"),
     (["optimize", "--physics", "--system", "purcell3", "--order", "0", "-o", "{tmp}/g.yaml"],
@@ -39,3 +42,36 @@ def test_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
     assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("ERROR: ") and message in err[0]
+
+
+@pytest.fixture(scope="module")
+def p3_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    bag = tmp_path_factory.mktemp("dataopt") / "p3.mcap"
+    assert main(["simulate", "purcell3", "-o", str(bag), "--cycles", "10", "--seed", "1"]) == 0
+    return bag
+
+
+def test_optimize_from_a_recording(p3_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    out = tmp_path / "step.yaml"
+    assert main(["optimize", str(p3_bag), "--system", "purcell3", "--draws", "4", "-o", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["start"] == "the robot's nominal gait" and doc["cycles_used"] == pytest.approx(10.0)
+    pred, sim = doc["predicted"], doc["simulated"]
+    assert pred["proposed"] >= pred["recorded"] and pred["proposed_std"] > 0 and pred["gain_std"] >= 0
+    assert doc["step_taken"] or pred["proposed"] == pred["recorded"]  # a gain under 1 σ of the draws: no step
+    assert sim["recorded"] == pytest.approx(0.08665, rel=1e-3)  # the nominal gait on the physics
+    assert sim["proposed"] >= 0.99 * sim["recorded"] and doc["trust_used"] <= doc["trust_radius"] * 1.01
+    system = make_system("purcell3")
+    assert constraint_violations(load_gait(out, system), gait_limits(system)) == []
+    # without a robot: the recording's own range and speed bound the gait; text output
+    assert main(["optimize", str(p3_bag), "--draws", "0", "-o", str(tmp_path / "t.yaml")]) == 0
+    text = capsys.readouterr().out
+    assert "recorded gait: the recording's gait template" in text and "simulated" not in text
+
+
+def test_efficiency_needs_a_torque_model(p3_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["optimize", str(p3_bag), "--objective", "efficiency", "-o", str(tmp_path / "e.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no learned torque model" in err[0] and "efficiency is unavailable" in err[0]

@@ -137,7 +137,75 @@ class CycleResult:
     r_p: FloatArray
 
 
-class CycleEvaluator:
+class PeriodicShooting:
+    """Passive periodic steady states by Newton shooting on any one-cycle map.
+
+    A subclass provides ``np`` (passive joints), ``gait_hz`` and
+    ``cycle(X, rp0) -> (r_p(T), g_c, work)`` for candidate gaits X (B, p) started at r_p(0) = ``rp0``
+    (B, np) and the identity pose: the physics (:class:`CycleEvaluator`) or a learned model
+    (:class:`~suds_ros.core.optimize.data.LearnedCycle`).
+    """
+
+    np: int
+    gait_hz: float
+
+    def cycle(self, X: FloatArray, rp0: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """One cycle of each candidate: r_p(T) (B, np), g_c (B, 3), work (B,)."""
+        raise NotImplementedError
+
+    def steady(self, X: FloatArray, rp_guess: FloatArray, tol: float = 1e-11, max_iter: int = 8
+               ) -> tuple[CycleResult, FloatArray, FloatArray]:
+        """The periodic steady state of candidates X (B, p) by Newton shooting from ``rp_guess`` (B, np).
+
+        Returns
+        -------
+        result : CycleResult
+            At the steady state (outputs moved there by the last linearisation).
+        phi : (B, np, np) ∂P/∂r_p(0) at the last iterate.
+        gy : (B, 4, np) ∂(g_c, work)/∂r_p(0) at the last iterate.
+
+        Raises
+        ------
+        FloatingPointError
+            When Newton does not converge in ``max_iter`` iterations.
+        """
+        X = np.atleast_2d(X)
+        B, m = X.shape[0], self.np
+        rp = np.array(rp_guess, dtype=float).reshape(B, m)
+        eps = 1e-6
+        eye = np.eye(m)
+        for _ in range(max_iter):
+            starts = np.concatenate([rp[:, None, :], rp[:, None, :] + eps * eye[None]], axis=1)  # (B, m+1, m)
+            P, g, w = self.cycle(np.repeat(X, m + 1, axis=0), starts.reshape(-1, m))
+            P, y = P.reshape(B, m + 1, m), np.concatenate([g, w[:, None]], axis=1).reshape(B, m + 1, 4)
+            phi = ((P[:, 1:] - P[:, :1]) / eps).transpose(0, 2, 1)  # (B, m, m): column i = ∂P/∂rp_i
+            gy = ((y[:, 1:] - y[:, :1]) / eps).transpose(0, 2, 1)  # (B, 4, m)
+            F = P[:, 0] - rp
+            step = np.linalg.solve(eye - phi, F[..., None])[..., 0]
+            new = rp + step
+            y0 = y[:, 0] + np.einsum("bij,bj->bi", gy, step)
+            done = np.max(np.abs(F)) < tol or np.max(np.abs(step)) < tol
+            rp = new
+            if done:
+                return CycleResult(g_c=y0[:, :3], work=y0[:, 3], r_p=rp), phi, gy
+        raise FloatingPointError(
+            f"no periodic steady state after {max_iter} Newton steps (|F| = {np.max(np.abs(F)):.3g})")
+
+    def moved(self, X: FloatArray, base: CycleResult, phi: FloatArray, gy: FloatArray) -> CycleResult:
+        """Candidates X (B, p) near a base gait: one cycle from the base's steady state, moved to their own.
+
+        ``base``, ``phi``, ``gy`` are of one gait (leading axis 1); y* = y + G (I − Φ)⁻¹ (P − r_p*).
+        """
+        X = np.atleast_2d(X)
+        B = X.shape[0]
+        rp0 = np.repeat(base.r_p, B, axis=0)
+        P, g, w = self.cycle(X, rp0)
+        corr = np.linalg.solve(np.eye(self.np) - phi[0], (P - rp0).T).T  # (B, np)
+        y = np.concatenate([g, w[:, None]], axis=1) + corr @ gy[0].T
+        return CycleResult(g_c=y[:, :3], work=y[:, 3], r_p=rp0 + corr)
+
+
+class CycleEvaluator(PeriodicShooting):
     """One gait cycle of many candidate gaits at once, and their passive periodic steady states.
 
     Parameters
@@ -222,57 +290,6 @@ class CycleEvaluator:
         self.cycles_run += B
         return rp, pose, (work if self.with_work else np.full(B, np.nan))
 
-    def steady(self, X: FloatArray, rp_guess: FloatArray, tol: float = 1e-11, max_iter: int = 8
-               ) -> tuple[CycleResult, FloatArray, FloatArray]:
-        """The periodic steady state of candidates X (B, p) by Newton shooting from ``rp_guess`` (B, np).
-
-        Returns
-        -------
-        result : CycleResult
-            At the steady state (outputs moved there by the last linearisation).
-        phi : (B, np, np) ∂P/∂r_p(0) at the last iterate.
-        gy : (B, 4, np) ∂(g_c, work)/∂r_p(0) at the last iterate.
-
-        Raises
-        ------
-        FloatingPointError
-            When Newton does not converge in ``max_iter`` iterations.
-        """
-        X = np.atleast_2d(X)
-        B, m = X.shape[0], self.np
-        rp = np.array(rp_guess, dtype=float).reshape(B, m)
-        eps = 1e-6
-        eye = np.eye(m)
-        for _ in range(max_iter):
-            starts = np.concatenate([rp[:, None, :], rp[:, None, :] + eps * eye[None]], axis=1)  # (B, m+1, m)
-            P, g, w = self.cycle(np.repeat(X, m + 1, axis=0), starts.reshape(-1, m))
-            P, y = P.reshape(B, m + 1, m), np.concatenate([g, w[:, None]], axis=1).reshape(B, m + 1, 4)
-            phi = ((P[:, 1:] - P[:, :1]) / eps).transpose(0, 2, 1)  # (B, m, m): column i = ∂P/∂rp_i
-            gy = ((y[:, 1:] - y[:, :1]) / eps).transpose(0, 2, 1)  # (B, 4, m)
-            F = P[:, 0] - rp
-            step = np.linalg.solve(eye - phi, F[..., None])[..., 0]
-            new = rp + step
-            y0 = y[:, 0] + np.einsum("bij,bj->bi", gy, step)
-            done = np.max(np.abs(F)) < tol or np.max(np.abs(step)) < tol
-            rp = new
-            if done:
-                return CycleResult(g_c=y0[:, :3], work=y0[:, 3], r_p=rp), phi, gy
-        raise FloatingPointError(
-            f"no periodic steady state after {max_iter} Newton steps (|F| = {np.max(np.abs(F)):.3g})")
-
-    def moved(self, X: FloatArray, base: CycleResult, phi: FloatArray, gy: FloatArray) -> CycleResult:
-        """Candidates X (B, p) near a base gait: one cycle from the base's steady state, moved to their own.
-
-        ``base``, ``phi``, ``gy`` are of one gait (leading axis 1); y* = y + G (I − Φ)⁻¹ (P − r_p*).
-        """
-        X = np.atleast_2d(X)
-        B = X.shape[0]
-        rp0 = np.repeat(base.r_p, B, axis=0)
-        P, g, w = self.cycle(X, rp0)
-        corr = np.linalg.solve(np.eye(self.np) - phi[0], (P - rp0).T).T  # (B, np)
-        y = np.concatenate([g, w[:, None]], axis=1) + corr @ gy[0].T
-        return CycleResult(g_c=y[:, :3], work=y[:, 3], r_p=rp0 + corr)
-
 
 def objective_values(res: CycleResult, gait_hz: float) -> dict[str, FloatArray]:
     """``speed`` (m/s), ``turn`` (rad/s, signed), ``efficiency`` (m/J), ``rotation`` (rad/cycle) of results."""
@@ -325,7 +342,7 @@ class OptimizeResult:
     limits: GaitLimits | None = None
 
 
-class _Problem:
+class SteadyStateProblem:
     """One objective's value, constraints and their gradients at x, from one batch, cached per x.
 
     The batch holds the gait started at the current guess r_p and at r_p + ε e_i (the cycle map's
@@ -334,7 +351,7 @@ class _Problem:
     it is below ``tol`` (one or two batches per x: the guess is the last x's steady state).
     """
 
-    def __init__(self, ev: CycleEvaluator, cfg: OptimizeConfig, nominal_speed: float, scale: float,
+    def __init__(self, ev: PeriodicShooting, cfg: OptimizeConfig, nominal_speed: float, scale: float,
                  sign: float, rp0: FloatArray, free: FloatArray, tol: float = 1e-9, max_iter: int = 8) -> None:
         self.ev, self.cfg, self.nominal_speed, self.scale, self.sign = ev, cfg, nominal_speed, scale, sign
         self.free = np.asarray(free)
@@ -433,7 +450,7 @@ def phase_pinned(x: FloatArray, na: int, order: int) -> FloatArray:
     return m.ravel()
 
 
-def _linear_bounds(gait: Gait, order: int, limits: GaitLimits, per_harmonic: int) -> tuple[FloatArray, FloatArray]:
+def linear_bounds(gait: Gait, order: int, limits: GaitLimits, per_harmonic: int) -> tuple[FloatArray, FloatArray]:
     """M (rows, p), b (rows,) with M x ≤ b the range and speed bounds on the constraint grid."""
     na = len(gait.joints)
     t = constraint_grid(order, gait.gait_hz, per_harmonic)
@@ -457,7 +474,7 @@ def _linear_bounds(gait: Gait, order: int, limits: GaitLimits, per_harmonic: int
     return np.concatenate(rows), np.concatenate(bounds)
 
 
-def _feasible_scale(gait: Gait, limits: GaitLimits) -> float:
+def feasible_scale(gait: Gait, limits: GaitLimits) -> float:
     """Largest s ≤ 1 with s·gait within the bounds on a 4096-point grid (the bounds are homogeneous)."""
     t = np.arange(4096) / (4096 * gait.gait_hz)
     r = np.abs(gait.r(t)).max(axis=0)
@@ -525,7 +542,7 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
                               f"the nominal gait's is {nom_res.work[0]!r} J", code=UNSUPPORTED_OBJECTIVE)
     # objective scale: the nominal value (a nominal gait that does not turn: the rotation bound's rate)
     scale = max(abs(nominal_value), cfg.max_rotation * nominal.gait_hz if cfg.objective == "turn" else 1e-9)
-    M, b = _linear_bounds(nominal, K, limits, cfg.points_per_harmonic)
+    M, b = linear_bounds(nominal, K, limits, cfg.points_per_harmonic)
     rng = np.random.default_rng(cfg.seed)
     starts: list[tuple[str, FloatArray]] = [("nominal", x_nom)]
     na = len(nominal.joints)
@@ -536,7 +553,7 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         x[:, 1:K + 1] = rng.normal(size=(na, K)) * amp
         x[:, K + 1:] = rng.normal(size=(na, K)) * amp
         g = nominal.from_vector(x.ravel(), K)
-        s = _feasible_scale(g, limits) * rng.uniform(0.6, 0.95)
+        s = feasible_scale(g, limits) * rng.uniform(0.6, 0.95)
         starts.append(("random", s * x.ravel()))
     best: tuple[float, FloatArray] | None = None
     report: list[dict[str, Any]] = []
@@ -555,7 +572,7 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         if cfg.objective == "turn":
             r0, _, _ = ev.steady(x0[None], nom_res.r_p) if kind != "nominal" else (nom_res, None, None)
             sign = 1.0 if r0.g_c[0, 2] >= 0 else -1.0
-        prob = _Problem(ev, cfg, nom_vals["speed"], scale, sign, nom_res.r_p[0], free)
+        prob = SteadyStateProblem(ev, cfg, nom_vals["speed"], scale, sign, nom_res.r_p[0], free)
         cons = [{"type": "ineq", "fun": lambda z: b - Mf @ z, "jac": lambda z: -Mf},
                 {"type": "ineq", "fun": lambda z, p=prob: p.values(embed(z))[1:],
                  "jac": lambda z, p=prob: np.ascontiguousarray(p.grads(embed(z))[:, 1:].T)}]
@@ -571,11 +588,11 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
                 log(f"start {len(report)} ({kind}): failed ({exc})")
             continue
         g_end = nominal.from_vector(x_end, K)
-        x_end = x_end * _feasible_scale(g_end, limits)
+        x_end = x_end * feasible_scale(g_end, limits)
         vals = prob.values(x_end)
         start_vals = prob.values(x0)
         if (start_vals[0] < vals[0] and np.all(start_vals[1:] >= -MARGIN)
-                and _feasible_scale(nominal.from_vector(x0, K), limits) == 1.0):
+                and feasible_scale(nominal.from_vector(x0, K), limits) == 1.0):
             x_end, vals, msg = x0, start_vals, msg + "; kept the start, which was better"
         value = -float(vals[0]) * scale
         feasible = bool(np.all(vals[1:] >= -MARGIN))  # the true bounds, to ~1e-6

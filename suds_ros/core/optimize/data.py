@@ -1,0 +1,642 @@
+"""Data-driven gait optimisation: one trust-region step on the SUDS model of a recording (``suds optimize BAG``).
+
+The recording's fitted SUDS model (:class:`~suds_ros.core.ident.identify.SudsIdentifier`) predicts, per
+sampling interval, the mean body velocity g° and passive velocity ṙ_p from the gait phase φ, the
+state's offset δ = r − θ(φ) from the gait template and the actuated rate offset δ̇_a.  A candidate
+gait (``suds-gait/1``, in the model's phase: gait time s ↔ φ = 2π·s) is predicted over one cycle
+by that same sampled-data map (:class:`LearnedCycle`): at the recording's sample interval h, the
+passive joints step by h·ṙ_p and the pose by the SE(2) exponential of h·g°
+(:func:`~suds_ros.core.se2.exp_step`), the actuated joints following the candidate exactly.  The
+objectives (``shared/spec/gait.md``) are read at the passive periodic steady state of the learned
+map, found by the Newton shooting of :class:`~suds_ros.core.optimize.physics.PeriodicShooting`;
+efficiency needs a learned torque model (the recording's ``effort``), else it is refused.
+
+The step
+--------
+The model is local to the recorded gait: it was fitted on the shapes the robot visited.  The
+**trust region** is the data's spread around the template: on the constraint grid, every actuated
+joint's |δ_a(t)| ≤ κ·σ_δ,j and |δ̇_a(t)| ≤ κ·σ_δ̇,j, with σ the standard deviations of δ_a and δ̇_a
+over the recording (κ = ``trust``, default 2; widened to hold the start gait if it lies
+further out, e.g. a nominal drive the phaser's template does not follow exactly).  Both are
+linear in the gait's coefficients, so they enter SLSQP as linear inequalities beside the joint
+range and speed bounds (the same bounds and code as the physics optimiser,
+:func:`~suds_ros.core.optimize.physics.linear_bounds`).  The start is the gait that drove the
+recording, moved onto the model's phase (:func:`align_to_model`), or else the template's actuated
+part truncated to K harmonics; it is scaled into the bounds if it leaves them.  The returned
+gait meets the bounds on a 4096-point grid (the step is shortened towards the start until it
+does); a step that is not predicted to be better is not taken.
+
+Uncertainty
+-----------
+The regression's coefficients have the covariance s²_c·(XᵀX + λI)⁻¹ per output channel c (s²_c its
+residual variance, λ its ridge): ``draws`` coefficient sets are drawn from it and the recorded and
+proposed gaits re-predicted with each; the spread of the objective and of the gain over the draws
+is the reported uncertainty.  It treats the residuals as independent and the model's form as
+right, so it is a lower bound on the real error (the benchmark compares it with the simulator).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+from scipy.optimize import minimize
+
+from suds_ros.core import se2
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.fourier import fourier_basis_and_derivative
+from suds_ros.core.ident.sysid import SudsConfig, regressor_design, regressor_input
+from suds_ros.core.optimize.physics import (
+    MARGIN,
+    UNSUPPORTED_OBJECTIVE,
+    CycleResult,
+    OptimizeConfig,
+    PeriodicShooting,
+    SteadyStateProblem,
+    feasible_scale,
+    linear_bounds,
+    objective_values,
+)
+from suds_ros.core.physics.gait import (
+    DEFAULT_MAX_ORDER,
+    MAX_ORDER,
+    OBJECTIVES,
+    Gait,
+    GaitLimits,
+    checked_extremes,
+    constraint_grid,
+    constraint_violations,
+    with_predicted,
+)
+from suds_ros.core.recording import Recording
+
+
+@dataclass(frozen=True)
+class DataOptimizeConfig:
+    """Settings of :func:`optimize_from_data`.
+
+    Parameters
+    ----------
+    objective : str
+        ``speed``, ``turn`` or ``efficiency`` (``shared/spec/gait.md``).
+    order : int
+        Harmonics K of the proposed gait (1 ≤ K ≤ 8; the spec's default bound is 3).
+    trust : float
+        Trust-region radius κ in standard deviations of the data's δ_a and δ̇_a spread (> 0).
+    draws : int
+        Coefficient draws for the predicted objective's uncertainty (0: none).
+    min_gain_sigmas : float
+        With draws, the step is taken only when its predicted gain is at least this many standard
+        deviations (over the draws) above zero; else the start gait is returned (0: always).
+    seed : int
+        Seed of the draws.
+    max_rotation : float
+        Bound on the net rotation per cycle for ``speed`` and ``efficiency``, rad.
+    points_per_harmonic : int
+        Constraint grid: this many times K points per cycle.
+    maxiter : int
+        SLSQP iterations.
+    ftol : float
+        SLSQP's tolerance on the (scaled) objective.
+    fd_step : float
+        Forward-difference step on the coefficients, rad.
+    """
+
+    objective: str = "speed"
+    order: int = DEFAULT_MAX_ORDER
+    trust: float = 2.0
+    draws: int = 16
+    min_gain_sigmas: float = 1.0
+    seed: int = 0
+    max_rotation: float = 0.05
+    points_per_harmonic: int = 64
+    maxiter: int = 100
+    ftol: float = 1e-8
+    fd_step: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if self.objective not in OBJECTIVES:
+            raise SudsConfigError(f"`objective`: expected one of {list(OBJECTIVES)}, got {self.objective!r}")
+        checks = [("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"),
+                  ("trust", math.isfinite(self.trust) and self.trust > 0, "> 0"),
+                  ("draws", self.draws >= 0, "≥ 0"),
+                  ("min_gain_sigmas", math.isfinite(self.min_gain_sigmas) and self.min_gain_sigmas >= 0, "≥ 0"),
+                  ("max_rotation", self.max_rotation > 0, "> 0"),
+                  ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
+                  ("maxiter", self.maxiter >= 1, "≥ 1"), ("ftol", self.ftol > 0, "> 0"),
+                  ("fd_step", self.fd_step > 0, "> 0")]
+        for name, ok, expected in checks:
+            if not ok:
+                raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class LearnedModel:
+    """What the data-driven optimiser needs of a fitted SUDS model and its recording.
+
+    Attributes
+    ----------
+    system : str
+        The recording's system id.
+    joint_names, actuated, passive : joint bookkeeping (names).
+    act, pas : (na,), (np,) int, column indices of the actuated and passive joints.
+    template_order : int
+    template_coef : (2·To + 1, nj) Fourier coefficients of θ(φ) ([1, cos φ, sin φ, …]).
+    omega : float, the recording's mean phase rate ω̄, rad/s.
+    dt : float, the sample interval the model maps over, s.
+    gait_hz : float, the recording's gait frequency, Hz.
+    suds : SudsConfig, kernel_scale : the regression's design.
+    coef : (p, c) coefficients; channels ξx, ξy, ξθ, ṙ_p…, then τ_a… when ``torque``.
+    torque : bool, whether actuator torques were learned.
+    chol : (p, p) lower Cholesky factor L of XᵀX + λI (LLᵀ), or None (no draws).
+    resid_std : (c,) residual standard deviation per channel.
+    spread_delta, spread_rate : (na,) std of δ_a (rad) and δ̇_a (rad/s) over the recording.
+    spread_passive : (np,) std of δ_p (rad).
+    cycles : float, gait cycles in the recording.
+    """
+
+    system: str
+    joint_names: tuple[str, ...]
+    actuated: tuple[str, ...]
+    passive: tuple[str, ...]
+    act: FloatArray
+    pas: FloatArray
+    template_order: int
+    template_coef: FloatArray
+    omega: float
+    dt: float
+    gait_hz: float
+    suds: SudsConfig
+    kernel_scale: Any
+    coef: FloatArray
+    torque: bool
+    chol: FloatArray | None
+    resid_std: FloatArray
+    spread_delta: FloatArray
+    spread_rate: FloatArray
+    spread_passive: FloatArray
+    cycles: float
+
+    def theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """θ(φ) and dθ/dφ, each (n, nj), at phases (n,) rad."""
+        B, dB = fourier_basis_and_derivative(np.atleast_1d(np.asarray(phase, dtype=float)), self.template_order)
+        return B @ self.template_coef, dB @ self.template_coef
+
+    def recorded_gait(self, order: int) -> Gait:
+        """The template's actuated part truncated to ``order`` harmonics, at the recording's frequency."""
+        c = self.template_coef[:, self.act]
+        K = min(order, self.template_order)
+        cos = [tuple(c[1 + 2 * k, j] for k in range(K)) for j in range(len(self.act))]
+        sin = [tuple(c[2 + 2 * k, j] for k in range(K)) for j in range(len(self.act))]
+        g = Gait(system=self.system, gait_hz=self.gait_hz, joints=self.actuated, offset=tuple(c[0]),
+                 cos=tuple(cos), sin=tuple(sin))
+        return g if g.order == order else g.from_vector(g.to_vector(order), order)
+
+    def draw(self, rng: np.random.Generator) -> FloatArray:
+        """Coefficients (p, c) drawn from N(coef, s²_c (XᵀX + λI)⁻¹) per channel."""
+        if self.chol is None:
+            raise SudsConfigError("`draws`: the model carries no coefficient covariance")
+        z = rng.standard_normal(self.coef.shape)
+        return self.coef + scipy.linalg.solve_triangular(self.chol, z, lower=True, trans="T") * self.resid_std
+
+
+def _phase_of(ident: Any, rec: Recording) -> FloatArray:
+    if ident.config.phase == "truth":
+        return np.asarray(rec.truth["phase"], dtype=float)
+    return np.asarray(ident.phaser_.transform(rec.r), dtype=float)
+
+
+def learn_model(rec: Recording, *, torque: bool = False, config: Any = None) -> LearnedModel:
+    """Fit the SUDS model of a whole recording and keep what the optimiser needs (:class:`LearnedModel`).
+
+    Parameters
+    ----------
+    rec : Recording
+        One steady gait (its bouts, if any, are not split: pass a steady recording).
+    torque : bool
+        Also learn the actuator torques (needs ``rec.effort``); required for ``efficiency``.
+    config : IdentifyConfig, optional
+        The identification settings (default: the shipped model selection).
+
+    Raises
+    ------
+    SudsConfigError
+        (code ``unsupported_objective``) ``torque`` without recorded effort.
+    SudsDataError
+        (code ``too_little_data``) fewer than 3 gait cycles.
+    """
+    from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
+
+    if torque and rec.effort is None:
+        raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape "
+                              "(record it, e.g. `suds simulate --effort`); efficiency is unavailable from this data",
+                              code=UNSUPPORTED_OBJECTIVE)
+    hz = rec.gait_hz or 1.0
+    cycles = float((rec.t[-1] - rec.t[0] + rec.dt) * hz)
+    if cycles < 3:
+        raise SudsDataError(f"`rec`: expected at least 3 gait cycles to learn from, got {cycles:.2f}",
+                            code=TOO_LITTLE_DATA)
+    ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(rec)
+    reg = ident.regressor_
+    act, pas = np.asarray(rec.actuated_index, dtype=int), np.asarray(rec.passive_index, dtype=int)
+    # the data's spread around the template
+    phase = _phase_of(ident, rec)
+    theta = ident.template_.predict(phase)
+    delta = rec.r - theta
+    mid = 0.5 * (phase[1:] + phase[:-1])
+    rate = np.diff(rec.r, axis=0) / np.diff(rec.t)[:, None] - ident.template_.derivative(mid) * ident.omega_
+    # the coefficients' covariance: (XᵀX + λI)⁻¹ per channel, scaled by its residual variance
+    chol, resid = None, np.zeros(reg.coef_.shape[1])
+    parts = [(reg.normal_, [c for c in range(reg.coef_.shape[1]) if c not in reg.avg_columns_])]
+    if reg.normal_avg_ is not None:
+        parts.append((reg.normal_avg_, list(reg.avg_columns_)))
+    p = reg.coef_.shape[0]
+    for ne, cols in parts:
+        rss = ne.residual_ss(reg.coef_[:, cols])
+        resid[cols] = np.sqrt(rss / max(ne.sw, 1.0) * ne.n / max(ne.n - p, 1))
+    ne = reg.normal_
+    scale = float(np.mean(np.diag(ne.xtx))) or 1.0
+    try:
+        chol = np.linalg.cholesky(ne.xtx + reg.config.ridge * scale * np.eye(p))
+    except np.linalg.LinAlgError:
+        chol = None
+    return LearnedModel(
+        system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated, passive=rec.passive, act=act, pas=pas,
+        template_order=int(ident.template_.config.order), template_coef=np.asarray(ident.template_.coef_),
+        omega=float(ident.omega_), dt=float(rec.dt), gait_hz=float(hz), suds=reg.config,
+        kernel_scale=ident.kernel_scale_, coef=np.asarray(reg.coef_), torque=bool(torque), chol=chol,
+        resid_std=resid, spread_delta=delta[:, act].std(axis=0), spread_rate=rate[:, act].std(axis=0),
+        spread_passive=delta[:, pas].std(axis=0), cycles=cycles)
+
+
+class LearnedCycle(PeriodicShooting):
+    """One gait cycle of many candidate gaits predicted by a learned SUDS model.
+
+    The model's sampled-data map is applied at its own sample interval (``steps`` = round(1/(f·dt))
+    steps of h = 1/(f·steps)): per step the regression row of the interval (state as ``suds.state``
+    names it, midpoint phase, mean actuated rate over the step), then r_p += h·ṙ_p, pose ← pose·exp(h·g°),
+    work += h·τ_a·ṙ_a.  Candidates are flat vectors of :meth:`Gait.to_vector` at order K.
+
+    Parameters
+    ----------
+    model : LearnedModel
+    gait_hz : float
+        Cycle frequency of the candidates, Hz (the phase advances at 2π·f).
+    order : int
+        Harmonics K of the candidates.
+    work : bool
+        Also integrate the actuator work (needs ``model.torque``).
+    coef : (p, c) array, optional
+        Coefficients to predict with instead of ``model.coef`` (a draw).
+    """
+
+    def __init__(self, model: LearnedModel, gait_hz: float, order: int, work: bool = False,
+                 coef: FloatArray | None = None) -> None:
+        if work and not model.torque:
+            raise SudsConfigError("efficiency: no learned torque model (the recording has no effort)",
+                                  code=UNSUPPORTED_OBJECTIVE)
+        self.model, self.gait_hz, self.order, self.with_work = model, float(gait_hz), int(order), work
+        self.coef = model.coef if coef is None else np.asarray(coef, dtype=float)
+        self.na, self.np = model.act.size, model.pas.size
+        self.nj = self.na + self.np
+        self.steps = max(8, int(round(1.0 / (self.gait_hz * model.dt))))
+        self.h = 1.0 / (self.gait_hz * self.steps)
+        t = self.h * np.arange(self.steps + 1)
+        w = 2 * np.pi * self.gait_hz * np.arange(1, order + 1)
+        th = np.outer(t, w)
+        self._basis = np.concatenate([np.ones((t.size, 1)), np.cos(th), np.sin(th)], axis=1)  # (n+1, 2K+1)
+        omega = 2 * np.pi * self.gait_hz
+        self._phase = omega * (t[:-1] + 0.5 * self.h)  # midpoint phase of each step
+        theta, dtheta = model.theta(self._phase)
+        self._theta = theta  # (n, nj) at the midpoints
+        self._dtheta_a = dtheta[:, model.act] * omega  # (n, na)
+        self.cycles_run = 0
+
+    def _outputs(self, i: int, r: FloatArray, rdot_a: FloatArray) -> FloatArray:
+        B = r.shape[0]
+        m = self.model
+        X = regressor_input(np.full(B, self._phase[i]), r - self._theta[i], rdot_a - self._dtheta_a[i], r, rdot_a)
+        return regressor_design(m.suds, X, self.na, m.kernel_scale) @ self.coef
+
+    def cycle(self, X: FloatArray, rp0: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Predict one cycle from r_p(0) = ``rp0`` (B, np) and the identity pose: r_p(T), g_c (B, 3), work (B,)."""
+        X = np.atleast_2d(X)
+        B, m = X.shape[0], self.model
+        coef = X.reshape(B, self.na, 2 * self.order + 1)
+        ra = np.einsum("tc,bjc->tbj", self._basis, coef)  # (n+1, B, na)
+        rp = np.array(rp0, dtype=float).reshape(B, self.np)
+        pose = np.zeros((B, 3))
+        work = np.zeros(B)
+        r = np.empty((B, self.nj))
+        h, npas = self.h, self.np
+        midpoint = m.suds.state == "midpoint"
+        for i in range(self.steps):
+            rdot_a = (ra[i + 1] - ra[i]) / h
+            r[:, m.act] = ra[i]
+            r[:, m.pas] = rp
+            out = self._outputs(i, r, rdot_a)
+            if midpoint:  # the row's state is the interval's midpoint: two fixed-point passes on r_p(end)
+                for _ in range(2):
+                    rm = r.copy()
+                    rm[:, m.act] = 0.5 * (ra[i] + ra[i + 1])
+                    rm[:, m.pas] = rp + 0.5 * h * out[:, 3:3 + npas]
+                    out = self._outputs(i, rm, rdot_a)
+            rp = rp + h * out[:, 3:3 + npas]
+            pose = se2.exp_step(pose, h * out[:, :3])
+            if self.with_work:
+                work = work + h * np.einsum("bj,bj->b", out[:, 3 + npas:3 + npas + self.na], rdot_a)
+        self.cycles_run += B
+        return rp, pose, (work if self.with_work else np.full(B, np.nan))
+
+    def start_state(self) -> FloatArray:
+        """The template's passive joints at phase 0 (1, np): the guess of the steady state."""
+        return self.model.theta(np.zeros(1))[0][:, self.model.pas]
+
+    def steady_of(self, x: FloatArray) -> CycleResult:
+        """The predicted periodic steady state of one gait vector ``x`` (two plain cycles, then Newton)."""
+        rp = self.start_state()
+        for _ in range(2):
+            rp = self.cycle(x[None], rp)[0]
+        return self.steady(x[None], rp)[0]
+
+
+def shifted(gait: Gait, s0: float) -> Gait:
+    """The same gait started ``s0`` cycles later: r'(s) = r(s + s0) (every objective is unchanged)."""
+    off, c, sn = gait.arrays()
+    a = 2 * np.pi * np.arange(1, gait.order + 1) * s0
+    ca, sa = np.cos(a), np.sin(a)
+    return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
+                cos=tuple(map(tuple, c * ca + sn * sa)), sin=tuple(map(tuple, sn * ca - c * sa)),
+                objective=gait.objective, predicted=gait.predicted)
+
+
+def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gait:
+    """``gait`` shifted in time so that gait time s matches the model's phase 2π·s (least squares on the template).
+
+    The phaser's phase zero is arbitrary; a gait given in the robot's own time (the drive that made
+    the recording) is moved onto the model's phase by the shift that brings its actuated joints
+    closest to the template θ_a.
+
+    Raises
+    ------
+    SudsConfigError
+        A gait of other joints than the model's actuated joints.
+    """
+    if tuple(gait.joints) != tuple(model.actuated):
+        raise SudsConfigError(f"`gait`: joints {list(gait.joints)} differ from the recording's actuated joints "
+                              f"{list(model.actuated)}")
+    s = np.arange(256) / 256
+    target = model.theta(2 * np.pi * s)[0][:, model.act]  # (256, na)
+    shifts = np.arange(n_shifts) / n_shifts
+    err = [float(np.sum((gait.at_phase(s + s0) - target) ** 2)) for s0 in shifts]
+    return shifted(gait, float(shifts[int(np.argmin(err))]))
+
+
+def trust_bounds(model: LearnedModel, gait: Gait, order: int, trust: float,
+                 per_harmonic: int) -> tuple[FloatArray, FloatArray]:
+    """M (rows, p), b (rows,) with M x ≤ b: |δ_a| ≤ κσ_δ and |δ̇_a| ≤ κσ_δ̇ on the constraint grid.
+
+    δ_a(t) = r_a(t) − θ_a(2π f t) and δ̇_a(t) = ṙ_a(t) − θ'_a·2π f are affine in the gait vector x.
+    """
+    na = len(gait.joints)
+    t = constraint_grid(order, gait.gait_hz, per_harmonic)
+    omega = 2 * np.pi * gait.gait_hz
+    w = omega * np.arange(1, order + 1)
+    th = np.outer(t, w)
+    A = np.concatenate([np.ones((t.size, 1)), np.cos(th), np.sin(th)], axis=1)
+    dA = np.concatenate([np.zeros((t.size, 1)), -np.sin(th) * w, np.cos(th) * w], axis=1)
+    theta, dtheta = model.theta(omega * t)
+    p = na * (2 * order + 1)
+    rows, bounds = [], []
+    for j in range(na):
+        a = int(model.act[j])
+        for basis, centre, sd in ((A, theta[:, a], model.spread_delta[j]),
+                                  (dA, dtheta[:, a] * omega, model.spread_rate[j])):
+            rad = trust * max(float(sd), 1e-9)
+            block = np.zeros((t.size, p))
+            block[:, j * (2 * order + 1):(j + 1) * (2 * order + 1)] = basis / rad
+            rows += [block, -block]
+            bounds += [1.0 + centre / rad, 1.0 - centre / rad]
+    return np.concatenate(rows), np.concatenate(bounds)
+
+
+def trust_used(model: LearnedModel, gait: Gait) -> float:
+    """Largest |δ_a|/σ_δ or |δ̇_a|/σ_δ̇ of ``gait`` over a 4096-point cycle (in units of the data's spread)."""
+    t = np.arange(4096) / (4096 * gait.gait_hz)
+    omega = 2 * np.pi * gait.gait_hz
+    theta, dtheta = model.theta(omega * t)
+    d = np.abs(gait.r(t) - theta[:, model.act]) / np.maximum(model.spread_delta, 1e-12)
+    v = np.abs(gait.rdot(t) - dtheta[:, model.act] * omega) / np.maximum(model.spread_rate, 1e-12)
+    return float(max(d.max(), v.max()))
+
+
+def recorded_limits(gait: Gait) -> GaitLimits:
+    """Joint bounds from the recorded gait itself: its largest |r_j| and |ṙ_j| (no robot given)."""
+    r_max, v_max = checked_extremes(gait)
+    return GaitLimits(joints=gait.joints, limit=tuple(float(v) for v in r_max),
+                      speed_limit=tuple(float(v) for v in v_max))
+
+
+@dataclass(frozen=True)
+class DataOptimizeResult:
+    """What :func:`optimize_from_data` proposes.
+
+    Attributes
+    ----------
+    gait : Gait
+        The proposed gait (``objective``, ``predicted`` set), within the bounds.
+    recorded : Gait
+        The recorded gait it started from (the template, within the bounds).
+    value, recorded_value : float
+        Predicted objective of each (units of the objective; turn as |rate|).
+    value_std, recorded_std, gain_std : float or None
+        Their spread over the coefficient draws, and that of value − recorded_value (paired draws).
+    values, recorded_values : dict
+        Predicted speed, turn, rotation, efficiency, distance of each.
+    trust_used : float
+        Largest |δ_a|/σ or |δ̇_a|/σ of the proposed gait (≤ ``trust_radius`` up to the constraint grid).
+    trust_radius : float
+        The radius used: κ, or the start's own distance if that is larger.
+    passive_excursion : float
+        Largest predicted |δ_p|/σ_δp over the proposed gait's cycle (how far the passive joints
+        leave the data; not bounded, reported).
+    step_taken : bool
+        False when no step was predicted to be better (the recorded gait is returned).
+    message : str
+        SLSQP's message and notes.
+    limits : GaitLimits
+    seconds : float
+    """
+
+    gait: Gait
+    recorded: Gait
+    value: float
+    recorded_value: float
+    value_std: float | None
+    recorded_std: float | None
+    gain_std: float | None
+    values: dict[str, float]
+    recorded_values: dict[str, float]
+    trust_used: float
+    trust_radius: float
+    passive_excursion: float
+    step_taken: bool
+    message: str
+    limits: GaitLimits
+    seconds: float = 0.0
+    draws: list[tuple[float, float]] = field(default_factory=list)
+
+
+def _value(vals: dict[str, float], objective: str) -> float:
+    return abs(vals["turn"]) if objective == "turn" else vals[objective]
+
+
+def _scalars(res: CycleResult, hz: float) -> dict[str, float]:
+    return {k: float(v[0]) for k, v in objective_values(res, hz).items()}
+
+
+def _passive_excursion(ev: LearnedCycle, x: FloatArray, res: CycleResult) -> float:
+    """Largest |δ_p|/σ_δp along the predicted steady cycle of ``x``."""
+    m = ev.model
+    if ev.np == 0:
+        return 0.0
+    # re-run the cycle recording r_p at every step
+    coef = x.reshape(ev.na, 2 * ev.order + 1)
+    ra = ev._basis @ coef.T
+    rp = res.r_p[0].copy()
+    r = np.empty((1, ev.nj))
+    worst = 0.0
+    t_theta = m.theta(2 * np.pi * ev.gait_hz * ev.h * np.arange(ev.steps))[0][:, m.pas]
+    for i in range(ev.steps):
+        worst = max(worst, float(np.max(np.abs(rp - t_theta[i]) / np.maximum(m.spread_passive, 1e-12))))
+        r[0, m.act], r[0, m.pas] = ra[i], rp
+        out = ev._outputs(i, r, ((ra[i + 1] - ra[i]) / ev.h)[None])
+        rp = rp + ev.h * out[0, 3:3 + ev.np]
+    return worst
+
+
+def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOptimizeConfig(), *,
+                       limits: GaitLimits | None = None, gait_hz: float | None = None,
+                       start: Gait | None = None) -> DataOptimizeResult:
+    """One trust-region step from the recorded gait on the learned model (module docstring).
+
+    Parameters
+    ----------
+    model : LearnedModel
+        From :func:`learn_model`.
+    config : DataOptimizeConfig
+    limits : GaitLimits, optional
+        The robot's joint bounds (:func:`~suds_ros.core.physics.gait.gait_limits`); default: the
+        recorded gait's own range and speed (:func:`recorded_limits`).
+    gait_hz : float, optional
+        Frequency of the proposed gait (default the recording's).
+    start : Gait, optional
+        The gait that drove the recording, in the robot's time (moved onto the model's phase by
+        :func:`align_to_model`); default: the template's actuated part truncated to K harmonics.
+
+    Raises
+    ------
+    SudsConfigError
+        (code ``unsupported_objective``) efficiency without a learned torque model; limits for
+        other joints.
+    """
+    t0 = time.perf_counter()
+    cfg = config
+    K = cfg.order
+    if cfg.objective == "efficiency" and not model.torque:
+        raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape; "
+                              "efficiency is unavailable from this data", code=UNSUPPORTED_OBJECTIVE)
+    if start is not None and start.order > K:
+        raise SudsConfigError(f"`order`: the start gait has {start.order} harmonics, more than {K}")
+    recorded = model.recorded_gait(K) if start is None else align_to_model(model, start)
+    recorded = recorded.from_vector(recorded.to_vector(K), K, objective=None, predicted=())
+    if gait_hz is not None:
+        recorded = Gait(system=recorded.system, gait_hz=gait_hz, joints=recorded.joints, offset=recorded.offset,
+                        cos=recorded.cos, sin=recorded.sin)
+    limits = recorded_limits(recorded) if limits is None else limits
+    if tuple(limits.joints) != tuple(recorded.joints):
+        raise SudsConfigError(f"`limits`: joints {list(limits.joints)} differ from the recording's actuated "
+                              f"joints {list(recorded.joints)}")
+    x0 = recorded.to_vector(K)
+    s0 = feasible_scale(recorded, limits)
+    if s0 < 1.0:  # the template's estimate may graze a bound the robot's drive sat on
+        x0 = x0 * s0 * (1 - 1e-9)
+        recorded = recorded.from_vector(x0, K)
+    hz = recorded.gait_hz
+    ev = LearnedCycle(model, hz, K, work=cfg.objective == "efficiency")
+    base = ev.steady_of(x0)
+    rec_vals = _scalars(base, hz)
+    rec_value = _value(rec_vals, cfg.objective)
+    if cfg.objective == "efficiency" and not (np.isfinite(rec_value) and base.work[0] > 0):
+        raise SudsConfigError(f"`objective`: efficiency needs a positive predicted actuator work per cycle; the "
+                              f"recorded gait's is {base.work[0]!r} J", code=UNSUPPORTED_OBJECTIVE)
+    scale = max(abs(rec_value), cfg.max_rotation * hz if cfg.objective == "turn" else 1e-9)
+    sign = 1.0 if cfg.objective != "turn" or base.g_c[0, 2] >= 0 else -1.0
+    ocfg = OptimizeConfig(objective=cfg.objective, order=K, max_rotation=cfg.max_rotation, fd_step=cfg.fd_step,
+                          points_per_harmonic=cfg.points_per_harmonic)
+    free = np.arange(x0.size)  # no phase pinning: the model is local to the recorded phase
+    prob = SteadyStateProblem(ev, ocfg, rec_vals["speed"], scale, sign, base.r_p[0], free)
+    M, b = linear_bounds(recorded, K, limits, cfg.points_per_harmonic)
+    radius = max(cfg.trust, trust_used(model, recorded) * (1 + 1e-3))  # the region always holds the start
+    T, c = trust_bounds(model, recorded, K, radius, cfg.points_per_harmonic)
+    L, lb = np.concatenate([M, T]), np.concatenate([b, c])
+    cons = [{"type": "ineq", "fun": lambda z: lb - L @ z, "jac": lambda z: -L},
+            {"type": "ineq", "fun": lambda z: prob.values(z)[1:],
+             "jac": lambda z: np.ascontiguousarray(prob.grads(z)[:, 1:].T)}]
+    try:
+        sol = minimize(lambda z: float(prob.values(z)[0]), x0, jac=lambda z: np.ascontiguousarray(prob.grads(z)[:, 0]),
+                       method="SLSQP", constraints=cons, options={"maxiter": cfg.maxiter, "ftol": cfg.ftol})
+        x_end, msg = np.asarray(sol.x), f"SLSQP: {sol.message} ({sol.nit} iterations)"
+    except FloatingPointError as exc:
+        x_end, msg = x0, f"no step: {exc}"
+    # meet the bounds on the fine grid: shorten the step towards the (feasible) start
+    alpha = 1.0
+    while alpha > 1e-6 and constraint_violations(recorded.from_vector(x0 + alpha * (x_end - x0), K), limits):
+        alpha *= 0.8
+    if alpha < 1.0:
+        msg += f"; step shortened to {alpha:.3g} of its length to meet the bounds"
+    x_end = x0 + alpha * (x_end - x0) if alpha > 1e-6 else x0
+    vals = prob.values(x_end)
+    start_vals = prob.values(x0)
+    feasible = bool(np.all(vals[1:] >= -MARGIN))
+    step_taken = feasible and vals[0] < start_vals[0]
+    if not step_taken:
+        x_end, msg = x0, msg + "; no better gait predicted inside the trust region: the recorded gait is returned"
+    res = ev.steady(x_end[None], base.r_p)[0]
+    new_vals = _scalars(res, hz)
+    value = _value(new_vals, cfg.objective)
+    # uncertainty: the recorded and proposed gaits under coefficient draws (paired)
+    draws: list[tuple[float, float]] = []
+    if cfg.draws and model.chol is not None:
+        rng = np.random.default_rng(cfg.seed)
+        for _ in range(cfg.draws):
+            ev_d = LearnedCycle(model, hz, K, work=ev.with_work, coef=model.draw(rng))
+            try:
+                both = ev_d.steady(np.stack([x0, x_end]), np.concatenate([base.r_p, res.r_p]))[0]
+            except (FloatingPointError, np.linalg.LinAlgError):
+                continue
+            v = objective_values(both, hz)
+            pair = (abs(v["turn"]) if cfg.objective == "turn" else v[cfg.objective])
+            draws.append((float(pair[0]), float(pair[1])))
+    arr = np.asarray(draws) if draws else None
+    if step_taken and arr is not None and len(arr) > 1 and cfg.min_gain_sigmas > 0:
+        sd = float((arr[:, 1] - arr[:, 0]).std(ddof=1))
+        if value - rec_value < cfg.min_gain_sigmas * sd:
+            msg += (f"; predicted gain {value - rec_value:.4g} below {cfg.min_gain_sigmas:g} σ ({sd:.3g}) of the "
+                    "coefficient draws: the recorded gait is returned")
+            step_taken, x_end, res, new_vals, value = False, x0, base, rec_vals, rec_value
+            arr = np.stack([arr[:, 0], arr[:, 0]], axis=1)
+    proposed = with_predicted(recorded.from_vector(x_end, K), cfg.objective, {cfg.objective: value})
+    return DataOptimizeResult(
+        gait=proposed, recorded=recorded, value=value, recorded_value=rec_value,
+        value_std=None if arr is None else float(arr[:, 1].std(ddof=1)) if len(arr) > 1 else None,
+        recorded_std=None if arr is None else float(arr[:, 0].std(ddof=1)) if len(arr) > 1 else None,
+        gain_std=None if arr is None else float((arr[:, 1] - arr[:, 0]).std(ddof=1)) if len(arr) > 1 else None,
+        values=new_vals, recorded_values=rec_vals, trust_used=trust_used(model, proposed), trust_radius=radius,
+        passive_excursion=_passive_excursion(ev, x_end, res), step_taken=step_taken, message=msg, limits=limits,
+        seconds=time.perf_counter() - t0, draws=draws)

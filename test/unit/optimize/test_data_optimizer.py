@@ -1,0 +1,87 @@
+"""The data-driven gait step: learned cycle, trust region, bounds, uncertainty, refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.optimize.data import (
+    DataOptimizeConfig,
+    LearnedCycle,
+    LearnedModel,
+    align_to_model,
+    learn_model,
+    optimize_from_data,
+    shifted,
+    trust_used,
+)
+from suds_ros.core.optimize.physics import evaluate_gait
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.systems import make_system
+
+
+@pytest.fixture(scope="module")
+def purcell() -> tuple[object, LearnedModel]:
+    system = make_system("purcell3")
+    rec = simulate(system, SimConfig(cycles=15, seed=1))
+    return system, learn_model(rec)
+
+
+def test_learned_cycle_is_periodic_and_predicts_the_nominal_speed(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    gait = align_to_model(model, nominal_gait(system))  # type: ignore[arg-type]
+    ev = LearnedCycle(model, 1.0, 1)
+    assert ev.steps == 100 and ev.h == pytest.approx(model.dt)
+    res = ev.steady_of(gait.to_vector())
+    rp_end, _, _ = ev.cycle(gait.to_vector()[None], res.r_p)
+    np.testing.assert_allclose(rp_end, res.r_p, atol=1e-8)
+    true = evaluate_gait(system, gait)["speed"]  # type: ignore[arg-type]
+    predicted = float(np.hypot(*res.g_c[0, :2]))
+    assert predicted == pytest.approx(true, rel=0.2)
+    # a gait shifted by half a cycle leaves the data: the model no longer predicts the same motion
+    far = ev.steady_of(shifted(gait, 0.5).to_vector())
+    assert abs(float(np.hypot(*far.g_c[0, :2])) - predicted) > 0.2 * predicted
+
+
+def test_step_stays_in_bounds_and_trust_region_and_does_not_hurt(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    limits = gait_limits(system)  # type: ignore[arg-type]
+    start = nominal_gait(system)  # type: ignore[arg-type]
+    res = optimize_from_data(model, DataOptimizeConfig(draws=6, min_gain_sigmas=0.0), limits=limits, start=start)
+    assert constraint_violations(res.gait, limits) == []
+    assert res.trust_used <= 2.0 * 1.01 and res.step_taken
+    assert res.value >= res.recorded_value
+    assert res.value_std is not None and res.value_std > 0 and res.gain_std is not None and len(res.draws) == 6
+    true_new = evaluate_gait(system, res.gait)["speed"]  # type: ignore[arg-type]
+    true_old = evaluate_gait(system, start)["speed"]  # type: ignore[arg-type]
+    assert true_new >= true_old * 0.99
+    # a gain within the draws' spread is not trusted: the start gait comes back
+    gated = optimize_from_data(model, DataOptimizeConfig(draws=6, min_gain_sigmas=1e3), limits=limits, start=start)
+    assert not gated.step_taken and "below 1000 σ" in gated.message and gated.value == gated.recorded_value
+    small = optimize_from_data(model, DataOptimizeConfig(trust=0.3, draws=0), limits=limits, start=start)
+    radius = max(0.3, trust_used(model, small.recorded) * 1.001)  # widened to hold the start
+    assert small.trust_radius == pytest.approx(radius) and small.value_std is None
+    assert trust_used(model, small.gait) <= radius * 1.01
+
+
+def test_shift_and_alignment_recover_the_model_phase(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    g = nominal_gait(system).from_vector(nominal_gait(system).to_vector(2) + 0.1, 2)  # type: ignore[arg-type]
+    s = np.linspace(0, 1, 17)
+    np.testing.assert_allclose(shifted(g, 0.3).at_phase(s), g.at_phase(s + 0.3), atol=1e-12)
+    a = align_to_model(model, g)
+    b = align_to_model(model, shifted(g, 0.37))
+    np.testing.assert_allclose(a.at_phase(s), b.at_phase(s), atol=0.02)
+
+
+def test_refusals(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    with pytest.raises(SudsConfigError, match="efficiency: no learned torque model") as exc:
+        optimize_from_data(model, DataOptimizeConfig(objective="efficiency"))
+    assert exc.value.code == "unsupported_objective"
+    with pytest.raises(SudsConfigError, match="`trust`: expected > 0, got 0"):
+        DataOptimizeConfig(trust=0.0)
+    with pytest.raises(SudsConfigError, match="`gait`: joints"):
+        align_to_model(model, nominal_gait(make_system("swimmer9")))
