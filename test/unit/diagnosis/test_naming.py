@@ -91,3 +91,22 @@ def test_the_nominal_models_own_joint_terms_are_in_the_equation_error() -> None:
     # the model without its own terms is what a robot carrying them is measured against
     bare = Scorer(data, base, 10, np.full(data.pas.size, 1e-4))
     assert bare.rss0_train[0] > 3 * sc.rss0_train[0]
+
+
+def test_friction_on_a_joint_stuck_most_of_the_time_is_fitted_at_its_value() -> None:
+    """The stuck threshold stays above the noise when the joint is stuck for most intervals.
+
+    purcell3's passive joint with mu = 1.6 is stuck about 80 % of the time; a threshold capped at a
+    low quantile of |ṙ_p| fell inside the noise, and the stuck intervals' random sign(ṙ) cancelled
+    the friction.
+    """
+    from suds_ros.core.diagnosis.naming import Scorer
+
+    base = purcell3_model()
+    rec = simulate(RFTChain(base.with_(coulomb=(0.0, 1.6))), SimConfig(cycles=8, seed=2))
+    data = prepare(rec, base)
+    v = np.abs(np.diff(rec.r[:, 1])) / np.diff(rec.t)
+    assert np.mean(v < 0.3) > 0.7  # mostly stuck
+    sc = Scorer(data, base, 10, np.full(1, 1e-3))
+    x, _, g_te = sc.fit(Candidate((("joint_coulomb_friction", "joint_2"),)))
+    assert abs(x[0] - 1.6) < 0.1 * 1.6 and g_te > 100
