@@ -126,6 +126,11 @@ class IdentifyConfig:
     phaser_fit_samples : int
         The phaser is fitted on at most this many leading samples of the training recording;
         the rest is phased with the learned corrections (``phase_block_samples`` at a time).
+    select_max_rows : int
+        The model selection of a recording processed block by block runs on every k-th training
+        interval, k the smallest stride that leaves at most this many rows (the regression is then
+        fitted on all of them).  Neighbouring rows of a 1 kHz stream say almost the same thing;
+        the selection's cost grows with its rows.
     phase_block_samples, phase_margin_samples : int
         Longer series are phased in blocks of this many samples, each transformed with this
         many samples of context on both sides (the Hilbert transform's edges), and joined
@@ -150,12 +155,13 @@ class IdentifyConfig:
     cv_folds: int = 3
     regrid: bool = True
     block_samples: int = 100_000
+    select_max_rows: int = 200_000
     phaser_fit_samples: int = 300_000
     phase_block_samples: int = 200_000
     phase_margin_samples: int = 30_000
 
     def __post_init__(self) -> None:
-        for name in ("block_samples", "phaser_fit_samples", "phase_block_samples"):
+        for name in ("block_samples", "select_max_rows", "phaser_fit_samples", "phase_block_samples"):
             if getattr(self, name) < 1:
                 raise SudsConfigError(f"`{name}`: expected ≥ 1, got {getattr(self, name)!r}")
         if self.phase_margin_samples < 0:
@@ -336,25 +342,21 @@ class SudsIdentifier(BaseEstimator):
         else:
             self.template_ = FourierTemplate(tcfg).fit(np.concatenate(phases), np.concatenate([r.r for r in recs]))
         self.kernel_scale_ = gait_kernel_scale(self.template_, self.omega_, rec.actuated_index)
-        if blockwise:
-            X, s = self._block_data(rec, phase)
-            out = FourierTemplate(tcfg)
-            for a, b in _ranges(s.ph.size, self.config.block_samples):
-                out.partial_fit(s.ph[a:b], s.Y[a:b])
-            self.output_template_coef_ = out.fit_check().coef_
-            Yt = np.empty_like(s.Y)
-            for a, b in _ranges(s.ph.size, self.config.block_samples):
-                Yt[a:b] = self.output_template(s.ph[a:b])
+        if blockwise:  # rows made a block at a time, twice: for the selection's share, then for the fit
+            picked, Xs = self._block_data(rec, phase, FourierTemplate(tcfg))
+            suds = self._select_model(rec, Xs, picked, self.output_template(picked.ph))
+            del Xs, picked
+            self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
+            for a, Xb, Yb, _ in self._blocks(rec, phase):
+                (self.regressor_.partial_fit if a else self.regressor_.fit)(Xb, Yb)
         else:
             parts = [self._samples(r, p) for r, p in zip(recs, phases)]
             X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
             s = parts[0] if len(parts) == 1 else _merged(parts)
             self.output_template_coef_ = self._fit_output_template(s)
-            Yt = self.output_template(s.ph)
-        suds = self._select_model(rec, X, s, Yt)
-        del Yt
-        self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
-        self.regressor_.fit(X, *self._targets(rec, X, s))
+            suds = self._select_model(rec, X, s, self.output_template(s.ph))
+            self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
+            self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
         self.actuated_ = rec.actuated
         self.passive_ = rec.passive
@@ -393,16 +395,28 @@ class SudsIdentifier(BaseEstimator):
                 Y = np.concatenate([Y, iv.effort], axis=1)
             yield a, self.features(sub, iv, ph), Y, ph
 
-    def _block_data(self, rec: Recording, phase: FloatArray) -> tuple[FloatArray, _Samples]:
-        """Regressor rows X and the training data of an aligned recording, made block by block."""
+    def _block_data(self, rec: Recording, phase: FloatArray, out: object) -> tuple[_Samples, FloatArray]:
+        """The output template and the model selection's data of an aligned recording, made block by block.
+
+        ``out`` (an unfitted FourierTemplate) is fitted to every interval's outputs and becomes
+        ``output_template_coef_``.  Returns the outputs, phases and regressor rows of every
+        ``step``-th interval: all of them up to ``config.select_max_rows`` intervals, else the
+        smallest stride that leaves at most that many.  Nothing is held for every interval.
+        """
         m = rec.n_samples - self.config.window
-        X = Y = None
-        ph = np.empty(m)
+        step = max(1, -(-m // self.config.select_max_rows))
+        n = len(range(0, m, step))
+        Xs = Ys = None
+        ph = np.empty(n)
         for a, Xb, Yb, pb in self._blocks(rec, phase):
-            if X is None:
-                X, Y = np.empty((m, Xb.shape[1])), np.empty((m, Yb.shape[1]))
-            X[a:a + pb.size], Y[a:a + pb.size], ph[a:a + pb.size] = Xb, Yb, pb  # type: ignore[index]
-        return X, _Samples(None, ph, Y, None)  # type: ignore[arg-type]
+            out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
+            if Xs is None:
+                Xs, Ys = np.empty((n, Xb.shape[1])), np.empty((n, Yb.shape[1]))
+            first = -a % step  # the block's first row on the stride
+            rows = slice((a + first) // step, (a + pb.size + step - 1) // step)
+            Xs[rows], Ys[rows], ph[rows] = Xb[first::step], Yb[first::step], pb[first::step]  # type: ignore[index]
+        self.output_template_coef_ = out.fit_check().coef_  # type: ignore[attr-defined]
+        return _Samples(None, ph, Ys, None), Xs  # type: ignore[arg-type, return-value]
 
     def _block_scores(self, rec: Recording) -> Scores:
         """:meth:`scores` of a long recording, a block of intervals at a time (nothing held whole)."""

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, _Samples, split_cycles
 from suds_ros.core.ident.scoring import ScoreSums, score_prediction
+from suds_ros.core.ident.sysid import SudsRegressor
 
 
 def _fits(rec, **blocks):
@@ -37,6 +38,25 @@ def test_blockwise_identify_equals_whole(purcell3_run) -> None:
     for c in a.rms_model:
         assert b.rms_model[c] == pytest.approx(a.rms_model[c], rel=1e-9)
         assert b.rms_template[c] == pytest.approx(a.rms_template[c], rel=1e-9)
+
+
+def test_selection_on_every_kth_row_and_fit_on_all(purcell3_run) -> None:
+    """Above ``select_max_rows`` the selection sees every k-th interval; the regression all of them."""
+    train, _ = split_cycles(purcell3_run, 12, 8)
+    m = train.n_samples - 1
+    blocked = SudsIdentifier(IdentifyConfig(block_samples=700, select_max_rows=m // 3 + 1)).fit(train)
+    got = dict(blocked.cv_scores_)
+    s = blocked._samples(train, blocked._phase(train, fit=False))
+    X = blocked.features(train, s.iv, s.ph)
+    k = 3  # the smallest stride leaving at most m // 3 + 1 rows
+    chosen = blocked._select_model(train, X[::k], _Samples(None, s.ph[::k], s.Y[::k], None),  # type: ignore[arg-type]
+                                   blocked.output_template(s.ph[::k]))
+    assert got.keys() == blocked.cv_scores_.keys()
+    for key, v in blocked.cv_scores_.items():
+        assert got[key] == pytest.approx(v, rel=1e-9, abs=1e-12)
+    assert blocked.regressor_.config == chosen
+    want = SudsRegressor(chosen, n_actuated=len(train.actuated), kernel_scale=blocked.kernel_scale_).fit(X, s.Y)
+    np.testing.assert_allclose(blocked.regressor_.coef_, want.coef_, rtol=1e-9, atol=1e-9 * np.abs(want.coef_).max())
 
 
 def test_blockwise_scores_without_poses_at_the_ends(purcell3_run) -> None:
@@ -80,5 +100,7 @@ def test_score_sums_equal_score_prediction(purcell3_run) -> None:
 def test_block_settings_are_checked() -> None:
     with pytest.raises(SudsConfigError, match="`block_samples`: expected ≥ 1, got 0"):
         IdentifyConfig(block_samples=0)
+    with pytest.raises(SudsConfigError, match="`select_max_rows`: expected ≥ 1, got 0"):
+        IdentifyConfig(select_max_rows=0)
     with pytest.raises(SudsConfigError, match="`phase_margin_samples`: expected ≥ 0, got -1"):
         IdentifyConfig(phase_margin_samples=-1)
