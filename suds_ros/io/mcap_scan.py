@@ -101,6 +101,9 @@ def _message_offsets(records: bytes) -> np.ndarray | None:
     n, p = len(records), 0
     offsets = array("q")
     unpack, add, message = _HEAD.unpack_from, offsets.append, Opcode.MESSAGE
+    repeated = _repeating_offsets(records)
+    if repeated is not None:
+        return repeated
     while p + RECORD_HEAD <= n:
         op, length = unpack(records, p)
         if op != message or length < MESSAGE_HEAD:
@@ -108,6 +111,45 @@ def _message_offsets(records: bytes) -> np.ndarray | None:
         add(p)
         p += RECORD_HEAD + length
     return np.frombuffer(offsets, dtype=np.int64) if p == n else None
+
+
+def _repeating_offsets(records: bytes, lead: int = 8) -> np.ndarray | None:
+    """The record offsets of a chunk whose record lengths repeat with a short period, or None.
+
+    The first ``lead`` records are walked one by one; if their lengths repeat with a period of
+    q ≤ ``lead`` / 2 records (shape and pose messages alternating, say), every later offset is
+    predicted from it and then checked all at once: each predicted record must be a message
+    record of the predicted length, and they must end exactly at the chunk's end.  Then the
+    offsets are those the record-by-record walk finds; otherwise None (walk it).
+    """
+    n, p = len(records), 0
+    walked: list[tuple[int, int]] = []
+    while p + RECORD_HEAD <= n and len(walked) < lead:
+        op, length = _HEAD.unpack_from(records, p)
+        if op != Opcode.MESSAGE or length < MESSAGE_HEAD:
+            return None
+        walked.append((p, length))
+        p += RECORD_HEAD + length
+    lengths = [ln for _, ln in walked]
+    q = next((q for q in range(1, len(lengths) // 2 + 1) if lengths[q:] == lengths[:-q]), None)
+    if q is None or len(walked) < lead:
+        return None
+    sizes = np.array(lengths[:q], dtype=np.int64) + RECORD_HEAD
+    period = int(sizes.sum())
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    full, rest = divmod(n, period)
+    ends = np.cumsum(sizes)
+    if rest and rest not in set(ends.tolist()):
+        return None
+    tail = 0 if not rest else int(np.flatnonzero(ends == rest)[0]) + 1
+    offsets = np.concatenate([(np.arange(full, dtype=np.int64)[:, None] * period + start[None, :]).ravel(),
+                              full * period + start[:tail]])
+    expected = np.concatenate([np.tile(sizes - RECORD_HEAD, full), sizes[:tail] - RECORD_HEAD])
+    buf = np.frombuffer(records, dtype=np.uint8)
+    if not (np.array_equal(buf[offsets], np.full(offsets.size, int(Opcode.MESSAGE), dtype=np.uint8))
+            and np.array_equal(_gather(buf, offsets + 1, "<u8"), expected)):
+        return None
+    return offsets
 
 
 def _same_entries(a: np.ndarray, b: np.ndarray) -> bool:
