@@ -33,12 +33,12 @@ from _common import ROOT, machine, stamp, write  # noqa: E402
 #: the stages of ``suds identify`` tabulated by ``--breakdown``: (name, module path end, function)
 STAGES = [
     ("read the bag", "io/recording_bag.py", "read_recording_report"),
-    ("fit (everything below)", "core/ident/identify.py", "fit"),
-    ("· phase (phaser fit and transform)", "core/ident/identify.py", "_phase"),
-    ("· interval data, rows, template (first pass)", "core/ident/identify.py", "_block_data"),
+    ("fit on the training cycles (the next four rows but the held-out phase)", "core/ident/identify.py", "fit"),
+    ("· phase of the training and the held-out cycles (phaser fit, transform)", "core/ident/identify.py", "_phase"),
+    ("· first pass: interval data, output template, the selection's rows", "core/ident/identify.py", "_block_data"),
     ("· model selection (cross-validation)", "core/ident/identify.py", "_select_model"),
-    ("· regression on every training row", "core/ident/sysid.py", "partial_fit"),
-    ("held-out scores", "core/ident/identify.py", "scores"),
+    ("· second pass: regression on every training row", "core/ident/sysid.py", "partial_fit"),
+    ("held-out scores (their phase included)", "core/ident/identify.py", "scores"),
 ]
 
 #: ``--read``: the reader with each decoder in a fresh process (the others switched off for the run)

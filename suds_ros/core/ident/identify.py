@@ -209,17 +209,21 @@ class SudsIdentifier(BaseEstimator):
             if "phase" not in rec.truth:
                 raise SudsDataError("phase='truth' needs a simulated recording with truth['phase']")
             return np.asarray(rec.truth["phase"], dtype=float)
-        from suds_ros.core.phase.phaser import Phaser, PhaserConfig
-
         cfg = self.config
         n = rec.n_samples
         if fit:
-            self.phaser_ = Phaser(PhaserConfig(order=cfg.phaser_order))
-            head = self.phaser_.fit_transform(rec.r[:cfg.phaser_fit_samples])
+            head = self._fit_phaser(rec.r)
             return head if head.size == n else self._phase_blocks(rec.r, head)
         if n <= cfg.phase_block_samples:
             return self.phaser_.transform(rec.r)
         return self._phase_blocks(rec.r, np.empty(0))
+
+    def _fit_phaser(self, r: FloatArray) -> FloatArray:
+        """Fit ``phaser_`` on the first ``config.phaser_fit_samples`` samples of ``r``; their phase."""
+        from suds_ros.core.phase.phaser import Phaser, PhaserConfig
+
+        self.phaser_ = Phaser(PhaserConfig(order=self.config.phaser_order))
+        return self.phaser_.fit_transform(r[:self.config.phaser_fit_samples])
 
     def _phase_blocks(self, r: FloatArray, head: FloatArray) -> FloatArray:
         """Phase (n,) of ``r`` after the known ``head``, transformed a block at a time.
@@ -325,7 +329,7 @@ class SudsIdentifier(BaseEstimator):
         if len(recs) == 1 or self.config.phase == "truth":
             phases = [self._phase(r, fit=True) for r in recs]
         else:
-            self._phase(_joined(recs), fit=True)
+            self._fit_phaser(_joined(recs).r)  # fitted on the bouts together, each bout phased alone
             phases = [self._phase(r, fit=False) for r in recs]
         span = sum(r.t[-1] - r.t[0] for r in recs)
         self.omega_ = float(sum(p[-1] - p[0] for p in phases) / span)
@@ -530,7 +534,7 @@ class SudsIdentifier(BaseEstimator):
         A long recording (``config.block_samples``) is scored a block at a time: the same
         scores as ``score_prediction(predict(rec))`` without holding the predictions.
         """
-        if isinstance(rec, Recording):
+        if isinstance(rec, Recording) and rec.n_samples > self.config.block_samples:  # else as predict does
             self._check(rec)
             prepared = self._prepared(rec)
             if self._blockwise(prepared, training=False):

@@ -104,3 +104,18 @@ def test_block_settings_are_checked() -> None:
         IdentifyConfig(select_max_rows=0)
     with pytest.raises(SudsConfigError, match="`phase_margin_samples`: expected ≥ 0, got -1"):
         IdentifyConfig(phase_margin_samples=-1)
+
+
+def test_short_recordings_are_prepared_once_when_scored(purcell3_run, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At or below ``block_samples`` scores() goes straight to predict(): the recording is brought onto
+    its grid once, as before the block-wise path."""
+    train, test = split_cycles(purcell3_run, 12, 8)
+    ident = SudsIdentifier().fit(train)
+    calls: list[int] = []
+    real = SudsIdentifier._prepared
+    monkeypatch.setattr(SudsIdentifier, "_prepared", lambda self, rec: calls.append(1) or real(self, rec))
+    ident.scores(test)
+    assert len(calls) == 1
+    ident.config = IdentifyConfig(block_samples=700)
+    ident.scores(test)
+    assert len(calls) == 2  # long: checked for the block-wise path, then scored a block at a time
