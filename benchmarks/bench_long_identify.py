@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 import tempfile
 import time
@@ -203,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{label}: {bag.name}: {res['train_cycles']} + {res['test_cycles']} cycles, {wall:.1f} s, "
                   f"{rss:.0f} MB, Γ {res['gamma_body']:.3f} / {res['gamma_passive']:.3f}, "
                   f"load {load[0]:.1f} / {load[1]:.1f}", flush=True)
-    cmd = "python benchmarks/bench_long_identify.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python benchmarks/bench_long_identify.py " + shlex.join(argv if argv is not None else sys.argv[1:])
     lines = ["# `suds identify` on long recordings: peak memory and wall time", "",
              f"Measured {stamp()} on {machine()} by `{cmd.strip()}`.", "",
              "Each row is one fresh process `python -m suds_ros.cli.main identify BAG --train-cycles N "
