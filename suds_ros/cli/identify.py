@@ -124,8 +124,8 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording | list[Rec
     if args.torque and rec.effort is None:
         raise SudsConfigError("--torque: the recording has no effort on /suds/shape")
     ident = SudsIdentifier(cfg, torque=bool(args.torque)).fit(train)
-    pred = ident.predict(test)
-    sc = score_prediction(pred)
+    pred = ident.predict(test) if args.figure else None  # long recordings are scored a block at a time
+    sc = ident.scores(test) if pred is None else score_prediction(pred)
     hz = rec.gait_hz or 1.0
     bouts = isinstance(train, list)
     train_list = train if isinstance(train, list) else [train]
@@ -179,7 +179,7 @@ def _batch(args: argparse.Namespace, rec: Recording, train: Recording | list[Rec
     if sc.gamma_torque is not None:
         print(f"  {'torque':<14}{_gamma_text(sc.gamma_torque)}")
     print(f"  {'channel':<16}{'RMS model':>12}{'RMS template':>14}")
-    for c in pred.channels:
+    for c in ident.channels_:
         print(f"  {c:<16}{sc.rms_model[c]:>12.4g}{sc.rms_template[c]:>14.4g}")
     if args.figure:
         print(f"  figure: {args.figure}")

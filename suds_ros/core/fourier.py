@@ -61,9 +61,13 @@ def fourier_basis(phase: FloatArray | float, order: int, derivative: int = 0) ->
         # d/dφ (cos, sin) = m (−sin, cos): the pair rotates a quarter turn per derivative
         k = derivative % 4
         c_col, s_col = ((cos, sin), (-sin, cos), (-cos, -sin), (sin, -cos))[k]
-        gain = m[None, :] ** derivative if derivative else 1.0
-        out[:, 1::2] = gain * c_col
-        out[:, 2::2] = gain * s_col
+        if derivative:
+            gain = m[None, :] ** derivative
+            np.multiply(gain, c_col, out=out[:, 1::2])
+            np.multiply(gain, s_col, out=out[:, 2::2])
+        else:  # the harmonics themselves (no scaled copy)
+            out[:, 1::2] = c_col
+            out[:, 2::2] = s_col
     return out
 
 

@@ -12,7 +12,10 @@ missing fields take the ROS defaults (zero, empty, quaternion ``w = 1``).
 :func:`parse_joint_state` and :func:`parse_pose_stamped` are hand-written decoders
 of the two recorded streams, kept because they measured 1.6× (JointState) and
 3.7× (PoseStamped) faster than ``rosbags`` (codec.md); anything they refuse goes
-through :func:`decode`.
+through :func:`decode`.  :func:`parse_joint_states` and :func:`parse_pose_stampeds` decode
+a chunk's messages of one layout (same names, frame and counts, checked byte for byte) as
+numpy arrays at once, for long recordings (``docs/results/long_identify.md``); others go one
+at a time.
 """
 
 from __future__ import annotations
@@ -387,3 +390,92 @@ def parse_pose_stamped(data: bytes) -> tuple[int, int, str, tuple[float, ...]]:
     if pos + 56 + 3 < len(data):
         raise ValueError(f"{len(data) - pos - 56} unread bytes after PoseStamped")
     return sec, nanosec, frame_id, values
+
+
+# ------------------------------------------------- many messages of one layout at once
+def _rows(records: bytes, starts: np.ndarray, length: int) -> np.ndarray:
+    """The ``length`` bytes at each of ``starts`` (k,) of ``records``, as a (k, length) uint8 table."""
+    buf = np.frombuffer(records, dtype=np.uint8)
+    return buf[starts[:, None] + np.arange(length)]
+
+
+def _same_as_first(rows: np.ndarray, spans: Sequence[tuple[int, int]]) -> bool:
+    """Whether every row's bytes in each [a, b) of ``spans`` equal the first row's."""
+    return all(bool((rows[:, a:b] == rows[0, a:b]).all()) for a, b in spans if b > a)
+
+
+def _floats(rows: np.ndarray, start: int, count: int, e: str) -> np.ndarray:
+    """(k, count) float64 read at byte ``start`` of every row (byte order ``e``)."""
+    return np.ascontiguousarray(rows[:, start:start + 8 * count]).view(e + "f8").astype(np.float64)
+
+
+def joint_state_layout(data: bytes) -> tuple[tuple[str, ...], int, list[tuple[int, int, int]], int]:
+    """Where the parts of one CDR ``sensor_msgs/msg/JointState`` lie (the walk of :func:`parse_joint_state`).
+
+    Returns the names, the offset where they end, (count offset, first value offset, count) of
+    the position, velocity and effort sequences, and the offset where the effort ends.
+
+    Raises
+    ------
+    ValueError, struct.error, UnicodeDecodeError
+        If ``data`` is not a well-formed message.
+    """
+    e = _prefix(data)
+    parsed = _parse_joint_state(data)  # checks the whole message
+    names, pos = parsed[2], parsed[6]
+    names_end, seqs = pos, []
+    for _ in range(3):
+        pos += -(pos - 4) % 4
+        (n,) = struct.unpack_from(e + "I", data, pos)
+        count_at, pos = pos, pos + 4
+        if n:
+            pos += -(pos - 4) % 8
+        seqs.append((count_at, pos, n))
+        pos += 8 * n
+    return names, names_end, seqs, pos
+
+
+def parse_joint_states(records: bytes, starts: np.ndarray, length: int
+                       ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray, np.ndarray] | None:
+    """Decode k CDR JointState messages of ``length`` bytes each at ``starts`` (k,) of ``records`` at once.
+
+    Only when they share one layout: the same encapsulation, frame id, joint names and value
+    counts as the first (checked byte for byte); otherwise None (decode them one at a time).
+    Returns ``sec``, ``nanosec`` (k,) int64, the names, and position, velocity, effort
+    (k, count) float64: what :func:`parse_joint_state` gives for each, as arrays.
+    """
+    first = bytes(records[int(starts[0]):int(starts[0]) + length])
+    try:
+        names, names_end, seqs, end = joint_state_layout(first)
+    except (ValueError, struct.error, UnicodeDecodeError):
+        return None
+    rows = _rows(records, starts, length)
+    if not _same_as_first(rows, [(0, 4), (12, names_end)] + [(c, c + 4) for c, _, _ in seqs]):
+        return None
+    e = "<" if first[1] == 1 else ">"
+    sec = np.ascontiguousarray(rows[:, 4:8]).view(e + "i4")[:, 0].astype(np.int64)
+    nanosec = np.ascontiguousarray(rows[:, 8:12]).view(e + "u4")[:, 0].astype(np.int64)
+    return (sec, nanosec, names, *(_floats(rows, at, n, e) for _, at, n in seqs))  # type: ignore[return-value]
+
+
+def parse_pose_stampeds(records: bytes, starts: np.ndarray, length: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Decode k CDR PoseStamped messages of ``length`` bytes each at once (one frame id; else None).
+
+    Returns ``sec``, ``nanosec`` (k,) int64 and the values (k, 7): position x, y, z and
+    orientation x, y, z, w, as :func:`parse_pose_stamped` gives them.
+    """
+    first = bytes(records[int(starts[0]):int(starts[0]) + length])
+    try:
+        parse_pose_stamped(first)
+    except (ValueError, struct.error, UnicodeDecodeError):
+        return None
+    e = _prefix(first)
+    _, pos = _read_string(first, 12, e)
+    pos += -(pos - 4) % 8
+    rows = _rows(records, starts, length)
+    if not _same_as_first(rows, [(0, 4), (12, pos)]):
+        return None
+    sec = np.ascontiguousarray(rows[:, 4:8]).view(e + "i4")[:, 0].astype(np.int64)
+    nanosec = np.ascontiguousarray(rows[:, 8:12]).view(e + "u4")[:, 0].astype(np.int64)
+    return sec, nanosec, _floats(rows, pos, 7, e)

@@ -35,10 +35,12 @@ from __future__ import annotations
 
 import struct
 import zlib
+from array import array
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from mcap import records as rec
 from mcap.opcode import Opcode
 
@@ -79,23 +81,110 @@ class _Skip:
 
 #: takes one message: its channel, log time (ns) and CDR payload
 MessageSink = Callable[[ChannelInfo, int, bytes], None]
+#: takes a chunk's messages of one channel at once: the channel, log times (k,) int64 ns, the
+#: chunk's decompressed records, and where each payload starts in them and how long it is ((k,) int64)
+BatchSink = Callable[[ChannelInfo, np.ndarray, bytes, np.ndarray, np.ndarray], None]
+
+
+def _gather(buf: np.ndarray, at: np.ndarray, dtype: str) -> np.ndarray:
+    """The little-endian ``dtype`` values (k,) found at byte offsets ``at`` (k,) of ``buf`` (uint8)."""
+    size = np.dtype(dtype).itemsize
+    return buf[at[:, None] + np.arange(size)].view(dtype)[:, 0].astype(np.int64)
+
+
+def _message_offsets(records: bytes) -> np.ndarray | None:
+    """Offsets of the records of a decompressed chunk when every one is a whole message record.
+
+    None when any record is something else or does not fit (the record-by-record walk then
+    reads the chunk and names the problem).
+    """
+    n, p = len(records), 0
+    offsets = array("q")
+    unpack, add, message = _HEAD.unpack_from, offsets.append, Opcode.MESSAGE
+    repeated = _repeating_offsets(records)
+    if repeated is not None:
+        return repeated
+    while p + RECORD_HEAD <= n:
+        op, length = unpack(records, p)
+        if op != message or length < MESSAGE_HEAD:
+            return None
+        add(p)
+        p += RECORD_HEAD + length
+    return np.frombuffer(offsets, dtype=np.int64) if p == n else None
+
+
+def _repeating_offsets(records: bytes, lead: int = 8) -> np.ndarray | None:
+    """The record offsets of a chunk whose record lengths repeat with a short period, or None.
+
+    The first ``lead`` records are walked one by one; if their lengths repeat with a period of
+    q ≤ ``lead`` / 2 records (shape and pose messages alternating, say), every later offset is
+    predicted from it and then checked all at once: each predicted record must be a message
+    record of the predicted length, and they must end exactly at the chunk's end.  Then the
+    offsets are those the record-by-record walk finds; otherwise None (walk it).
+    """
+    n, p = len(records), 0
+    walked: list[tuple[int, int]] = []
+    while p + RECORD_HEAD <= n and len(walked) < lead:
+        op, length = _HEAD.unpack_from(records, p)
+        if op != Opcode.MESSAGE or length < MESSAGE_HEAD:
+            return None
+        walked.append((p, length))
+        p += RECORD_HEAD + length
+    lengths = [ln for _, ln in walked]
+    q = next((q for q in range(1, len(lengths) // 2 + 1) if lengths[q:] == lengths[:-q]), None)
+    if q is None or len(walked) < lead:
+        return None
+    sizes = np.array(lengths[:q], dtype=np.int64) + RECORD_HEAD
+    period = int(sizes.sum())
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    full, rest = divmod(n, period)
+    ends = np.cumsum(sizes)
+    if rest and rest not in set(ends.tolist()):
+        return None
+    tail = 0 if not rest else int(np.flatnonzero(ends == rest)[0]) + 1
+    offsets = np.concatenate([(np.arange(full, dtype=np.int64)[:, None] * period + start[None, :]).ravel(),
+                              full * period + start[:tail]])
+    expected = np.concatenate([np.tile(sizes - RECORD_HEAD, full), sizes[:tail] - RECORD_HEAD])
+    buf = np.frombuffer(records, dtype=np.uint8)
+    if not (np.array_equal(buf[offsets], np.full(offsets.size, int(Opcode.MESSAGE), dtype=np.uint8))
+            and np.array_equal(_gather(buf, offsets + 1, "<u8"), expected)):
+        return None
+    return offsets
+
+
+def _same_entries(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two (k, 2) tables of (log time, offset) hold the same rows, in any order."""
+    if a.shape != b.shape:
+        return False
+    return bool(np.array_equal(a[np.lexsort(a.T[::-1])], b[np.lexsort(b.T[::-1])]))
+
+
+def _message_index(body: bytes) -> tuple[int, np.ndarray] | None:
+    """A message index record's channel id and (k, 2) entries (None: not well formed)."""
+    if len(body) < 6:
+        return None
+    cid, size = struct.unpack_from("<HI", body, 0)
+    if size % 16 or 6 + size != len(body):
+        return None
+    return cid, np.frombuffer(body, dtype="<u8", offset=6).reshape(-1, 2).astype(np.int64)
 
 
 class _Walker:
     """One pass over a file; see the module docstring for the rules."""
 
     def __init__(self, src: Source, topics: frozenset[str] | None, keep: bool,
-                 chunks: bool, sink: MessageSink | None = None) -> None:
+                 chunks: bool, sink: MessageSink | None = None, batch_sink: BatchSink | None = None) -> None:
         self.src, self.n = src, src.size
         self.r = ScanResult(path=src.path)
         self.topics, self.keep, self.chunks, self.sink = topics, keep, chunks, sink
+        self.batch_sink = batch_sink
         self.skips: list[_Skip] = []
         self.times: dict[int, list[int]] = {}
         self.read_keys: dict[tuple[int, int, int, int], int] = {}
         self.visited: set[int] = set()
         self.after_chunk: _Skip | None = None
-        #: offset and (log time, offset) pairs by channel of the chunk just read
-        self.last_read: tuple[int, dict[int, list[tuple[int, int]]]] | None = None
+        #: offset and (log time, offset) pairs ((k, 2) int64) by channel of the chunk just read
+        self.last_read: tuple[int, dict[int, np.ndarray]] | None = None
         #: (offset, chunk offset) of message indexes that do not match the chunk before them
         self.bad_indexes: list[tuple[int, int]] = []
         self.summary: Summary | None = None
@@ -112,6 +201,13 @@ class _Walker:
             if self.chunks:
                 self.chunk(pos, s)
             return
+        if op == Opcode.MESSAGE_INDEX:  # thousands in a long file: the entries as one array
+            body = s.read(s.size)
+            index = _message_index(body)
+            if index is not None:
+                self.message_index(*index, pos)
+                return
+            s = body_stream(body)  # not well formed: the mcap package's parser names the problem
         record = parse(op, s)
         if isinstance(record, rec.Message):
             self.message(record.channel_id, record.log_time, record.publish_time, record.data)
@@ -122,20 +218,22 @@ class _Walker:
             r.channels[record.id] = ChannelInfo(record.topic, name, data, record.message_encoding,
                                                 record.metadata)
         elif isinstance(record, rec.MessageIndex):
-            self.message_index(record, pos)
+            self.message_index(record.channel_id, np.array(record.records, dtype=np.int64).reshape(-1, 2), pos)
         elif isinstance(record, rec.Metadata):
             r.metadata[record.name] = record.metadata
         elif isinstance(record, rec.Header):
             r.profile, r.library = record.profile, record.library
 
-    def message(self, cid: int, log_time: int, pub_time: int, data: bytes) -> None:
+    def message(self, cid: int, log_time: int, pub_time: int, data: bytes, counted: bool = False) -> None:
+        """Count one message unless already counted, then hand it to the sink or keep it."""
         r = self.r
-        r.counts[cid] = r.counts.get(cid, 0) + 1
-        span = self.times.setdefault(cid, [log_time, log_time])
-        if log_time < span[0]:
-            span[0] = log_time
-        elif log_time > span[1]:
-            span[1] = log_time
+        if not counted:
+            r.counts[cid] = r.counts.get(cid, 0) + 1
+            span = self.times.setdefault(cid, [log_time, log_time])
+            if log_time < span[0]:
+                span[0] = log_time
+            elif log_time > span[1]:
+                span[1] = log_time
         if self.keep:
             ch = r.channels.get(cid)
             if ch is None or self.topics is None or ch.topic in self.topics:
@@ -144,19 +242,22 @@ class _Walker:
                 else:  # (a channel record may come after its messages in a damaged file)
                     r.messages.append((cid, log_time, pub_time, data))
 
-    def message_index(self, index: rec.MessageIndex, pos: int) -> None:
-        """Check a message index against the chunk before it, or count what a damaged one held."""
+    def message_index(self, cid: int, entries: np.ndarray, pos: int) -> None:
+        """Check a message index against the chunk before it, or count what a damaged one held.
+
+        ``entries`` (k, 2) int64: the index's (log time, offset) pairs.
+        """
         skip = self.after_chunk
         if skip is None:
             if self.last_read is not None:
                 chunk_pos, found = self.last_read
-                if sorted(index.records) != sorted(found.get(index.channel_id, [])):
+                if not _same_entries(entries, found.get(cid, np.zeros((0, 2), dtype=np.int64))):
                     self.bad_indexes.append((pos, chunk_pos))
             return
-        lost = len(index.records) - skip.read.get(index.channel_id, 0)
+        lost = entries.shape[0] - skip.read.get(cid, 0)
         skip.counts = skip.counts or {}
         if lost > 0:
-            skip.counts[index.channel_id] = skip.counts.get(index.channel_id, 0) + lost
+            skip.counts[cid] = skip.counts.get(cid, 0) + lost
 
     def chunk(self, pos: int, s: Strict) -> None:
         """Read one chunk, or record why not (never raises for a bad chunk)."""
@@ -191,6 +292,10 @@ class _Walker:
             return
         del chunk
         self.read_keys[key] = pos
+        offsets = _message_offsets(records)
+        if offsets is not None:
+            self.last_read = (pos, self.messages(records, offsets))
+            return
         before = dict(self.r.counts)
         found: dict[int, list[tuple[int, int]]] = {}
         n = len(records)
@@ -218,7 +323,43 @@ class _Walker:
                 self.after_chunk = skip
                 return
             p = body + length
-        self.last_read = (pos, found)
+        self.last_read = (pos, {c: np.array(v, dtype=np.int64).reshape(-1, 2) for c, v in found.items()})
+
+    def messages(self, records: bytes, offsets: np.ndarray) -> dict[int, np.ndarray]:
+        """Take a chunk's message records (at ``offsets``) a channel at a time; their (log time, offset) by channel.
+
+        The same bookkeeping as :meth:`message` for each, in numpy; a channel's messages go to
+        the batch sink together (to the per-message sink, or are kept, without one).
+        """
+        buf = np.frombuffer(records, dtype=np.uint8)
+        cids = _gather(buf, offsets + RECORD_HEAD, "<u2")
+        logs = _gather(buf, offsets + RECORD_HEAD + 6, "<u8")
+        lengths = _gather(buf, offsets + 1, "<u8") - MESSAGE_HEAD
+        starts = offsets + RECORD_HEAD + MESSAGE_HEAD
+        r, found = self.r, {}
+        kept = []
+        for cid in np.unique(cids).tolist():
+            sel = np.flatnonzero(cids == cid)
+            log = logs[sel]
+            found[cid] = np.column_stack([log, offsets[sel]])
+            r.counts[cid] = r.counts.get(cid, 0) + sel.size
+            lo, hi = int(log.min()), int(log.max())
+            span = self.times.setdefault(cid, [lo, hi])
+            span[0], span[1] = min(span[0], lo), max(span[1], hi)
+            ch = r.channels.get(cid)
+            if not self.keep or ch is not None and self.topics is not None and ch.topic not in self.topics:
+                continue
+            if ch is not None and self.batch_sink is not None:
+                self.batch_sink(ch, log, records, starts[sel], lengths[sel])
+            else:
+                kept.append(sel)
+        if kept:  # one at a time, in file order, as the record-by-record walk hands them over
+            sel = np.sort(np.concatenate(kept))
+            pubs = _gather(buf, offsets[sel] + RECORD_HEAD + 14, "<u8").tolist()
+            for cid, log, pub, a, n in zip(cids[sel].tolist(), logs[sel].tolist(), pubs, starts[sel].tolist(),
+                                           lengths[sel].tolist()):
+                self.message(cid, log, pub, records[a:a + n], counted=True)
+        return found
 
     def skip(self, offset: int, record: str, reason: str, start: int | None = None,
              end: int | None = None) -> _Skip:
@@ -547,7 +688,7 @@ class _Walker:
 
 
 def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_messages: bool = True,
-         chunks: bool = True, sink: MessageSink | None = None) -> ScanResult:
+         chunks: bool = True, sink: MessageSink | None = None, batch_sink: BatchSink | None = None) -> ScanResult:
     """Read every intact record of an MCAP file; report what was damaged.
 
     Parameters
@@ -564,6 +705,10 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
         Takes each kept message as it is read (in file order; a message read before its
         channel record comes at the end), instead of ``ScanResult.messages``: memory then does
         not grow with the file.  The damage report is the same.
+    batch_sink : callable (channel, log times, records, starts, lengths), optional
+        Takes the kept messages of one channel in one chunk together, when the chunk holds
+        message records only (the usual case; other chunks go through ``sink``): log times (k,)
+        int64 ns, the chunk's decompressed records, and each payload's start and length in them.
 
     Returns
     -------
@@ -578,7 +723,7 @@ def scan(path: str | Path, topics: frozenset[str] | None = None, *, keep_message
     src = open_file(path)
     try:
         header_length = check_start(src)
-        walker = _Walker(src, topics, keep_messages, chunks, sink)
+        walker = _Walker(src, topics, keep_messages, chunks, sink, batch_sink)
         try:
             walker.record(Opcode.HEADER, file_stream(src, 8 + RECORD_HEAD, header_length), 8)
         except (RecordError, UnicodeDecodeError) as exc:

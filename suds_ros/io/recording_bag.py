@@ -188,8 +188,29 @@ class _Topic:
             return
         self.log.append(log_time)
 
+    def take_batch(self, ch: Any, log: np.ndarray, records: bytes, starts: np.ndarray,
+                   lengths: np.ndarray) -> None:
+        """:meth:`take` of a chunk's messages on this topic; decoded together when they share one layout."""
+        if ch.schema_name != self.type_name or ch.message_encoding != "cdr":
+            return
+        if self.error is None and bool((lengths == lengths[0]).all()) and \
+                self.add_batch(records, starts, int(lengths[0])):
+            self.n += starts.size
+            self.log.frombytes(log.astype(np.int64).tobytes())
+            return
+        for t, a, n in zip(log.tolist(), starts.tolist(), lengths.tolist()):
+            self.take(ch, t, records[a:a + n])
+
     def add(self, k: int, schema: bytes, data: bytes) -> None:
         raise NotImplementedError
+
+    def add_batch(self, records: bytes, starts: np.ndarray, length: int) -> bool:
+        """Add messages of ``length`` bytes at ``starts`` at once; False (nothing added): one at a time."""
+        return False
+
+    def _stamps(self, sec: np.ndarray, nsec: np.ndarray) -> None:
+        self.sec.frombytes(sec.tobytes())
+        self.nsec.frombytes(nsec.tobytes())
 
     def order(self) -> np.ndarray | slice:
         """Indices that sort the messages by log time, stably (a slice when they already are)."""
@@ -242,6 +263,24 @@ class _ShapeTopic(_Topic):
         else:
             self.all_effort = False
 
+    def add_batch(self, records: bytes, starts: np.ndarray, length: int) -> bool:
+        got = cdr.parse_joint_states(records, starts, length)
+        if got is None:
+            return False
+        s, ns, names, p, v, e = got
+        nj = len(names)
+        if self.names is not None and names != self.names or p.shape[1] != nj or \
+                v.shape[1] not in (0, nj) or e.shape[1] not in (0, nj):
+            return False  # one at a time: the first message that breaks the contract is named
+        self.names = names
+        self._stamps(s, ns)
+        self.pos.frombytes(p.tobytes())
+        if self.all_effort and nj and e.shape[1] == nj:
+            self.eff.frombytes(e.tobytes())
+        else:
+            self.all_effort = False
+        return True
+
     def result(self) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
         """Stamps (n,) int ns, joint names, positions (n, nj) and efforts (n, nj) or None, by log time."""
         assert self.names is not None
@@ -271,6 +310,14 @@ class _PoseTopic(_Topic):
         self.sec.append(s)
         self.nsec.append(ns)
         self.vals.extend(v)
+
+    def add_batch(self, records: bytes, starts: np.ndarray, length: int) -> bool:
+        got = cdr.parse_pose_stampeds(records, starts, length)
+        if got is None:
+            return False
+        self._stamps(got[0], got[1])
+        self.vals.frombytes(got[2].tobytes())
+        return True
 
     def result(self) -> tuple[np.ndarray, np.ndarray]:
         """Pose stamps (m,) int ns and pose (m, 3): x (m), y (m), yaw (rad), by log time."""
@@ -452,7 +499,8 @@ def read_recording_report(path: str | Path, *, system: str | None = None,
     path = Path(path)
     topics = {shape_topic: _ShapeTopic(path, shape_topic), pose_topic: _PoseTopic(path, pose_topic),
               system_topic: _RawTopic(path, system_topic)}
-    res = scan(path, frozenset(topics), sink=lambda ch, log_time, data: topics[ch.topic].take(ch, log_time, data))
+    res = scan(path, frozenset(topics), sink=lambda ch, log_time, data: topics[ch.topic].take(ch, log_time, data),
+               batch_sink=lambda ch, *batch: topics[ch.topic].take_batch(ch, *batch))
     try:
         meta = _description(res, topics[system_topic], prefer_topic=bool(namespace))  # type: ignore[arg-type]
         rec = _to_recording(res, meta, system, actuated, passive, topics[shape_topic],  # type: ignore[arg-type]

@@ -311,3 +311,42 @@ def test_messages_equal_the_mcap_stream_reader(tmp_path: Path) -> None:
                      for m in records if isinstance(m, Message)), key=lambda m: m[1])
     ours = [(m.topic, m.log_time_ns, m.publish_time_ns, m.data) for m in iter_raw_messages(path)]
     assert len(ours) == 1400 and ours == theirs
+
+
+def _walk(records: bytes) -> list[int]:
+    """Record offsets of a chunk, one record at a time (the reference for the array paths)."""
+    import struct
+
+    out, p = [], 0
+    while p < len(records):
+        out.append(p)
+        p += 9 + struct.unpack_from("<Q", records, p + 1)[0]
+    return out
+
+
+@pytest.mark.parametrize("case", ["alternating", "odd tail", "one longer", "channel record"])
+def test_record_offsets_predicted_from_a_period_equal_the_walk(case: str) -> None:
+    """Offsets predicted from the lengths' period are checked; where the period breaks the walk takes over."""
+    import struct
+
+    from suds_ros.io.mcap_records import MESSAGE_HEAD
+    from suds_ros.io.mcap_scan import _message_offsets, _repeating_offsets
+
+    def record(n: int, op: int = 0x05) -> bytes:
+        return struct.pack("<BQ", op, MESSAGE_HEAD + n) + bytes(MESSAGE_HEAD + n)
+
+    sizes = [70 if k % 2 else 41 for k in range(100 if case == "alternating" else 101)]
+    if case == "one longer":
+        sizes[57] += 8
+    records = b"".join(record(n, 0x04 if case == "channel record" and k == 30 else 0x05)
+                       for k, n in enumerate(sizes))
+    got = _repeating_offsets(records)
+    if case in ("alternating", "odd tail"):
+        assert got is not None and got.tolist() == _walk(records)
+    else:
+        assert got is None
+    walked = _message_offsets(records)
+    if case == "channel record":
+        assert walked is None  # not messages only: the record-by-record walk reads it
+    else:
+        assert walked is not None and walked.tolist() == _walk(records)

@@ -25,6 +25,7 @@ from suds_ros.core.errors import (
 from suds_ros.io import cdr
 from suds_ros.io.mcap import bag_info, iter_raw_messages
 from suds_ros.io.recording_bag import RecordingWriter, read_recording, write_recording
+from suds_ros.io.stamps import ns_to_float
 
 
 @pytest.mark.parametrize("name", BAGS)
@@ -390,3 +391,58 @@ def test_parse_system_info() -> None:
         parse_system_info('{"system": "x", "actuated": ["joint_1"]}')
     with pytest.raises(SudsDataError, match=r"actuated \['joint_9'\] not among joints"):
         parse_system_info('{"joint_names": ["joint_1"], "actuated": ["joint_9"]}')
+
+
+def _long_stamps(n: int) -> list[int]:
+    return [1_700_000_000_000_000_000 + k * 10_000_000 for k in range(n)]
+
+
+def _batches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Count the messages the chunk-at-a-time decoders took (the rest went one at a time)."""
+    taken: list[int] = []
+    for name in ("parse_joint_states", "parse_pose_stampeds"):
+        real = getattr(cdr, name)
+
+        def counted(records, starts, length, real=real):  # type: ignore[no-untyped-def]
+            got = real(records, starts, length)
+            taken.append(0 if got is None else starts.size)
+            return got
+        monkeypatch.setattr(cdr, name, counted)
+    return taken
+
+
+def test_chunks_decoded_at_once_equal_one_at_a_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Chunks of one layout are decoded as arrays; mixed chunks one message at a time; the same recording."""
+    stamps = _long_stamps(600)
+    rng = np.random.default_rng(1)
+    msgs = [js(ns, pos=tuple(rng.normal(size=2)), eff=(1.0, 2.0)) for ns in stamps]
+    msgs[450] = js(stamps[450], pos=(0.5, 0.6))  # one message without effort: no effort at all
+    # the same length as the others, another frame id: the chunk's layout check refuses it
+    msgs[300] = cdr.joint_state(stamps[300], ("joint_1", "joint_2"), (0.7, 0.8), (), (1.0, 2.0), frame_id="a")
+    assert len(msgs[300]) == len(msgs[299])
+    path = tmp_path / "long.mcap"
+    raw_bag(path, msgs, stamps, meta=META)
+    taken = _batches(monkeypatch)
+    rec = read_recording(path)
+    assert sum(taken) > 600  # most of both streams went through the array decoders
+    assert taken.count(0) >= 1  # the chunk with the odd messages did not
+    assert rec.effort is None
+    want = np.array([cdr.parse_joint_state(m)[3] for m in msgs])
+    np.testing.assert_array_equal(rec.r, want)
+    np.testing.assert_array_equal(rec.t, ns_to_float(np.array(stamps)))
+    np.testing.assert_allclose(rec.pose[:, 0], 0.1 * np.arange(600), rtol=0, atol=1e-12)
+
+
+def test_names_change_in_a_later_chunk_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A chunk whose names differ from the stream's is read one message at a time, so its sample is named."""
+    stamps = _long_stamps(600)
+    msgs = [js(ns) for ns in stamps]
+    for k in range(500, 600):
+        msgs[k] = js(stamps[k], names=("joint_1", "joint_9"))
+    path = tmp_path / "names.mcap"
+    raw_bag(path, msgs, stamps, meta=META)
+    taken = _batches(monkeypatch)
+    with pytest.raises(SudsDataError, match=r"/suds/shape: sample 500 .*'joint_9'\], but sample 0 has") as err:
+        read_recording(path)
+    assert err.value.code == "wrong_joint_names"
+    assert sum(taken) > 0

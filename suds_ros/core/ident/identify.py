@@ -117,6 +117,24 @@ class IdentifyConfig:
         candidate is always kept.
     cv_folds : int
         Number of contiguous folds for the selection.
+    block_samples : int
+        Recordings with more shape samples, whose pose stamps are shape stamps (one pose per
+        shape sample, possibly missing at the ends), are processed a block of this many
+        intervals at a time: the interval data, regressor rows and held-out scores are made
+        per block and the per-sample intermediates of the whole recording are never held
+        (the same sums, added in another order; see ``docs/results/long_identify.md``).
+    phaser_fit_samples : int
+        The phaser is fitted on at most this many leading samples of the training recording;
+        the rest is phased with the learned corrections (``phase_block_samples`` at a time).
+    select_max_rows : int
+        The model selection of a recording processed block by block runs on every k-th training
+        interval, k the smallest stride that leaves at most this many rows (the regression is then
+        fitted on all of them).  Neighbouring rows of a 1 kHz stream say almost the same thing;
+        the selection's cost grows with its rows.
+    phase_block_samples, phase_margin_samples : int
+        Longer series are phased in blocks of this many samples, each transformed with this
+        many samples of context on both sides (the Hilbert transform's edges), and joined
+        into one unwrapped phase.
     regrid : bool
         Bring an asynchronous shape stream (jittered stamps, drops, a pose stream of its own)
         onto its fitted uniform sampling grid first (:func:`~suds_ros.core.resample.on_shape_grid`:
@@ -136,8 +154,18 @@ class IdentifyConfig:
     max_parameters: int = 1600
     cv_folds: int = 3
     regrid: bool = True
+    block_samples: int = 100_000
+    select_max_rows: int = 200_000
+    phaser_fit_samples: int = 300_000
+    phase_block_samples: int = 200_000
+    phase_margin_samples: int = 30_000
 
     def __post_init__(self) -> None:
+        for name in ("block_samples", "select_max_rows", "phaser_fit_samples", "phase_block_samples"):
+            if getattr(self, name) < 1:
+                raise SudsConfigError(f"`{name}`: expected ≥ 1, got {getattr(self, name)!r}")
+        if self.phase_margin_samples < 0:
+            raise SudsConfigError(f"`phase_margin_samples`: expected ≥ 0, got {self.phase_margin_samples!r}")
         if self.phase not in ("phaser", "truth"):
             raise SudsConfigError(f"`phase`: expected 'phaser' or 'truth', got {self.phase!r}")
         if self.window < 1:
@@ -181,12 +209,43 @@ class SudsIdentifier(BaseEstimator):
             if "phase" not in rec.truth:
                 raise SudsDataError("phase='truth' needs a simulated recording with truth['phase']")
             return np.asarray(rec.truth["phase"], dtype=float)
+        cfg = self.config
+        n = rec.n_samples
+        if fit:
+            head = self._fit_phaser(rec.r)
+            return head if head.size == n else self._phase_blocks(rec.r, head)
+        if n <= cfg.phase_block_samples:
+            return self.phaser_.transform(rec.r)
+        return self._phase_blocks(rec.r, np.empty(0))
+
+    def _fit_phaser(self, r: FloatArray) -> FloatArray:
+        """Fit ``phaser_`` on the first ``config.phaser_fit_samples`` samples of ``r``; their phase."""
         from suds_ros.core.phase.phaser import Phaser, PhaserConfig
 
-        if fit:
-            self.phaser_ = Phaser(PhaserConfig(order=self.config.phaser_order))
-            return self.phaser_.fit_transform(rec.r)
-        return self.phaser_.transform(rec.r)
+        self.phaser_ = Phaser(PhaserConfig(order=self.config.phaser_order))
+        return self.phaser_.fit_transform(r[:self.config.phaser_fit_samples])
+
+    def _phase_blocks(self, r: FloatArray, head: FloatArray) -> FloatArray:
+        """Phase (n,) of ``r`` after the known ``head``, transformed a block at a time.
+
+        Each block is transformed with ``phase_margin_samples`` of context on either side and
+        joined to the phase before it by the whole turns that best match the overlap.
+        """
+        cfg = self.config
+        n, B, M = r.shape[0], cfg.phase_block_samples, cfg.phase_margin_samples
+        out = np.empty(n)
+        out[:head.size] = head
+        for a in range(head.size, n, B):
+            b = min(a + B, n)
+            lo, hi = max(0, a - M), min(n, b + M)
+            if hi - lo < 2 * (cfg.phaser_order + 2):  # a short tail: take more context before it
+                lo = max(0, hi - 2 * (cfg.phaser_order + 2) - M)
+            ph = self.phaser_.transform(r[lo:hi])
+            turns = 0.0
+            if a > lo:
+                turns = np.round(np.mean(out[lo:a] - ph[:a - lo]) / (2.0 * np.pi))
+            out[a:b] = ph[a - lo:b - lo] + 2.0 * np.pi * turns
+        return out
 
     # --------------------------------------------------------- features
     def channels(self, rec: Recording) -> tuple[str, ...]:
@@ -270,27 +329,109 @@ class SudsIdentifier(BaseEstimator):
         if len(recs) == 1 or self.config.phase == "truth":
             phases = [self._phase(r, fit=True) for r in recs]
         else:
-            self._phase(_joined(recs), fit=True)
+            self._fit_phaser(_joined(recs).r)  # fitted on the bouts together, each bout phased alone
             phases = [self._phase(r, fit=False) for r in recs]
         span = sum(r.t[-1] - r.t[0] for r in recs)
         self.omega_ = float(sum(p[-1] - p[0] for p in phases) / span)
         if not self.omega_ > 0:
             raise SudsDataError(f"estimated phase does not advance (rate {self.omega_:.3g} rad/s)")
         tcfg = FourierTemplateConfig(order=self.config.template_order)
-        self.template_ = FourierTemplate(tcfg).fit(np.concatenate(phases), np.concatenate([r.r for r in recs]))
+        blockwise = len(recs) == 1 and self._blockwise(rec, training=True)
+        if blockwise:  # the same normal equations, a block of samples at a time
+            phase = phases[0]
+            self.template_ = FourierTemplate(tcfg)
+            for a, b in _ranges(rec.n_samples, self.config.block_samples):
+                self.template_.partial_fit(phase[a:b], rec.r[a:b])
+            self.template_.fit_check()
+        else:
+            self.template_ = FourierTemplate(tcfg).fit(np.concatenate(phases), np.concatenate([r.r for r in recs]))
         self.kernel_scale_ = gait_kernel_scale(self.template_, self.omega_, rec.actuated_index)
-        parts = [self._samples(r, p) for r, p in zip(recs, phases)]
-        X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
-        s = parts[0] if len(parts) == 1 else _merged(parts)
-        self.output_template_coef_ = self._fit_output_template(s)
-        suds = self._select_model(rec, X, s, self.output_template(s.ph))
-        self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
-        self.regressor_.fit(X, *self._targets(rec, X, s))
+        if blockwise:  # rows made a block at a time, twice: for the selection's share, then for the fit
+            picked, Xs = self._block_data(rec, phase, FourierTemplate(tcfg))
+            suds = self._select_model(rec, Xs, picked, self.output_template(picked.ph))
+            del Xs, picked
+            self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
+            for a, Xb, Yb, _ in self._blocks(rec, phase):
+                (self.regressor_.partial_fit if a else self.regressor_.fit)(Xb, Yb)
+        else:
+            parts = [self._samples(r, p) for r, p in zip(recs, phases)]
+            X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
+            s = parts[0] if len(parts) == 1 else _merged(parts)
+            self.output_template_coef_ = self._fit_output_template(s)
+            suds = self._select_model(rec, X, s, self.output_template(s.ph))
+            self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
+            self.regressor_.fit(X, *self._targets(rec, X, s))
         self.joint_names_ = rec.joint_names
         self.actuated_ = rec.actuated
         self.passive_ = rec.passive
         self.channels_ = self.channels(rec)
         return self
+
+    # ------------------------------------------------------- long recordings
+    def _blockwise(self, rec: Recording, training: bool) -> bool:
+        """Process ``rec`` a block at a time: long, and every pose stamp a shape stamp.
+
+        Training needs a pose at every shape stamp; held-out data may lack poses at the ends
+        (their intervals then score the joints only, as the pose intervals would).
+        """
+        t, pt = rec.t, rec.pose_t
+        if rec.n_samples <= self.config.block_samples or pt.size < 2:
+            return False
+        if training:
+            return pt.size == t.size and bool(np.array_equal(pt, t))
+        i0 = int(np.searchsorted(t, pt[0]))
+        return i0 + pt.size <= t.size and bool(np.array_equal(t[i0:i0 + pt.size], pt))
+
+    def _blocks(self, rec: Recording, phase: FloatArray):  # type: ignore[no-untyped-def]
+        """(a, X, Y, phase) of consecutive blocks of intervals a … a + len − 1 (see :meth:`_samples`).
+
+        Y's body channels are NaN on intervals without a pose at both ends.
+        """
+        w = self.config.window
+        for a, b in _ranges(rec.n_samples - w, self.config.block_samples):
+            sub = rec.slice(a, b + w)
+            iv = make_intervals(sub, w)
+            ph = 0.5 * (phase[a:b] + phase[a + w:b + w])
+            Y = np.concatenate([iv.xi, iv.rdot[:, sub.passive_index]], axis=1)
+            if self.torque:
+                if iv.effort is None:
+                    raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
+                Y = np.concatenate([Y, iv.effort], axis=1)
+            yield a, self.features(sub, iv, ph), Y, ph
+
+    def _block_data(self, rec: Recording, phase: FloatArray, out: object) -> tuple[_Samples, FloatArray]:
+        """The output template and the model selection's data of an aligned recording, made block by block.
+
+        ``out`` (an unfitted FourierTemplate) is fitted to every interval's outputs and becomes
+        ``output_template_coef_``.  Returns the outputs, phases and regressor rows of every
+        ``step``-th interval: all of them up to ``config.select_max_rows`` intervals, else the
+        smallest stride that leaves at most that many.  Nothing is held for every interval.
+        """
+        m = rec.n_samples - self.config.window
+        step = max(1, -(-m // self.config.select_max_rows))
+        n = len(range(0, m, step))
+        Xs = Ys = None
+        ph = np.empty(n)
+        for a, Xb, Yb, pb in self._blocks(rec, phase):
+            out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
+            if Xs is None:
+                Xs, Ys = np.empty((n, Xb.shape[1])), np.empty((n, Yb.shape[1]))
+            first = -a % step  # the block's first row on the stride
+            rows = slice((a + first) // step, (a + pb.size + step - 1) // step)
+            Xs[rows], Ys[rows], ph[rows] = Xb[first::step], Yb[first::step], pb[first::step]  # type: ignore[index]
+        self.output_template_coef_ = out.fit_check().coef_  # type: ignore[attr-defined]
+        return _Samples(None, ph, Ys, None), Xs  # type: ignore[arg-type, return-value]
+
+    def _block_scores(self, rec: Recording) -> Scores:
+        """:meth:`scores` of a long recording, a block of intervals at a time (nothing held whole)."""
+        from suds_ros.core.ident.scoring import ScoreSums
+
+        phase = self._phase(rec, fit=False)
+        sums = ScoreSums(self.channels_)
+        nb = len(_BODY)
+        for _, X, Y, ph in self._blocks(rec, phase):
+            sums.add(Y, self.regressor_.predict(X), self.output_template(ph), np.isfinite(Y[:, :nb]).all(axis=1))
+        return sums.scores()
 
     def _select_model(self, rec: Recording, X: FloatArray, s: _Samples, Yt: FloatArray) -> SudsConfig:
         """Pick regressor set, gain orders and ridge by blocked cross-validation on the training data.
@@ -388,7 +529,16 @@ class SudsIdentifier(BaseEstimator):
                           template=template, body=body)
 
     def scores(self, rec: Recording | Sequence[Recording]) -> Scores:
-        """Γ per output group and RMS errors of the model and the template on ``rec`` (held-out data)."""
+        """Γ per output group and RMS errors of the model and the template on ``rec`` (held-out data).
+
+        A long recording (``config.block_samples``) is scored a block at a time: the same
+        scores as ``score_prediction(predict(rec))`` without holding the predictions.
+        """
+        if isinstance(rec, Recording) and rec.n_samples > self.config.block_samples:  # else as predict does
+            self._check(rec)
+            prepared = self._prepared(rec)
+            if self._blockwise(prepared, training=False):
+                return self._block_scores(prepared)
         return score_prediction(self.predict(rec))
 
     def score(self, rec: Recording | Sequence[Recording]) -> float:
@@ -448,6 +598,11 @@ def _merged(parts: list[_Samples]) -> _Samples:
                    xi=np.concatenate([iv.xi for iv in ivs]), effort=effort,
                    dt=np.concatenate([iv.dt for iv in ivs]))
     return _Samples(iv, np.concatenate([p.ph for p in parts]), np.concatenate([p.Y for p in parts]), None)
+
+
+def _ranges(n: int, step: int) -> list[tuple[int, int]]:
+    """Consecutive ranges [a, b) of at most ``step`` covering 0 … n − 1."""
+    return [(a, min(a + step, n)) for a in range(0, n, step)]
 
 
 def _rows(config: SudsConfig, X: FloatArray, n_actuated: int, kernel_scale: object) -> object:

@@ -178,3 +178,73 @@ def score_prediction(p: Prediction) -> Scores:
         rms_template=rms_t,
         n_samples=int(p.t.size),
     )
+
+
+class ScoreSums:
+    """The sums behind :func:`score_prediction`, added a block of intervals at a time.
+
+    :meth:`add` takes the measured outputs, model and template predictions of consecutive
+    intervals; :meth:`scores` gives the :class:`Scores` that :func:`score_prediction` gives for
+    all of them at once (the same sums, added in another order).  Rows whose body channels
+    have no measurement (``body`` False: no pose at an end of the interval) count for the other
+    channels only, as the pose intervals of :func:`score_prediction` would score them.
+
+    Parameters
+    ----------
+    channels : names of the c output columns (``xi_*`` first, then ``rdot_*``, ``tau_*``).
+    """
+
+    def __init__(self, channels: tuple[str, ...]) -> None:
+        c = len(channels)
+        self.channels = tuple(channels)
+        self.abs_model, self.abs_template = np.zeros(c), np.zeros(c)
+        self.sq_model, self.sq_template = np.zeros(c), np.zeros(c)
+        self.peak = np.zeros(c)  # max |template| and |truth|: does the channel move at all
+        self.rows = np.zeros(c, dtype=np.int64)
+        self.n = 0
+
+    def add(self, truth: FloatArray, model: FloatArray, template: FloatArray,
+            body: np.ndarray | None = None) -> None:
+        """Add intervals: ``truth``, ``model``, ``template`` (m, c); ``body`` (m,) bool or None (all)."""
+        nb = sum(1 for ch in self.channels if ch.startswith("xi_"))
+        self.n += int(truth.shape[0])
+        for cols, keep in ((slice(0, nb), body), (slice(nb, None), None)):
+            y, m, t = truth[:, cols], model[:, cols], template[:, cols]
+            if keep is not None:
+                y, m, t = y[keep], m[keep], t[keep]
+            em, et = m - y, t - y
+            self.abs_model[cols] += np.abs(em).sum(axis=0)
+            self.abs_template[cols] += np.abs(et).sum(axis=0)
+            self.sq_model[cols] += (em * em).sum(axis=0)
+            self.sq_template[cols] += (et * et).sum(axis=0)
+            if y.shape[0]:
+                self.peak[cols] = np.maximum(self.peak[cols], np.maximum(np.abs(t).max(axis=0),
+                                                                         np.abs(y).max(axis=0)))
+            self.rows[cols] += y.shape[0]
+
+    def scores(self) -> Scores:
+        """The :class:`Scores` of everything added."""
+        ch = self.channels
+
+        def g(prefix: str, moving: bool = False) -> float | None:
+            cols = [i for i, c in enumerate(ch) if c.startswith(prefix)]
+            if not cols:
+                return None
+            if moving:
+                cols = [i for i in cols if self.peak[i] > 1e-9]
+                if not cols:
+                    return float("nan")
+            den = float(self.abs_template[cols].sum())
+            if den == 0:
+                raise SudsDataError("Γ undefined: the template reproduces the truth exactly")
+            return 1.0 - float(self.abs_model[cols].sum()) / den
+
+        rows = np.maximum(self.rows, 1)
+        body = g("xi_", moving=True)
+        return Scores(
+            gamma_body=float("nan") if body is None else body,
+            gamma_passive=g("rdot_"), gamma_torque=g("tau_"),
+            rms_model={c: float(np.sqrt(self.sq_model[i] / rows[i])) for i, c in enumerate(ch)},
+            rms_template={c: float(np.sqrt(self.sq_template[i] / rows[i])) for i, c in enumerate(ch)},
+            n_samples=self.n,
+        )

@@ -210,11 +210,15 @@ def design_matrix(
     layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
     # the basis of order m is the first 2m + 1 columns of the basis of any higher order
     basis = fourier_basis(phase, max(order for _, _, order in layout.groups))
-    cols = []
-    for name, _, order in layout.groups:
+    out = np.empty((n, layout.n_columns))
+    start = 0
+    for name, _, order in layout.groups:  # each group's products written in place (no concatenated copy)
         F = feats[name]
-        cols.append((F[:, :, None] * basis[:, None, : 2 * order + 1]).reshape(n, F.shape[1] * (2 * order + 1)))
-    return np.concatenate(cols, axis=1)
+        width = F.shape[1] * (2 * order + 1)
+        np.multiply(F[:, :, None], basis[:, None, : 2 * order + 1],
+                    out=out[:, start:start + width].reshape(n, F.shape[1], 2 * order + 1))
+        start += width
+    return out
 
 
 def regressor_input(phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray, r: FloatArray,

@@ -127,6 +127,10 @@ class FourierTemplate(BaseEstimator):
         """
         self._reset_learned()
         self.partial_fit(phase, Y, sample_weight, mix)
+        return self.fit_check()
+
+    def fit_check(self) -> "FourierTemplate":
+        """``self`` once the data given so far determine every coefficient (else :class:`SudsDataError`)."""
         if not is_fitted(self):
             p = self.n_coefficients
             raise SudsDataError(
