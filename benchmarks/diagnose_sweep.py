@@ -79,8 +79,8 @@ def draw_one(rng: np.random.Generator, system: str, name: str) -> dict:
         return dict(name=name, joint=joint, k3=sign * float(rng.uniform(1.0, 4.0)))
     if name == "stiffness_to_drag_error":
         return dict(name=name, scale=either((0.6, 0.8), (1.25, 1.6)))
-    if name == "drag_anisotropy_error":
-        return dict(name=name, ratio=either((1.4, 1.75), (2.3, 3.0)))
+    if name == "drag_anisotropy_error":  # relative to the robot's own c⊥/c∥ (2 for the built-ins)
+        return dict(name=name, ratio=model.drag_ratio * either((0.7, 0.875), (1.15, 1.5)))
     if name == "background_flow":
         ang, speed = rng.uniform(0, 2 * np.pi), rng.uniform(0.04, 0.15)
         return dict(name=name, vx=float(speed * np.cos(ang)), vy=float(speed * np.sin(ang)))

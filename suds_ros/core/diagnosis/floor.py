@@ -43,6 +43,8 @@ def _passive_sigma(rec_rp: FloatArray, sim_rp: FloatArray) -> FloatArray:
     """
     e = rec_rp - sim_rp
     n_p = e.shape[-1]
+    if n_p == 0:  # a fully actuated chain
+        return np.zeros(0)
     d_e = _d4(e, axis=1).reshape(-1, n_p)
     d_s = _d4(sim_rp, axis=1).reshape(-1, n_p)
     ok = np.all(np.isfinite(d_e), axis=1) & np.all(np.isfinite(d_s), axis=1)
