@@ -13,8 +13,9 @@ One iteration
    incumbent was run in several stretches, the longest contiguous one is used.
 2. **Step**: one trust-region step on that model
    (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
-   data's δ spread), inside the joint range and speed bounds; for ``speed`` the predicted
-   rotation is held within ``rotation_margin``·``max_rotation`` (the model's rotation errs).
+   data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
+   speed bounds; for ``speed`` the predicted rotation is held within
+   ``rotation_margin``·``max_rotation`` (the model's rotation errs).
 3. **Run**: the proposed gait is checked against the bounds (a gait outside them is never run),
    switched in at the next cycle boundary and run for ``settle_cycles`` (discarded: the fade and
    the passive transient) plus ``step_cycles`` measured cycles.
@@ -98,6 +99,11 @@ class LoopConfig:
         Harmonics K of the proposed gaits (1..8).
     trust, trust_min, trust_max : float
         Initial, smallest and largest trust-region radius κ, in σ of the data's δ spread.
+    trust_centre : str
+        ``start`` (default): the region is centred on the incumbent gait, around which its data
+        scatter; ``template``: on the model's gait template, as ``suds optimize BAG`` does (from a
+        few cycles the template is off the incumbent by about 1 σ, so the region cannot shrink
+        below that and a rejected step tends to come back).
     shrink, grow : float
         Radius factors after a rejected step (0 < shrink < 1) and a confirmed full step (≥ 1).
     draws, min_gain_sigmas : int, float
@@ -124,6 +130,7 @@ class LoopConfig:
     trust: float = 2.0
     trust_min: float = 0.25
     trust_max: float = 8.0
+    trust_centre: str = "start"
     shrink: float = 0.5
     grow: float = 2.0
     draws: int = 0
@@ -161,6 +168,8 @@ class LoopConfig:
         for name, ok, expected in checks:
             if not ok:
                 raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+        if self.trust_centre not in ("start", "template"):
+            raise SudsConfigError(f"`trust_centre`: expected 'start' or 'template', got {self.trust_centre!r}")
         first = self.settle_cycles + self.first_cycles
         if self.budget_cycles < first:
             raise SudsConfigError(f"`budget_cycles`: expected at least settle_cycles + first_cycles = {first} (the "
@@ -186,7 +195,7 @@ class Measurement:
     cycles: int
 
     def value(self, objective: str) -> float:
-        """Return the objective's value (turn as |rate|)."""
+        """Return the objective: the speed, or for turn the |turn rate|."""
         return abs(self.turn) if objective == "turn" else self.speed
 
 
@@ -391,7 +400,7 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
             model = learn_model(best_data)
         dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
                                   min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(iterations),
-                                  max_rotation=cfg.max_rotation * cfg.rotation_margin)
+                                  max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre)
         step = optimize_from_data(model, dcfg, limits=limits, start=best_gait)
         if best_pred is None:
             best_pred = step.recorded_value
