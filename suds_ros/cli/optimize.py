@@ -86,7 +86,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="BAG: the gait that drove the recording (default: the bag's suds_gait record, else the "
                         "robot's nominal gait with --system/--model, else the recording's gait template)")
     p.add_argument("--trust", type=float, default=2.0, metavar="KAPPA",
-                   help="BAG: trust region in standard deviations of the data's δ spread (default 2)")
+                   help="BAG: trust region in standard deviations of the data's δ spread (default 2); "
+                        "--simulate: its initial radius, centred on the incumbent gait")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
