@@ -355,4 +355,4 @@ def _iteration_text(it: LoopIteration, key: str) -> str:
     pred = "—" if it.predicted is None else f"{it.predicted:.5g}"
     m = it.measured
     return (f"  [{it.index}] cycles {it.cycles_used:3d}  predicted {pred}  measured {m.value(key):.5g} "
-            f"(rotation {m.rotation:+.3f})  {'accepted' if it.accepted else 'rejected'}: {it.note}")
+            f"(rotation {m.rotation:+.3f})  {it.note}")
