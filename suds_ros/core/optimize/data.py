@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -218,13 +219,15 @@ def _phase_of(ident: Any, rec: Recording) -> FloatArray:
     return np.asarray(ident.phaser_.transform(rec.r), dtype=float)
 
 
-def learn_model(rec: Recording, *, torque: bool = False, config: Any = None) -> LearnedModel:
+def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, config: Any = None) -> LearnedModel:
     """Fit the SUDS model of a whole recording and keep what the optimiser needs (:class:`LearnedModel`).
 
     Parameters
     ----------
-    rec : Recording
-        One steady gait (its bouts, if any, are not split: pass a steady recording).
+    rec : Recording or sequence of Recording
+        One steady gait (its bouts, if any, are not split: pass a steady recording); or several
+        separate stretches of the same gait, fitted together as the identifier fits bouts
+        (no interval spans two stretches).
     torque : bool
         Also learn the actuator torques (needs ``rec.effort``); required for ``efficiency``.
     config : IdentifyConfig, optional
@@ -239,24 +242,29 @@ def learn_model(rec: Recording, *, torque: bool = False, config: Any = None) -> 
     """
     from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
 
-    if torque and rec.effort is None:
+    recs = [rec] if isinstance(rec, Recording) else list(rec)
+    rec = recs[0]
+    if torque and any(r.effort is None for r in recs):
         raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape "
                               "(record it, e.g. `suds simulate --effort`); efficiency is unavailable from this data",
                               code=UNSUPPORTED_OBJECTIVE)
     hz = rec.gait_hz or 1.0
-    cycles = float((rec.t[-1] - rec.t[0] + rec.dt) * hz)
+    cycles = float(sum((r.t[-1] - r.t[0] + r.dt) * hz for r in recs))
     if cycles < 3:
         raise SudsDataError(f"`rec`: expected at least 3 gait cycles to learn from, got {cycles:.2f}",
                             code=TOO_LITTLE_DATA)
-    ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(rec)
+    ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(
+        rec if len(recs) == 1 else recs)
     reg = ident.regressor_
     act, pas = np.asarray(rec.actuated_index, dtype=int), np.asarray(rec.passive_index, dtype=int)
     # the data's spread around the template
-    phase = _phase_of(ident, rec)
-    theta = ident.template_.predict(phase)
-    delta = rec.r - theta
-    mid = 0.5 * (phase[1:] + phase[:-1])
-    rate = np.diff(rec.r, axis=0) / np.diff(rec.t)[:, None] - ident.template_.derivative(mid) * ident.omega_
+    deltas, rates = [], []
+    for r in recs:
+        phase = _phase_of(ident, r)
+        deltas.append(r.r - ident.template_.predict(phase))
+        mid = 0.5 * (phase[1:] + phase[:-1])
+        rates.append(np.diff(r.r, axis=0) / np.diff(r.t)[:, None] - ident.template_.derivative(mid) * ident.omega_)
+    delta, rate = np.concatenate(deltas), np.concatenate(rates)
     # the coefficients' covariance: (XᵀX + λI)⁻¹ per channel, scaled by its residual variance
     chol, resid = None, np.zeros(reg.coef_.shape[1])
     parts = [(reg.normal_, [c for c in range(reg.coef_.shape[1]) if c not in reg.avg_columns_])]

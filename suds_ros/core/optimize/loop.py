@@ -10,7 +10,8 @@ One iteration
 1. **Fit**: the SUDS model of the incumbent gait (the best gait measured so far) is fitted to
    the incumbent's own cycles (:func:`~suds_ros.core.optimize.data.learn_model`).  Data of other
    gaits are not pooled: the gait template and the model are local to one gait.  When the
-   incumbent was run in several stretches, the longest contiguous one is used.
+   incumbent was run in several stretches (re-runs, below), they are fitted together (no
+   interval spans two stretches).
 2. **Step**: one trust-region step on that model
    (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
    data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
@@ -28,7 +29,9 @@ One iteration
    gaits the smaller violation wins.  Accepted: the candidate becomes the incumbent and its
    cycles the next model's data; the radius grows (× ``grow``, up to ``trust_max``) when the
    measured gain is at least half the predicted gain and the step reached the region's edge.
-   Rejected: back to the incumbent's model, radius × ``shrink``; below ``trust_min`` the loop stops.
+   Rejected: back to the incumbent's model, radius × ``shrink``.  Below ``trust_min`` the incumbent
+   is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
+   also undoes a lucky first one) and a new model, and the radius starts afresh.
 
 The loop also stops when the model predicts no gain inside the region, when it would propose a
 gait already rejected (the radius cannot shrink below the incumbent's own offset from the
@@ -46,7 +49,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,6 +113,9 @@ class LoopConfig:
         Coefficient draws and the draw gate of each step (:class:`DataOptimizeConfig`).
     max_rotation : float
         Bound on the measured |net rotation| per cycle for ``speed``, rad.
+    accept_sigmas : float
+        A candidate is kept only if its measured gain exceeds this many standard errors of the
+        difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
     rotation_margin : float
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
         (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
@@ -137,6 +143,7 @@ class LoopConfig:
     min_gain_sigmas: float = 0.0
     max_rotation: float = 0.05
     rotation_margin: float = 0.5
+    accept_sigmas: float = 0.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
     kappa: float = 8.0
@@ -162,6 +169,7 @@ class LoopConfig:
                   ("draws", self.draws >= 0, "≥ 0"), ("min_gain_sigmas", self.min_gain_sigmas >= 0, "≥ 0"),
                   ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("rotation_margin", 0 < self.rotation_margin <= 1, "in (0, 1]"),
+                  ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
                   ("noise_std", self.noise_std >= 0, "≥ 0")]
@@ -199,7 +207,7 @@ class Measurement:
         return abs(self.turn) if objective == "turn" else self.speed
 
 
-def measure_cycles(pose: FloatArray, samples_per_cycle: int, gait_hz: float) -> Measurement:
+def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: int, gait_hz: float) -> Measurement:
     """Per-cycle net motion g_c = g(t)⁻¹ g(t + 1/f) of a pose series, averaged over its whole cycles.
 
     Speed: |mean translation of g_c| · f over the consecutive whole cycles (t at cycle starts).
@@ -211,23 +219,29 @@ def measure_cycles(pose: FloatArray, samples_per_cycle: int, gait_hz: float) -> 
 
     Parameters
     ----------
-    pose : (n, 3) float
-        x (m), y (m), unwrapped yaw (rad) at uniform samples, ``samples_per_cycle`` per cycle.
+    pose : (n, 3) float, or a sequence of them
+        x (m), y (m), unwrapped yaw (rad) at uniform samples, ``samples_per_cycle`` per cycle; several
+        separate stretches of the same gait are pooled (their cycles and windows together).
     samples_per_cycle : int
     gait_hz : float
         Cycle frequency f, Hz.
     """
-    pose = np.asarray(pose, dtype=float)
-    m = (pose.shape[0] - 1) // samples_per_cycle
-    if m < 1:
-        raise SudsConfigError(f"`pose`: expected at least one cycle ({samples_per_cycle + 1} samples), got "
-                              f"{pose.shape[0]}")
-    idx = np.arange(m + 1) * samples_per_cycle
-    g = se2.relative(pose[idx[:-1]], pose[idx[1:]])  # (m, 3)
+    stretches = [np.asarray(p, dtype=float) for p in (pose if isinstance(pose, (list, tuple)) else [pose])]
+    cycles, turns = [], []
+    spc = samples_per_cycle
+    for p in stretches:
+        k = (p.shape[0] - 1) // spc
+        if k < 1:
+            raise SudsConfigError(f"`pose`: expected at least one cycle ({spc + 1} samples) per stretch, got "
+                                  f"{p.shape[0]}")
+        idx = np.arange(k + 1) * spc
+        cycles.append(se2.relative(p[idx[:-1]], p[idx[1:]]))  # (k, 3)
+        turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
+    g = np.concatenate(cycles)
+    m = g.shape[0]
     mean = g.mean(axis=0)
     speed = float(np.hypot(mean[0], mean[1]) * gait_hz)
-    last = m * samples_per_cycle
-    rotation = float(np.mean(pose[samples_per_cycle:last + 1, 2] - pose[:last + 1 - samples_per_cycle, 2]))
+    rotation = float(np.mean(np.concatenate(turns)))
     if m > 1:
         sd = g.std(axis=0, ddof=1) / math.sqrt(m)
         speed_se, rot_se = float(np.hypot(sd[0], sd[1]) * gait_hz), float(sd[2])
@@ -334,6 +348,11 @@ def _feasible(m: Measurement, cfg: LoopConfig, speed_floor: float) -> tuple[bool
     return abs(m.rotation) <= cfg.max_rotation, max(0.0, abs(m.rotation) - cfg.max_rotation)
 
 
+def _value_se(m: Measurement, objective: str) -> float:
+    """Standard error of the measured objective (turn: of the rotation, · f)."""
+    return m.rotation_se * abs(m.turn / m.rotation) if objective == "turn" and m.rotation else m.speed_se
+
+
 def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: float = 0.0) -> bool:
     """Whether ``new`` beats ``old`` by measurement (feasible first, then the objective; see the module)."""
     ok_new, viol_new = _feasible(new, cfg, speed_floor)
@@ -342,7 +361,12 @@ def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: 
         return ok_new
     if not ok_new:
         return viol_new < viol_old
-    return new.value(cfg.objective) > old.value(cfg.objective)
+    gain = new.value(cfg.objective) - old.value(cfg.objective)
+    if cfg.accept_sigmas > 0:
+        se = math.hypot(_value_se(new, cfg.objective), _value_se(old, cfg.objective))
+        if math.isfinite(se):
+            return gain > cfg.accept_sigmas * se
+    return gain > 0
 
 
 def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
@@ -385,7 +409,7 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
     iterations = [first]
     if log is not None:
         log(first)
-    best_gait, best_meas, best_data, best_index = gait, meas, data, 0
+    best_gait, best_meas, best_data, best_index = gait, meas, [data], 0
     best_pred: float | None = None
     kappa = cfg.trust
     model = None
@@ -429,8 +453,8 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
             if grew:
                 kappa = min(kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {kappa:.3g}"
-            best_gait, best_meas, best_data, best_index, best_pred = cand, meas, data, len(iterations), step.value
-            model = None
+            best_gait, best_meas, best_data, best_index, best_pred = cand, meas, [data], len(iterations), step.value
+            model, rejected = None, []
         else:
             kappa *= cfg.shrink
             rejected.append(cand)
@@ -447,8 +471,23 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
         if log is not None:
             log(it)
         if not accepted and kappa < cfg.trust_min:
-            stopped = f"trust region shrank below {cfg.trust_min:g} σ after rejected steps"
-            break
+            if robot.cycles_run + n > cfg.budget_cycles:
+                stopped = f"trust region shrank below {cfg.trust_min:g} σ after rejected steps; no budget to re-run"
+                break
+            # more data instead: the incumbent again, pooled with its earlier cycles; the radius starts afresh
+            rec, _ = robot.run(best_gait, n)
+            best_data.append(_trim(rec, cfg.settle_cycles, spc))
+            best_meas = measure_cycles([d.pose for d in best_data], spc, best_gait.gait_hz)
+            model, kappa, rejected = None, cfg.trust, []
+            it = LoopIteration(index=len(iterations), gait=best_gait, cycles=n, cycles_used=robot.cycles_run,
+                               predicted=best_pred, predicted_std=None, predicted_incumbent=None, measured=best_meas,
+                               accepted=True, trust=None, trust_used=None,
+                               note=f"incumbent re-run (trust region below {cfg.trust_min:g} σ): its {len(best_data)} "
+                                    f"stretches pooled, measured again, model refitted, trust → {kappa:.3g}")
+            iterations.append(it)
+            best_index = it.index
+            if log is not None:
+                log(it)
     pred = best_pred
     out = with_predicted(best_gait, cfg.objective, {cfg.objective: pred}) if pred is not None else best_gait
     return LoopResult(gait=out, measured=best_meas, predicted=pred, index=best_index,

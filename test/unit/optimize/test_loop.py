@@ -93,3 +93,24 @@ def test_a_start_outside_the_bounds_is_refused() -> None:
     with pytest.raises(SudsConfigError, match="limit") as exc:
         optimize_loop(system, LoopConfig(budget_cycles=10), start=wide)
     assert exc.value.code == "gait_constraint"
+
+
+def test_stretches_are_pooled_in_the_measurement() -> None:
+    spc = 20
+    t = np.arange(3 * spc + 1) / spc
+    a = np.stack([0.1 * t, 0 * t, 0.02 * t], axis=1)
+    b = np.stack([0.3 * t, 0 * t, 0.0 * t], axis=1)
+    m = measure_cycles([a, b[: 2 * spc + 1]], spc, 1.0)
+    # every one-cycle window counts: 2·spc + 1 windows turning 0.02 rad, spc + 1 turning none
+    assert m.cycles == 5 and m.rotation == pytest.approx(0.02 * (2 * spc + 1) / (3 * spc + 2), rel=1e-9)
+    assert m.speed == pytest.approx(np.hypot(*np.mean([[0.1, 0]] * 3 + [[0.3, 0]] * 2, axis=0)), rel=1e-3)
+
+
+def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
+    system = make_system("purcell3")
+    cfg = LoopConfig(budget_cycles=16, seed=0, trust=2.0, trust_min=2.0)  # the first rejection collapses it
+    res = optimize_loop(system, cfg)
+    its = res.iterations
+    assert not its[1].accepted and "trust → 1" in its[1].note
+    assert its[2].note.startswith("incumbent re-run") and its[2].gait is its[0].gait and its[2].accepted
+    assert its[2].measured.cycles == 5 + 4 and res.index == 2 and res.cycles_used == 16
