@@ -108,9 +108,12 @@ def test_stretches_are_pooled_in_the_measurement() -> None:
 
 def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
     system = make_system("purcell3")
-    cfg = LoopConfig(budget_cycles=16, seed=0, trust=2.0, trust_min=2.0)  # the first rejection collapses it
+    cfg = LoopConfig(budget_cycles=21, seed=0, trust=2.0, trust_min=2.0)  # the first rejection collapses it
     res = optimize_loop(system, cfg)
     its = res.iterations
     assert not its[1].accepted and "trust → 1" in its[1].note
     assert its[2].note.startswith("incumbent re-run") and its[2].gait is its[0].gait and its[2].accepted
-    assert its[2].measured.cycles == 5 + 4 and res.index == 2 and res.cycles_used == 16
+    assert its[2].measured.cycles == 5 + 4 and res.cycles_used == 21
+    # the next step comes from the model of both stretches, with the radius afresh
+    assert its[3].predicted is not None and its[3].trust == pytest.approx(2.0)
+    assert res.index == (3 if its[3].accepted else 2)
