@@ -98,6 +98,36 @@ def _at(rows: list[dict], cycles: int) -> dict | None:
     return done[-1] if done else None
 
 
+def aggregates() -> list[str]:
+    """One line per robot: how many runs met the targets, the spread of the results, the side conditions."""
+    out = []
+    for name in ROBOTS:
+        path = RESULTS / f"optimize_loop_{name}.json"
+        if not path.exists():
+            out.append(f"- {name}: not run.")
+            continue
+        doc = json.loads(path.read_text())
+        limit, target, runs = doc["limit"], doc["target"], doc["runs"]
+        if not runs:
+            out.append(f"- {name}: no finished run.")
+            continue
+        at_t = [(_at(r["rows"], target) or r["rows"][0])["incumbent_true"] / limit for r in runs]
+        at_b = [r["rows"][-1]["incumbent_true"] / limit for r in runs]
+        c95 = [_cycles_to(r["rows"], limit, 0.95) for r in runs]
+        rot = [abs(r["rows"][-1]["incumbent_true_rotation"]) for r in runs]
+        ratios = [x["true"] / x["replaced_true"] for r in runs for x in r["rows"] if x["replaced_true"]]
+        slow = sum(q < 0.95 for q in ratios)
+        worse = sum(b < r["rows"][0]["true"] / limit - 1e-9 for b, r in zip(at_b, runs))
+        out.append(
+            f"- {name} ({len(runs)} runs): ≥ 95 % of the limit at the target {target} cycles in "
+            f"{sum(q >= 0.95 for q in at_t)} of {len(runs)} (range {100 * min(at_t):.1f}–{100 * max(at_t):.1f} %); "
+            f"at the budget {100 * min(at_b):.1f}–{100 * max(at_b):.1f} %; cycles to 95 %: {', '.join(c95)}; "
+            f"returned gait worse on the physics than the start in {worse} run(s); returned gait's true |rotation| "
+            f"> 0.05 rad/cycle in {sum(x > 0.05 for x in rot)} run(s) (largest {max(rot):.3f}); gaits run more than "
+            f"5 % slower than the incumbent: {slow} of {len(ratios)}.")
+    return out
+
+
 def report() -> None:
     lines = ["# `suds optimize --simulate`: the offline run → fit → step loop, measured", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_loop.py` (nice 5; the 2 cores shared "
@@ -145,6 +175,7 @@ def report() -> None:
                     f"{r['measured_rotation']:+.3f} | {r['true']:.4f} | {r['true_rotation']:+.3f} | "
                     f"{'yes' if r['accepted'] else 'no'} | {100 * r['incumbent_true'] / limit:.1f} |")
             details.append("")
+    lines += ["", "## Aggregates (computed from the table)", "", *aggregates(), ""]
     lines += ["", "Target cycles = the issue's 5 cycles per link (purcell3 15, snake5 25, swimmer9 45). Peers: "
               + "; ".join(f"{k}: {v}" for k, v in PEERS.items()) + ". 'worst true run / incumbent' = the lowest "
               "ratio of a gait's true speed to that of the incumbent it was run against (the issue asks ≥ 0.95). "
