@@ -33,10 +33,12 @@ One iteration
    is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
    also undoes a lucky first one) and a new model, and the radius starts afresh.
 
-The loop also stops when the model predicts no gain inside the region, when it would propose a
-gait already rejected (the radius cannot shrink below the incumbent's own offset from the
-template), or when the next candidate's cycles would overrun ``budget_cycles``.  Every cycle the robot runs is counted,
-the settling cycles and the rejected candidates' cycles included (``shared/spec/gait.md``).
+When the model predicts no gain inside a shrunken region, the incumbent is re-run likewise.  The
+loop stops when the model predicts no gain inside a region at least the initial radius, when it
+would propose a gait already rejected (possible only with ``trust_centre`` = ``template``: the
+radius cannot shrink below the incumbent's own offset from the template), or when the next
+gait's cycles would overrun ``budget_cycles``.  Every cycle the robot runs is counted, the
+settling cycles and the rejected candidates' cycles included (``shared/spec/gait.md``).
 It returns the best gait it measured.
 
 The OU perturbation acts on top of the gait's set-points (that is what makes the data
@@ -430,64 +432,74 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
             best_pred = step.recorded_value
             iterations[best_index] = _with_prediction(iterations[best_index], step.recorded_value, step.recorded_std)
         if not step.step_taken:
-            stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
-            break
-        cand = step.gait
-        if any(np.allclose(cand.to_vector(cfg.order), g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in rejected):
-            stopped = ("no new step: the trust region cannot shrink further around the incumbent (it must hold "
-                       "the incumbent's own offset from the template) and this gait was rejected before")
-            break
-        check_constraints(cand, limits)  # never run a gait outside the bounds
-        rec, _ = robot.run(cand, n)
-        data = _trim(rec, cfg.settle_cycles, spc)
-        meas = measure_cycles(data.pose, spc, cand.gait_hz)
-        old = best_meas
-        accepted = is_better(meas, old, cfg, speed_floor)
-        pred_gain = step.value - step.recorded_value
-        meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
-        kappa_used = step.trust_radius
-        if accepted:
-            ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
-            grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
-            note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
-            if grew:
-                kappa = min(kappa * cfg.grow, cfg.trust_max)
-                note += f"; trust grows to {kappa:.3g}"
-            best_gait, best_meas, best_data, best_index, best_pred = cand, meas, [data], len(iterations), step.value
-            model, rejected = None, []
-        else:
-            kappa *= cfg.shrink
-            rejected.append(cand)
-            why = ("measured objective not higher" if _feasible(meas, cfg, speed_floor)[0]
-                   else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
-                         if cfg.objective != "turn" else "measured speed under the start gait's"))
-            note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
-                    f"trust → {kappa:.3g}")
-        it = LoopIteration(index=len(iterations), gait=cand, cycles=n, cycles_used=robot.cycles_run,
-                           predicted=step.value, predicted_std=step.value_std,
-                           predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
-                           trust=kappa_used, trust_used=step.trust_used, note=note)
-        iterations.append(it)
-        if log is not None:
-            log(it)
-        if not accepted and kappa < cfg.trust_min:
-            if robot.cycles_run + n > cfg.budget_cycles:
-                stopped = f"trust region shrank below {cfg.trust_min:g} σ after rejected steps; no budget to re-run"
+            if kappa >= cfg.trust:
+                stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
                 break
-            # more data instead: the incumbent again, pooled with its earlier cycles; the radius starts afresh
-            rec, _ = robot.run(best_gait, n)
-            best_data.append(_trim(rec, cfg.settle_cycles, spc))
-            best_meas = measure_cycles([d.pose for d in best_data], spc, best_gait.gait_hz)
-            model, kappa, rejected = None, cfg.trust, []
-            it = LoopIteration(index=len(iterations), gait=best_gait, cycles=n, cycles_used=robot.cycles_run,
-                               predicted=best_pred, predicted_std=None, predicted_incumbent=None, measured=best_meas,
-                               accepted=True, trust=None, trust_used=None,
-                               note=f"incumbent re-run (trust region below {cfg.trust_min:g} σ): its {len(best_data)} "
-                                    f"stretches pooled, measured again, model refitted, trust → {kappa:.3g}")
+            # a shrunken region with no predicted gain: more data on the incumbent instead (below)
+            rerun = f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}"
+            if robot.cycles_run + n > cfg.budget_cycles:
+                stopped = f"{rerun}; no budget to re-run the incumbent"
+                break
+        else:
+            cand = step.gait
+            x = cand.to_vector(cfg.order)
+            if any(np.allclose(x, g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in rejected):
+                stopped = ("no new step: the trust region cannot shrink further around the incumbent (it must hold "
+                           "the incumbent's own offset from the template) and this gait was rejected before")
+                break
+            check_constraints(cand, limits)  # never run a gait outside the bounds
+            rec, _ = robot.run(cand, n)
+            data = _trim(rec, cfg.settle_cycles, spc)
+            meas = measure_cycles(data.pose, spc, cand.gait_hz)
+            old = best_meas
+            accepted = is_better(meas, old, cfg, speed_floor)
+            pred_gain = step.value - step.recorded_value
+            meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
+            kappa_used = step.trust_radius
+            if accepted:
+                ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
+                grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
+                note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
+                if grew:
+                    kappa = min(kappa * cfg.grow, cfg.trust_max)
+                    note += f"; trust grows to {kappa:.3g}"
+                best_gait, best_meas, best_data, best_index, best_pred = cand, meas, [data], len(iterations), step.value
+                model, rejected = None, []
+            else:
+                kappa *= cfg.shrink
+                rejected.append(cand)
+                why = ("measured objective not higher" if _feasible(meas, cfg, speed_floor)[0]
+                       else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
+                             if cfg.objective != "turn" else "measured speed under the start gait's"))
+                note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
+                        f"trust → {kappa:.3g}")
+            it = LoopIteration(index=len(iterations), gait=cand, cycles=n, cycles_used=robot.cycles_run,
+                               predicted=step.value, predicted_std=step.value_std,
+                               predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
+                               trust=kappa_used, trust_used=step.trust_used, note=note)
             iterations.append(it)
-            best_index = it.index
             if log is not None:
                 log(it)
+            if accepted or kappa >= cfg.trust_min:
+                continue
+            rerun = f"trust region below {cfg.trust_min:g} σ after rejected steps"
+            if robot.cycles_run + n > cfg.budget_cycles:
+                stopped = f"{rerun}; no budget to re-run the incumbent"
+                break
+        # more data instead: the incumbent again, pooled with its earlier cycles; the radius starts afresh
+        rec, _ = robot.run(best_gait, n)
+        best_data.append(_trim(rec, cfg.settle_cycles, spc))
+        best_meas = measure_cycles([d.pose for d in best_data], spc, best_gait.gait_hz)
+        model, kappa, rejected = None, cfg.trust, []
+        it = LoopIteration(index=len(iterations), gait=best_gait, cycles=n, cycles_used=robot.cycles_run,
+                           predicted=best_pred, predicted_std=None, predicted_incumbent=None, measured=best_meas,
+                           accepted=True, trust=None, trust_used=None,
+                           note=f"incumbent re-run ({rerun}): its {len(best_data)} stretches pooled, measured "
+                                f"again, model refitted, trust → {kappa:.3g}")
+        iterations.append(it)
+        best_index = it.index
+        if log is not None:
+            log(it)
     pred = best_pred
     out = with_predicted(best_gait, cfg.objective, {cfg.objective: pred}) if pred is not None else best_gait
     return LoopResult(gait=out, measured=best_meas, predicted=pred, index=best_index,
