@@ -180,6 +180,23 @@ def report() -> None:
               + "; ".join(f"{k}: {v}" for k, v in PEERS.items()) + ". 'worst true run / incumbent' = the lowest "
               "ratio of a gait's true speed to that of the incumbent it was run against (the issue asks ≥ 0.95). "
               "Predicted values are the model's at the step (for run 0: the first model's fit of the start gait).",
+              "", "## Notes", "",
+              "- Cycles to x % counts the start gait's cycles too; a start already above x % reads as the start's "
+              "6 cycles (the designer's nominal sinusoids of purcell3 and snake5 are at 98.8 % of the limit).",
+              "- 'Bounds': every gait the loop ran or returned is within the joint range and speed bounds (checked "
+              "on the spec's grid). The simulator's OU perturbation (0.175 rad) acts on top of the gait's set-points, "
+              "so the perturbed set-points themselves do leave the bounds by up to about that much; that is the "
+              "simulated robot's behaviour, not a gait the loop chose.",
+              "- The measured speed of 4 cycles under this perturbation has a standard error of 5–15 % (snake5, "
+              "swimmer9), so near the limit a candidate can be accepted on a lucky measurement (the 'returned gait "
+              "worse than the start' count); a collapsed trust region re-runs the incumbent and pools its "
+              "measurements, which corrects some of these.",
+              "- Predictions are optimistic (the model extrapolates beyond the incumbent's data); the loop never "
+              "acts on a prediction alone.",
+              "- Not measured here: CMA-ES at the same budget, the turn objective, efficiency (refused: the "
+              "streamed robot records no actuator work), more than one seed on swimmer9, the 'wave reversed' start "
+              "on swimmer9. The limits were computed by this script on an earlier run and reused (`--reuse-limit`; "
+              "the time column of the limit is that run's).",
               "", "## Per run", "", *details]
     write("optimize_loop.md", "\n".join(lines) + "\n")
 
