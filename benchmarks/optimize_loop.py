@@ -128,6 +128,17 @@ def aggregates() -> list[str]:
     return out
 
 
+def limit_info() -> dict[str, tuple[float, float]]:
+    """Robot → (limit m/s, seconds the physics optimiser took) from the JSON files."""
+    out = {}
+    for name in ROBOTS:
+        path = RESULTS / f"optimize_loop_{name}.json"
+        if path.exists():
+            doc = json.loads(path.read_text())
+            out[name] = (doc["limit"], doc["limit_seconds"])
+    return out
+
+
 def report() -> None:
     lines = ["# `suds optimize --simulate`: the offline run → fit → step loop, measured", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_loop.py` (nice 5; the 2 cores shared "
@@ -195,8 +206,9 @@ def report() -> None:
               "acts on a prediction alone.",
               "- Not measured here: CMA-ES at the same budget, the turn objective, efficiency (refused: the "
               "streamed robot records no actuator work), more than one seed on swimmer9, the 'wave reversed' start "
-              "on swimmer9. The limits were computed by this script on an earlier run and reused (`--reuse-limit`; "
-              "the time column of the limit is that run's).",
+              "on swimmer9. The limits were computed by this script (the physics optimiser, order 3, 4 starts; "
+              "with `--reuse-limit` taken from the robot's earlier JSON): "
+              + ", ".join(f"{k} {v[0]:.5f} m/s in {v[1]:.0f} s" for k, v in limit_info().items()) + ".",
               "", "## Per run", "", *details]
     write("optimize_loop.md", "\n".join(lines) + "\n")
 
