@@ -179,12 +179,15 @@ def report() -> None:
             details += [f"### {name}, {run_['start']}, seed {run_['seed']}", "",
                         "| run | cycles used | predicted (m/s) | measured (m/s) | measured rotation | true (m/s) | "
                         "true rotation | accepted | incumbent true, % of limit |", "|" + "---|" * 9]
-            for r in rows:
+            for i, r in enumerate(rows):
                 pred = "—" if r["predicted"] is None else f"{r['predicted']:.4f}"
+                # the same gait as the incumbent, run again after a collapsed trust region (same true value)
+                rerun = i > 0 and r["accepted"] and r["true"] == rows[i - 1]["incumbent_true"]
                 details.append(
                     f"| {r['index']} | {r['cycles_used']} | {pred} | {r['measured']:.4f} | "
                     f"{r['measured_rotation']:+.3f} | {r['true']:.4f} | {r['true_rotation']:+.3f} | "
-                    f"{'yes' if r['accepted'] else 'no'} | {100 * r['incumbent_true'] / limit:.1f} |")
+                    f"{'re-run of the incumbent' if rerun else 'yes' if r['accepted'] else 'no'} | "
+                    f"{100 * r['incumbent_true'] / limit:.1f} |")
             details.append("")
     lines += ["", "## Aggregates (computed from the table)", "", *aggregates(), ""]
     lines += ["", "Target cycles = the issue's 5 cycles per link (purcell3 15, snake5 25, swimmer9 45). Peers: "
@@ -202,6 +205,12 @@ def report() -> None:
               "swimmer9), so near the limit a candidate can be accepted on a lucky measurement (the 'returned gait "
               "worse than the start' count); a collapsed trust region re-runs the incumbent and pools its "
               "measurements, which corrects some of these.",
+              "- The measured rotation is the weak point: with 4 cycles under this perturbation its error reaches "
+              "±0.1–0.2 rad/cycle on swimmer9 (per-run tables), larger than the 0.05 bound, so the bound is enforced "
+              "on a noisy number: gaits that break it on the physics were accepted and gaits within it rejected; "
+              "when the start gait itself measures outside the bound, the smaller measured violation wins. "
+              "'incumbent true, % of limit' counts an accepted gait whatever its true rotation; the summary's "
+              "rotation column is the returned gait's.",
               "- Predictions are optimistic (the model extrapolates beyond the incumbent's data); the loop never "
               "acts on a prediction alone.",
               "- Not measured here: CMA-ES at the same budget, the turn objective, efficiency (refused: the "
