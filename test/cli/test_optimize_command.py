@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -96,6 +97,7 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "6", "--limit", "no",
                  "-o", str(tmp_path / "t.yaml")]) == 0
     cap = capsys.readouterr()
+    assert re.search(r"predicted \d\.\d+ m/s", cap.out)  # the start's prediction, though no step was taken
     assert "[0] cycles   6" in cap.err and "after 6 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
 
 

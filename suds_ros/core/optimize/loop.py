@@ -59,8 +59,15 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.optimize.data import DataOptimizeConfig, learn_model, optimize_from_data
-from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE
+from suds_ros.core.optimize.data import (
+    DataOptimizeConfig,
+    LearnedCycle,
+    LearnedModel,
+    align_to_model,
+    learn_model,
+    optimize_from_data,
+)
+from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values
 from suds_ros.core.physics.gait import (
     DEFAULT_MAX_ORDER,
     MAX_ORDER,
@@ -500,12 +507,23 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
         best_index = it.index
         if log is not None:
             log(it)
+    if best_pred is None:  # no step was taken (the budget held only the start): the model's view of it anyway
+        best_pred = predict_value(learn_model(best_data), best_gait, cfg.objective)
+        iterations[best_index] = _with_prediction(iterations[best_index], best_pred, None)
     pred = best_pred
     out = with_predicted(best_gait, cfg.objective, {cfg.objective: pred}) if pred is not None else best_gait
     return LoopResult(gait=out, measured=best_meas, predicted=pred, index=best_index,
                       iterations=tuple(iterations),
                       cycles_used=robot.cycles_run, stopped=stopped, limits=limits,
                       seconds=time.perf_counter() - t0)
+
+
+def predict_value(model: LearnedModel, gait: Gait, objective: str) -> float:
+    """The learned model's objective of ``gait`` at its predicted passive periodic steady state (turn as |rate|)."""
+    g = align_to_model(model, gait)
+    ev = LearnedCycle(model, g.gait_hz, g.order)
+    vals = objective_values(ev.steady_of(g.to_vector()), g.gait_hz)
+    return float(abs(vals["turn"][0]) if objective == "turn" else vals[objective][0])
 
 
 def _with_prediction(it: LoopIteration, value: float, std: float | None) -> LoopIteration:
