@@ -60,7 +60,7 @@ CORE_ALLOWED = {
     "ident": ("phase",),
     "phase": (),
     "physics": (),
-    "optimize": ("physics",),
+    "optimize": ("ident", "phase", "physics"),  # data-driven steps fit the SUDS model
 }
 
 

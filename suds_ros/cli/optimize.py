@@ -1,12 +1,20 @@
-"""``suds optimize``: the best gait of a robot under its joint bounds, on its physics or from a recording (BAG)."""
+"""``suds optimize``: the best gait of a robot under its joint bounds.
+
+On its physics (``--physics``), from a recording (BAG), or by the offline run → fit → step loop on
+a simulated robot (``--simulate``).
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from suds_ros.core.errors import SudsConfigError
+
+if TYPE_CHECKING:  # the core is imported lazily at run time
+    from suds_ros.core.optimize.loop import LoopIteration, Measurement
 
 EPILOG = """\
 examples:
@@ -14,6 +22,7 @@ examples:
   suds optimize run.mcap --system purcell3 -o p3_step.yaml              # one step from a recording
   suds optimize --physics --model robot.yaml --objective turn --order 2 -o turn.yaml --json
   suds simulate purcell3 --gait p3_fast.yaml -o fast.mcap                # run the gait it wrote
+  suds optimize --simulate purcell3 --budget-cycles 30 --seed 0 -o p3_loop.yaml   # the offline loop
 
 The objective is read at the passive periodic steady state (shared/spec/gait.md): speed (m/s)
 at a net rotation ≤ 0.05 rad per cycle, turn (rad/s) at a speed ≥ the nominal gait's,
@@ -32,6 +41,17 @@ template.  The predicted objective is reported with its spread over coefficient 
 (--draws).  The robot (--system/--model, or else the recording's own range and speed) gives
 the joint bounds; with it the proposed and the recorded gait are also run on its physics (the
 "simulated" values).  Efficiency needs a learned torque model: a recording with effort.
+
+The loop (--simulate ROBOT, a built-in id or a model file): the robot is simulated with its
+usual OU perturbation (seeded by --seed) and the optimiser sees only its recorded streams.  It
+runs the start gait (--start, else the nominal gait), fits the SUDS model to the incumbent
+gait's cycles, takes one trust-region step, runs the proposed gait (one settling cycle, then
+--step-cycles measured cycles), and keeps it only if the *measured* objective is higher (and,
+for speed, the measured rotation ≤ 0.05 rad per cycle); else it shrinks the trust region.  It
+stops when the next candidate would overrun --budget-cycles (every cycle run counts), when the
+model predicts no gain, or when the trust region has shrunk below its floor, and writes the
+best gait it measured.  The physics optimiser's limit is computed for comparison with
+--limit yes (default auto: only for robots of at most 5 joints, where it takes seconds).
 """
 
 
@@ -42,6 +62,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("bag", nargs="?", default=None,
                    help="a recording (.mcap or rosbag2 directory): one data-driven step from its gait")
     p.add_argument("--physics", action="store_true", help="optimise on the model's physics (no BAG)")
+    p.add_argument("--simulate", metavar="ROBOT",
+                   help="run the offline loop on this simulated robot (built-in id or model file; no BAG)")
+    p.add_argument("--budget-cycles", type=int, default=None, metavar="N",
+                   help="--simulate: gait cycles the robot may run in all (required with --simulate)")
+    p.add_argument("--step-cycles", type=int, default=4, metavar="N",
+                   help="--simulate: measured cycles of each candidate gait, ≥ 4 (default 4)")
+    p.add_argument("--first-cycles", type=int, default=5, metavar="N",
+                   help="--simulate: measured cycles of the start gait, ≥ 4 (default 5)")
+    p.add_argument("--limit", choices=("auto", "yes", "no"), default="auto",
+                   help="--simulate: also compute the physics optimiser's limit for comparison (auto: robots "
+                        "of at most 5 joints)")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--model", metavar="FILE", help="robot model file (suds-robot/1)")
     src.add_argument("--system", metavar="ID", help="built-in system id (purcell3, swimmer9, nlinkN)")
@@ -55,9 +86,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="BAG: the gait that drove the recording (default: the bag's suds_gait record, else the "
                         "robot's nominal gait with --system/--model, else the recording's gait template)")
     p.add_argument("--trust", type=float, default=2.0, metavar="KAPPA",
-                   help="BAG: trust region in standard deviations of the data's δ spread (default 2)")
-    p.add_argument("--draws", type=int, default=16, metavar="M",
-                   help="BAG: coefficient draws for the predicted objective's uncertainty (default 16)")
+                   help="BAG: trust region in standard deviations of the data's δ spread (default 2); "
+                        "--simulate: its initial radius, centred on the incumbent gait")
+    p.add_argument("--draws", type=int, default=None, metavar="M",
+                   help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
+                        "with --simulate: there the measurement judges each step)")
     p.add_argument("--steps", type=int, default=None, metavar="N",
                    help="RK4 steps per cycle (default: from the stiffest passive joint, ≥ 64)")
     p.add_argument("-o", "--output", required=True, help="gait file to write (suds-gait/1 YAML)")
@@ -73,6 +106,10 @@ def run(args: argparse.Namespace) -> int:
     from suds_ros.core.physics.gait import check_constraints, load_gait, save_gait
     from suds_ros.core.physics.systems import load_system
 
+    if args.simulate is not None:
+        return _loop(args)
+    if args.budget_cycles is not None:
+        raise SudsConfigError("--budget-cycles: only with --simulate ROBOT")
     if args.physics and args.bag:
         raise SudsConfigError(f"--physics and BAG {args.bag!r}: give one (the physics, or a recording to learn from)")
     if not args.physics and not args.bag:
@@ -140,8 +177,8 @@ def _from_data(args: argparse.Namespace) -> int:
         raise SudsConfigError(f"--model: no such file {args.model!r}")
     out = _check_output(args)
     try:
-        cfg = DataOptimizeConfig(objective=args.objective, order=args.order, trust=args.trust, draws=args.draws,
-                                 seed=args.seed)
+        cfg = DataOptimizeConfig(objective=args.objective, order=args.order, trust=args.trust,
+                                 draws=16 if args.draws is None else args.draws, seed=args.seed)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name}: {exc}", code=exc.code) from None
@@ -220,3 +257,102 @@ def _start_gait(args: argparse.Namespace, system: object) -> tuple[object, str]:
     if system is not None:
         return nominal_gait(system), "the robot's nominal gait"  # type: ignore[arg-type]
     return None, "the recording's gait template"
+
+
+#: robots of at most this many joints get the physics limit with ``--limit auto`` (seconds, not minutes)
+CHEAP_LIMIT_JOINTS = 5
+
+
+def _loop(args: argparse.Namespace) -> int:
+    """``suds optimize --simulate ROBOT``: the offline run → fit → step loop."""
+    from suds_ros.core.json_text import dumps
+    from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
+    from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
+    from suds_ros.core.physics.gait import load_gait, save_gait
+    from suds_ros.core.physics.systems import load_system
+
+    if args.physics or args.bag:
+        what = "--physics" if args.physics else f"BAG {args.bag!r}"
+        raise SudsConfigError(f"--simulate and {what}: give one (the loop simulates its own robot)")
+    if args.model or args.system:
+        raise SudsConfigError("--simulate ROBOT names the robot; --model/--system are not taken with it")
+    if args.budget_cycles is None:
+        raise SudsConfigError("--budget-cycles: required with --simulate (gait cycles the robot may run)")
+    out = _check_output(args)
+    system = load_system(args.simulate)
+    start = None
+    if args.start:
+        if not Path(args.start).is_file():
+            raise SudsConfigError(f"--start: no such file {args.start!r}")
+        start = load_gait(args.start, system)
+    try:
+        cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,
+                         order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
+                         first_cycles=args.first_cycles, step_cycles=args.step_cycles)
+    except SudsConfigError as exc:
+        name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
+        raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None
+    key = args.objective
+    unit = {"speed": "m/s", "turn": "rad/s", "efficiency": "m/J"}[key]
+
+    def text_line(it: LoopIteration) -> None:
+        print(_iteration_text(it, key), file=sys.stderr, flush=True)
+
+    res = optimize_loop(system, cfg, start=start, log=None if args.json else text_line)
+    save_gait(res.gait, out)
+    load_gait(out, system)  # it loads back
+
+    # judged afterwards on the physics (never seen by the loop)
+    def true_value(g: object) -> float:
+        v = evaluate_gait(system, g)  # type: ignore[arg-type]
+        return abs(v["turn"]) if key == "turn" else v[key]
+
+    true_final, true_start = true_value(res.gait), true_value(res.iterations[0].gait)
+    limit, limit_note = None, "skipped: --limit no"
+    if args.limit == "yes" or (args.limit == "auto" and len(system.joint_names) <= CHEAP_LIMIT_JOINTS):
+        limit = optimize_gait(system, OptimizeConfig(objective=key, order=args.order, seed=args.seed)).value
+        limit_note = "the physics optimiser (order {}, 4 starts)".format(args.order)
+    elif args.limit == "auto":
+        limit_note = (f"skipped: {len(system.joint_names)} joints > {CHEAP_LIMIT_JOINTS} (minutes on 2 cores; "
+                      "--limit yes computes it)")
+    m = res.measured
+    if args.json:
+        print(dumps({
+            "objective": key, "gait": str(out), "system": system.name, "order": args.order, "seed": args.seed,
+            "budget_cycles": args.budget_cycles, "cycles_used": res.cycles_used, "stopped": res.stopped,
+            "predicted": res.predicted, "measured": m.value(key),
+            "measured_detail": _measurement(m), "simulated": {"returned": true_final, "start": true_start},
+            "limit": limit, "limit_note": limit_note,
+            "percent_of_limit": None if not limit else 100 * true_final / limit,
+            "iterations": [{"index": it.index, "cycles": it.cycles, "cycles_used": it.cycles_used,
+                            "predicted": it.predicted, "predicted_std": it.predicted_std,
+                            "predicted_incumbent": it.predicted_incumbent, "measured": it.measured.value(key),
+                            "measured_detail": _measurement(it.measured), "accepted": it.accepted,
+                            "trust": it.trust, "trust_used": it.trust_used, "note": it.note}
+                           for it in res.iterations],
+            "time": res.seconds,
+            "limits": {"limit": list(res.limits.limit), "speed_limit": list(res.limits.speed_limit)}}))
+        return 0
+    pred = "n/a" if res.predicted is None else f"{res.predicted:.5g}"
+    print(f"wrote {out}: {system.name}, {key} after {res.cycles_used} of {args.budget_cycles} cycles "
+          f"({len(res.iterations)} gaits run), {res.seconds:.1f} s; {res.stopped}")
+    print(f"  returned gait (run {res.index}): measured {m.value(key):.5g} {unit} (rotation "
+          f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit}")
+    lim = "" if not limit else f", {100 * true_final / limit:.1f} % of the limit {limit:.5g} {unit}"
+    print(f"  on the physics (not seen by the loop): {true_final:.5g} {unit}, start gait {true_start:.5g} "
+          f"{unit}{lim}")
+    if not limit:
+        print(f"  physics limit {limit_note}")
+    return 0
+
+
+def _measurement(m: Measurement) -> dict[str, object]:
+    return {"speed": m.speed, "speed_se": m.speed_se, "rotation": m.rotation, "rotation_se": m.rotation_se,
+            "turn": m.turn, "cycles": m.cycles}
+
+
+def _iteration_text(it: LoopIteration, key: str) -> str:
+    pred = "—" if it.predicted is None else f"{it.predicted:.5g}"
+    m = it.measured
+    return (f"  [{it.index}] cycles {it.cycles_used:3d}  predicted {pred}  measured {m.value(key):.5g} "
+            f"(rotation {m.rotation:+.3f})  {it.note}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -75,3 +76,47 @@ def test_efficiency_needs_a_torque_model(p3_bag: Path, tmp_path: Path, capsys: p
     assert main(["optimize", str(p3_bag), "--objective", "efficiency", "-o", str(tmp_path / "e.yaml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no learned torque model" in err[0] and "efficiency is unavailable" in err[0]
+
+
+def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "loop.yaml"
+    assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "12", "--seed", "1", "--limit", "no",
+                 "-o", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["cycles_used"] == 11 and doc["budget_cycles"] == 12 and "budget spent" in doc["stopped"]
+    its = doc["iterations"]
+    assert [it["cycles_used"] for it in its] == [6, 11] and its[0]["accepted"] and its[0]["note"] == "start gait"
+    assert all(it["predicted"] > 0 and it["measured"] > 0 for it in its)
+    best = max((it for it in its if it["accepted"]), key=lambda it: it["index"])
+    assert doc["measured"] == best["measured"] and doc["predicted"] == best["predicted"]
+    assert doc["limit"] is None and doc["limit_note"] == "skipped: --limit no"
+    assert doc["simulated"]["returned"] > 0.5 * doc["simulated"]["start"]
+    system = make_system("purcell3")
+    assert constraint_violations(load_gait(out, system), gait_limits(system)) == []
+    # text output: one line per gait run on stderr, the summary on stdout
+    assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "6", "--limit", "no",
+                 "-o", str(tmp_path / "t.yaml")]) == 0
+    cap = capsys.readouterr()
+    assert re.search(r"predicted \d\.\d+ m/s", cap.out)  # the start's prediction, though no step was taken
+    assert "[0] cycles   6" in cap.err and "after 6 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["optimize", "--simulate", "purcell3", "-o", "{tmp}/g.yaml"], "--budget-cycles: required with --simulate"),
+    (["optimize", "--simulate", "purcell3", "--system", "purcell3", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
+     "--model/--system are not taken with it"),
+    (["optimize", "--simulate", "purcell3", "--physics", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
+     "--simulate and --physics"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "5", "-o", "{tmp}/g.yaml"],
+     "--budget-cycles: `budget_cycles`: expected at least settle_cycles + first_cycles = 6"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--objective", "efficiency", "-o", "{tmp}/g.yaml"],
+     "efficiency needs the actuator work measured on the robot"),
+    (["optimize", "--physics", "--system", "purcell3", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
+     "--budget-cycles: only with --simulate"),
+    (["optimize", "--simulate", "nosuch", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"], "unknown system 'nosuch'"),
+])
+def test_loop_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
+                                  message: str) -> None:
+    assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ERROR: ") and message in err[0]

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -105,6 +106,10 @@ class DataOptimizeConfig:
         SLSQP's tolerance on the (scaled) objective.
     fd_step : float
         Forward-difference step on the coefficients, rad.
+    trust_centre : str
+        ``template``: the trust region is centred on the recording's gait template θ_a(φ) (and
+        widened to hold the start gait); ``start``: on the start gait itself (the gait that drove
+        the recording, which the data scatter around; the radius is then exactly κ).
     """
 
     objective: str = "speed"
@@ -118,6 +123,7 @@ class DataOptimizeConfig:
     maxiter: int = 100
     ftol: float = 1e-8
     fd_step: float = 1e-6
+    trust_centre: str = "template"
 
     def __post_init__(self) -> None:
         if self.objective not in OBJECTIVES:
@@ -133,6 +139,8 @@ class DataOptimizeConfig:
         for name, ok, expected in checks:
             if not ok:
                 raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+        if self.trust_centre not in ("template", "start"):
+            raise SudsConfigError(f"`trust_centre`: expected 'template' or 'start', got {self.trust_centre!r}")
 
 
 @dataclass(frozen=True)
@@ -211,13 +219,15 @@ def _phase_of(ident: Any, rec: Recording) -> FloatArray:
     return np.asarray(ident.phaser_.transform(rec.r), dtype=float)
 
 
-def learn_model(rec: Recording, *, torque: bool = False, config: Any = None) -> LearnedModel:
+def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, config: Any = None) -> LearnedModel:
     """Fit the SUDS model of a whole recording and keep what the optimiser needs (:class:`LearnedModel`).
 
     Parameters
     ----------
-    rec : Recording
-        One steady gait (its bouts, if any, are not split: pass a steady recording).
+    rec : Recording or sequence of Recording
+        One steady gait (its bouts, if any, are not split: pass a steady recording); or several
+        separate stretches of the same gait, fitted together as the identifier fits bouts
+        (no interval spans two stretches).
     torque : bool
         Also learn the actuator torques (needs ``rec.effort``); required for ``efficiency``.
     config : IdentifyConfig, optional
@@ -232,24 +242,29 @@ def learn_model(rec: Recording, *, torque: bool = False, config: Any = None) -> 
     """
     from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
 
-    if torque and rec.effort is None:
+    recs = [rec] if isinstance(rec, Recording) else list(rec)
+    rec = recs[0]
+    if torque and any(r.effort is None for r in recs):
         raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape "
                               "(record it, e.g. `suds simulate --effort`); efficiency is unavailable from this data",
                               code=UNSUPPORTED_OBJECTIVE)
     hz = rec.gait_hz or 1.0
-    cycles = float((rec.t[-1] - rec.t[0] + rec.dt) * hz)
+    cycles = float(sum((r.t[-1] - r.t[0] + r.dt) * hz for r in recs))
     if cycles < 3:
         raise SudsDataError(f"`rec`: expected at least 3 gait cycles to learn from, got {cycles:.2f}",
                             code=TOO_LITTLE_DATA)
-    ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(rec)
+    ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(
+        rec if len(recs) == 1 else recs)
     reg = ident.regressor_
     act, pas = np.asarray(rec.actuated_index, dtype=int), np.asarray(rec.passive_index, dtype=int)
     # the data's spread around the template
-    phase = _phase_of(ident, rec)
-    theta = ident.template_.predict(phase)
-    delta = rec.r - theta
-    mid = 0.5 * (phase[1:] + phase[:-1])
-    rate = np.diff(rec.r, axis=0) / np.diff(rec.t)[:, None] - ident.template_.derivative(mid) * ident.omega_
+    deltas, rates = [], []
+    for r in recs:
+        phase = _phase_of(ident, r)
+        deltas.append(r.r - ident.template_.predict(phase))
+        mid = 0.5 * (phase[1:] + phase[:-1])
+        rates.append(np.diff(r.r, axis=0) / np.diff(r.t)[:, None] - ident.template_.derivative(mid) * ident.omega_)
+    delta, rate = np.concatenate(deltas), np.concatenate(rates)
     # the coefficients' covariance: (XᵀX + λI)⁻¹ per channel, scaled by its residual variance
     chol, resid = None, np.zeros(reg.coef_.shape[1])
     parts = [(reg.normal_, [c for c in range(reg.coef_.shape[1]) if c not in reg.avg_columns_])]
@@ -397,11 +412,22 @@ def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gai
     return shifted(gait, float(shifts[int(np.argmin(err))]))
 
 
+def _centre(model: LearnedModel, t: FloatArray, hz: float,
+            centre: Gait | None) -> tuple[FloatArray, FloatArray]:
+    """Actuated centre of the trust region and its rate at times t: θ_a(2πft), θ'_a·2πf, or ``centre``'s r, ṙ."""
+    if centre is not None:
+        return centre.r(t), centre.rdot(t)
+    omega = 2 * np.pi * hz
+    theta, dtheta = model.theta(omega * t)
+    return theta[:, model.act], dtheta[:, model.act] * omega
+
+
 def trust_bounds(model: LearnedModel, gait: Gait, order: int, trust: float,
-                 per_harmonic: int) -> tuple[FloatArray, FloatArray]:
+                 per_harmonic: int, centre: Gait | None = None) -> tuple[FloatArray, FloatArray]:
     """M (rows, p), b (rows,) with M x ≤ b: |δ_a| ≤ κσ_δ and |δ̇_a| ≤ κσ_δ̇ on the constraint grid.
 
-    δ_a(t) = r_a(t) − θ_a(2π f t) and δ̇_a(t) = ṙ_a(t) − θ'_a·2π f are affine in the gait vector x.
+    δ_a(t) = r_a(t) − θ_a(2π f t) and δ̇_a(t) = ṙ_a(t) − θ'_a·2π f are affine in the gait vector x;
+    with ``centre`` (a gait in the model's phase) the offsets are taken from it instead of the template.
     """
     na = len(gait.joints)
     t = constraint_grid(order, gait.gait_hz, per_harmonic)
@@ -410,28 +436,28 @@ def trust_bounds(model: LearnedModel, gait: Gait, order: int, trust: float,
     th = np.outer(t, w)
     A = np.concatenate([np.ones((t.size, 1)), np.cos(th), np.sin(th)], axis=1)
     dA = np.concatenate([np.zeros((t.size, 1)), -np.sin(th) * w, np.cos(th) * w], axis=1)
-    theta, dtheta = model.theta(omega * t)
+    mid, dmid = _centre(model, t, gait.gait_hz, centre)
     p = na * (2 * order + 1)
     rows, bounds = [], []
     for j in range(na):
-        a = int(model.act[j])
-        for basis, centre, sd in ((A, theta[:, a], model.spread_delta[j]),
-                                  (dA, dtheta[:, a] * omega, model.spread_rate[j])):
+        for basis, centre_j, sd in ((A, mid[:, j], model.spread_delta[j]), (dA, dmid[:, j], model.spread_rate[j])):
             rad = trust * max(float(sd), 1e-9)
             block = np.zeros((t.size, p))
             block[:, j * (2 * order + 1):(j + 1) * (2 * order + 1)] = basis / rad
             rows += [block, -block]
-            bounds += [1.0 + centre / rad, 1.0 - centre / rad]
+            bounds += [1.0 + centre_j / rad, 1.0 - centre_j / rad]
     return np.concatenate(rows), np.concatenate(bounds)
 
 
-def trust_used(model: LearnedModel, gait: Gait) -> float:
-    """Largest |δ_a|/σ_δ or |δ̇_a|/σ_δ̇ of ``gait`` over a 4096-point cycle (in units of the data's spread)."""
+def trust_used(model: LearnedModel, gait: Gait, centre: Gait | None = None) -> float:
+    """Largest |δ_a|/σ_δ or |δ̇_a|/σ_δ̇ of ``gait`` over a 4096-point cycle (in units of the data's spread).
+
+    δ from the template, or from ``centre`` when given (as :func:`trust_bounds`).
+    """
     t = np.arange(4096) / (4096 * gait.gait_hz)
-    omega = 2 * np.pi * gait.gait_hz
-    theta, dtheta = model.theta(omega * t)
-    d = np.abs(gait.r(t) - theta[:, model.act]) / np.maximum(model.spread_delta, 1e-12)
-    v = np.abs(gait.rdot(t) - dtheta[:, model.act] * omega) / np.maximum(model.spread_rate, 1e-12)
+    mid, dmid = _centre(model, t, gait.gait_hz, centre)
+    d = np.abs(gait.r(t) - mid) / np.maximum(model.spread_delta, 1e-12)
+    v = np.abs(gait.rdot(t) - dmid) / np.maximum(model.spread_rate, 1e-12)
     return float(max(d.max(), v.max()))
 
 
@@ -582,8 +608,9 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     free = np.arange(x0.size)  # no phase pinning: the model is local to the recorded phase
     prob = SteadyStateProblem(ev, ocfg, rec_vals["speed"], scale, sign, base.r_p[0], free)
     M, b = linear_bounds(recorded, K, limits, cfg.points_per_harmonic)
-    radius = max(cfg.trust, trust_used(model, recorded) * (1 + 1e-3))  # the region always holds the start
-    T, c = trust_bounds(model, recorded, K, radius, cfg.points_per_harmonic)
+    centre = recorded if cfg.trust_centre == "start" else None
+    radius = max(cfg.trust, trust_used(model, recorded, centre) * (1 + 1e-3))  # the region always holds the start
+    T, c = trust_bounds(model, recorded, K, radius, cfg.points_per_harmonic, centre)
     L, lb = np.concatenate([M, T]), np.concatenate([b, c])
     cons = [{"type": "ineq", "fun": lambda z: lb - L @ z, "jac": lambda z: -L},
             {"type": "ineq", "fun": lambda z: prob.values(z)[1:],
@@ -637,6 +664,7 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
         value_std=None if arr is None else float(arr[:, 1].std(ddof=1)) if len(arr) > 1 else None,
         recorded_std=None if arr is None else float(arr[:, 0].std(ddof=1)) if len(arr) > 1 else None,
         gain_std=None if arr is None else float((arr[:, 1] - arr[:, 0]).std(ddof=1)) if len(arr) > 1 else None,
-        values=new_vals, recorded_values=rec_vals, trust_used=trust_used(model, proposed), trust_radius=radius,
+        values=new_vals, recorded_values=rec_vals, trust_used=trust_used(model, proposed, centre),
+        trust_radius=radius,
         passive_excursion=_passive_excursion(ev, x_end, res), step_taken=step_taken, message=msg, limits=limits,
         seconds=time.perf_counter() - t0, draws=draws)

@@ -85,3 +85,16 @@ def test_refusals(purcell: tuple[object, LearnedModel]) -> None:
         DataOptimizeConfig(trust=0.0)
     with pytest.raises(SudsConfigError, match="`gait`: joints"):
         align_to_model(model, nominal_gait(make_system("swimmer9")))
+
+
+def test_trust_region_centred_on_the_start(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    limits = gait_limits(system)  # type: ignore[arg-type]
+    start = nominal_gait(system)  # type: ignore[arg-type]
+    cfg = DataOptimizeConfig(trust=0.3, draws=0, trust_centre="start")
+    res = optimize_from_data(model, cfg, limits=limits, start=start)
+    assert res.trust_radius == pytest.approx(0.3)  # the start is the centre: no widening
+    assert trust_used(model, res.recorded, res.recorded) == pytest.approx(0.0, abs=1e-12)
+    assert trust_used(model, res.gait, res.recorded) <= 0.3 * 1.01
+    with pytest.raises(SudsConfigError, match="`trust_centre`: expected 'template' or 'start', got 'x'"):
+        DataOptimizeConfig(trust_centre="x")

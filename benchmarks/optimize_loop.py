@@ -1,0 +1,243 @@
+"""`suds optimize --simulate` measured: the offline run → fit → step loop against the physics limit.
+
+For each robot, start and seed the loop runs on the simulated robot (default OU perturbation,
+100 Hz, 1 mm / 1 mrad noise) until its cycle budget is spent.  After the fact (never inside the
+loop) every gait it ran is evaluated on the true physics at its passive periodic steady state.
+The loop's history does not depend on its budget (the budget only decides when it stops), so
+one run at the largest budget gives the gait it would return at every smaller budget: the
+incumbent (best measured) gait after each run.  The limit is the physics optimiser's best gait
+(order 3, 4 starts), computed here.
+
+    python benchmarks/optimize_loop.py run purcell3 snake5     # → docs/results/optimize_loop_<robot>.json
+    python benchmarks/optimize_loop.py run swimmer9 --seeds 0 --reuse-limit   # the limit of an earlier run
+    python benchmarks/optimize_loop.py report                    # → docs/results/optimize_loop.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from _common import RESULTS, machine, stamp, write
+
+from suds_ros.core.json_text import dumps
+from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
+from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
+from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.systems import load_system
+
+ROBOTS = {"purcell3": ("purcell3", 40, 15), "snake5": ("/work/shared/robots/snake5.yaml", 60, 25),
+          "swimmer9": ("swimmer9", 90, 45)}  # name: (spec, budget, the issue's target cycles: 5 per link)
+PEERS = {"purcell3": "Deng et al. ≈ 30 (10 per link)", "snake5": "Deng et al. ≈ 50 (10 per link)",
+         "swimmer9": "Deng et al. ≈ 90; Bittner et al. 900"}
+
+
+def starts(nom: Gait) -> dict[str, Gait]:
+    """The nominal gait and two poor starts: half its amplitude, and the wave run backwards in time."""
+    off, c, s = nom.arrays()
+    back = Gait(system=nom.system, gait_hz=nom.gait_hz, joints=nom.joints, offset=tuple(off),
+                cos=tuple(map(tuple, c)), sin=tuple(map(tuple, -s)))
+    return {"nominal": nom, "half amplitude": nom.from_vector(0.5 * nom.to_vector(), nom.order),
+            "wave reversed": back}
+
+
+def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False) -> None:
+    spec, budget, target = ROBOTS[name]
+    system = load_system(spec)
+    nom = nominal_gait(system)
+    limits = gait_limits(system)
+    path = RESULTS / f"optimize_loop_{name}.json"
+    old = json.loads(path.read_text()) if path.exists() else {}
+    if reuse_limit and old.get("limit"):  # the physics limit does not depend on the loop: reuse it
+        limit, secs = old["limit"], old["limit_seconds"]
+    else:
+        t0 = time.perf_counter()
+        limit = optimize_gait(system, OptimizeConfig(order=3, starts=4)).value
+        secs = time.perf_counter() - t0
+    doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs, "runs": []}
+    print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
+    for kind, start in starts(nom).items():
+        if kind not in kinds:
+            continue
+        for seed in (seeds if kind != "wave reversed" else seeds[:1]):
+            t1 = time.perf_counter()
+            res = optimize_loop(system, LoopConfig(budget_cycles=budget, seed=seed), start=start, limits=limits)
+            secs = time.perf_counter() - t1
+            rows, incumbent = [], None
+            for it in res.iterations:
+                true = evaluate_gait(system, it.gait)
+                if it.accepted:
+                    replaced, incumbent = incumbent, true
+                else:
+                    replaced = incumbent
+                rows.append({"index": it.index, "cycles_used": it.cycles_used, "accepted": it.accepted,
+                             "predicted": it.predicted, "measured": it.measured.speed,
+                             "measured_rotation": it.measured.rotation, "true": true["speed"],
+                             "true_rotation": true["rotation"], "incumbent_true": incumbent["speed"],
+                             "incumbent_true_rotation": incumbent["rotation"],
+                             "replaced_true": None if replaced is None else replaced["speed"],
+                             "in_bounds": not constraint_violations(it.gait, limits)})
+            doc["runs"].append({"start": kind, "seed": seed, "rows": rows, "cycles_used": res.cycles_used,
+                                "stopped": res.stopped, "seconds": secs})
+            last = rows[-1]
+            print(f"  {kind} seed {seed}: {res.cycles_used} cycles, {100 * last['incumbent_true'] / limit:.1f} % "
+                  f"of the limit, {secs:.0f} s; {res.stopped}", flush=True)
+            path.write_text(dumps(doc))
+
+
+def _cycles_to(rows: list[dict], limit: float, frac: float) -> str:
+    for r in rows:
+        if r["incumbent_true"] >= frac * limit:
+            return str(r["cycles_used"])
+    return "—"
+
+
+def _at(rows: list[dict], cycles: int) -> dict | None:
+    done = [r for r in rows if r["cycles_used"] <= cycles]
+    return done[-1] if done else None
+
+
+def aggregates() -> list[str]:
+    """One line per robot: how many runs met the targets, the spread of the results, the side conditions."""
+    out = []
+    for name in ROBOTS:
+        path = RESULTS / f"optimize_loop_{name}.json"
+        if not path.exists():
+            out.append(f"- {name}: not run.")
+            continue
+        doc = json.loads(path.read_text())
+        limit, target, runs = doc["limit"], doc["target"], doc["runs"]
+        if not runs:
+            out.append(f"- {name}: no finished run.")
+            continue
+        at_t = [(_at(r["rows"], target) or r["rows"][0])["incumbent_true"] / limit for r in runs]
+        at_b = [r["rows"][-1]["incumbent_true"] / limit for r in runs]
+        c95 = [_cycles_to(r["rows"], limit, 0.95) for r in runs]
+        rot = [abs(r["rows"][-1]["incumbent_true_rotation"]) for r in runs]
+        ratios = [x["true"] / x["replaced_true"] for r in runs for x in r["rows"] if x["replaced_true"]]
+        slow = sum(q < 0.95 for q in ratios)
+        worse = sum(b < r["rows"][0]["true"] / limit - 1e-9 for b, r in zip(at_b, runs))
+        out.append(
+            f"- {name} ({len(runs)} runs): ≥ 95 % of the limit at the target {target} cycles in "
+            f"{sum(q >= 0.95 for q in at_t)} of {len(runs)} (range {100 * min(at_t):.1f}–{100 * max(at_t):.1f} %); "
+            f"at the budget {100 * min(at_b):.1f}–{100 * max(at_b):.1f} %; cycles to 95 %: {', '.join(c95)}; "
+            f"returned gait worse on the physics than the start in {worse} run(s); returned gait's true |rotation| "
+            f"> 0.05 rad/cycle in {sum(x > 0.05 for x in rot)} run(s) (largest {max(rot):.3f}); gaits run more than "
+            f"5 % slower than the incumbent: {slow} of {len(ratios)}.")
+    return out
+
+
+def limit_info() -> dict[str, tuple[float, float]]:
+    """Robot → (limit m/s, seconds the physics optimiser took) from the JSON files."""
+    out = {}
+    for name in ROBOTS:
+        path = RESULTS / f"optimize_loop_{name}.json"
+        if path.exists():
+            doc = json.loads(path.read_text())
+            out[name] = (doc["limit"], doc["limit_seconds"])
+    return out
+
+
+def report() -> None:
+    lines = ["# `suds optimize --simulate`: the offline run → fit → step loop, measured", "",
+             f"Measured {stamp()} on {machine()} by `benchmarks/optimize_loop.py` (nice 5; the 2 cores shared "
+             "with other work, so times are rough).", "",
+             "The loop (`suds_ros/core/optimize/loop.py`, defaults): the start gait runs 1 settling + 5 measured "
+             "cycles; each candidate 1 settling + 4 measured cycles (every cycle counted); the SUDS model is fitted "
+             "to the incumbent gait's own measured cycles only; one trust-region step (κ = 2 σ, doubled after a "
+             "confirmed full step up to 8, halved after a rejection); a step is kept only if the *measured* speed "
+             "is higher and the measured |rotation| ≤ 0.05 rad/cycle (the step itself asks the model for ≤ 0.025). "
+             "Robot: the simulator with its default OU perturbation (0.175 rad, κ = 8 /s), 100 Hz, 1 mm / 1 mrad "
+             "noise, seeded. 'true' = a gait on the physics at its passive periodic steady state, computed after "
+             "the run; the loop never sees it. The gait returned at a budget is the incumbent at that point.", ""]
+    lines += ["## Summary", "",
+              "| robot | limit (m/s) | start | seed | start % | % at the target (cycles) | % at the budget (cycles) "
+              "| cycles to 90 / 95 / 99 % | returned gait's true rotation | worst true run / incumbent | "
+              "gaits run (accepted) | all in bounds | stopped | time s |", "|" + "---|" * 14]
+    details = []
+    for name in ROBOTS:
+        path = RESULTS / f"optimize_loop_{name}.json"
+        if not path.exists():
+            lines.append(f"| {name} | not run | | | | | | | | | | | | |")
+            continue
+        doc = json.loads(path.read_text())
+        limit, target = doc["limit"], doc["target"]
+        for run_ in doc["runs"]:
+            rows = run_["rows"]
+            at_t, last = _at(rows, target), rows[-1]
+            worst = min((r["true"] / r["replaced_true"] for r in rows if r["replaced_true"]), default=float("nan"))
+            lines.append(
+                f"| {name} | {limit:.5f} | {run_['start']} | {run_['seed']} | {100 * rows[0]['true'] / limit:.1f} | "
+                + (f"{100 * at_t['incumbent_true'] / limit:.1f} ({target})" if at_t else "—") + " | "
+                f"{100 * last['incumbent_true'] / limit:.1f} ({run_['cycles_used']} of {doc['budget']}) | "
+                f"{' / '.join(_cycles_to(rows, limit, f) for f in (0.90, 0.95, 0.99))} | "
+                f"{last['incumbent_true_rotation']:+.3f} | {worst:.3f} | "
+                f"{len(rows)} ({sum(r['accepted'] for r in rows)}) | "
+                f"{'yes' if all(r['in_bounds'] for r in rows) else 'NO'} | {run_['stopped'].split(':')[0]} | "
+                f"{run_['seconds']:.0f} |")
+            details += [f"### {name}, {run_['start']}, seed {run_['seed']}", "",
+                        "| run | cycles used | predicted (m/s) | measured (m/s) | measured rotation | true (m/s) | "
+                        "true rotation | accepted | incumbent true, % of limit |", "|" + "---|" * 9]
+            for i, r in enumerate(rows):
+                pred = "—" if r["predicted"] is None else f"{r['predicted']:.4f}"
+                # the same gait as the incumbent, run again after a collapsed trust region (same true value)
+                rerun = i > 0 and r["accepted"] and r["true"] == rows[i - 1]["incumbent_true"]
+                details.append(
+                    f"| {r['index']} | {r['cycles_used']} | {pred} | {r['measured']:.4f} | "
+                    f"{r['measured_rotation']:+.3f} | {r['true']:.4f} | {r['true_rotation']:+.3f} | "
+                    f"{'re-run of the incumbent' if rerun else 'yes' if r['accepted'] else 'no'} | "
+                    f"{100 * r['incumbent_true'] / limit:.1f} |")
+            details.append("")
+    lines += ["", "## Aggregates (computed from the table)", "", *aggregates(), ""]
+    lines += ["", "Target cycles = the issue's 5 cycles per link (purcell3 15, snake5 25, swimmer9 45). Peers: "
+              + "; ".join(f"{k}: {v}" for k, v in PEERS.items()) + ". 'worst true run / incumbent' = the lowest "
+              "ratio of a gait's true speed to that of the incumbent it was run against (the issue asks ≥ 0.95). "
+              "Predicted values are the model's at the step (for run 0: the first model's fit of the start gait).",
+              "", "## Notes", "",
+              "- Cycles to x % counts the start gait's cycles too; a start already above x % reads as the start's "
+              "6 cycles (the designer's nominal sinusoids of purcell3 and snake5 are at 98.8 % of the limit).",
+              "- 'Bounds': every gait the loop ran or returned is within the joint range and speed bounds (checked "
+              "on the spec's grid). The simulator's OU perturbation (0.175 rad) acts on top of the gait's set-points, "
+              "so the perturbed set-points themselves do leave the bounds by up to about that much; that is the "
+              "simulated robot's behaviour, not a gait the loop chose.",
+              "- The measured speed of 4 cycles under this perturbation has a standard error of 5–15 % (snake5, "
+              "swimmer9), so near the limit a candidate can be accepted on a lucky measurement (the 'returned gait "
+              "worse than the start' count); a collapsed trust region re-runs the incumbent and pools its "
+              "measurements, which corrects some of these.",
+              "- The measured rotation is the weak point: with 4 cycles under this perturbation its error reaches "
+              "±0.1–0.2 rad/cycle on swimmer9 (per-run tables), larger than the 0.05 bound, so the bound is enforced "
+              "on a noisy number: gaits that break it on the physics were accepted and gaits within it rejected; "
+              "when the start gait itself measures outside the bound, the smaller measured violation wins. "
+              "'incumbent true, % of limit' counts an accepted gait whatever its true rotation; the summary's "
+              "rotation column is the returned gait's.",
+              "- Predictions are optimistic (the model extrapolates beyond the incumbent's data); the loop never "
+              "acts on a prediction alone.",
+              "- Not measured here: CMA-ES at the same budget, the turn objective, efficiency (refused: the "
+              "streamed robot records no actuator work), more than one seed on swimmer9, the 'wave reversed' start "
+              "on swimmer9. The limits were computed by this script (the physics optimiser, order 3, 4 starts; "
+              "with `--reuse-limit` taken from the robot's earlier JSON): "
+              + ", ".join(f"{k} {v[0]:.5f} m/s in {v[1]:.0f} s" for k, v in limit_info().items()) + ".",
+              "", "## Per run", "", *details]
+    write("optimize_loop.md", "\n".join(lines) + "\n")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("robots", nargs="+", choices=list(ROBOTS))
+    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    r.add_argument("--starts", nargs="+", default=["nominal", "half amplitude", "wave reversed"])
+    r.add_argument("--reuse-limit", action="store_true", help="take the limit from an earlier run's JSON")
+    sub.add_parser("report")
+    args = ap.parse_args()
+    if args.cmd == "run":
+        for name in args.robots:
+            run(name, args.seeds, args.starts, args.reuse_limit)
+    else:
+        report()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,533 @@
+"""The offline optimisation loop: run → fit → step on a simulated robot (``suds optimize --simulate``).
+
+The robot is a :class:`~suds_ros.core.physics.stream.StreamingSimulator`: one continuous run with
+the simulator's usual OU perturbation on top of the reference gait, seeded, switched to a new gait
+at a cycle boundary (the set-points fade onto it over one cycle).  The optimiser sees only what a
+recording holds (shape and pose samples with their noise); the physics is never consulted.
+
+One iteration
+-------------
+1. **Fit**: the SUDS model of the incumbent gait (the best gait measured so far) is fitted to
+   the incumbent's own cycles (:func:`~suds_ros.core.optimize.data.learn_model`).  Data of other
+   gaits are not pooled: the gait template and the model are local to one gait.  When the
+   incumbent was run in several stretches (re-runs, below), they are fitted together (no
+   interval spans two stretches).
+2. **Step**: one trust-region step on that model
+   (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
+   data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
+   speed bounds; for ``speed`` the predicted rotation is held within
+   ``rotation_margin``·``max_rotation`` (the model's rotation errs).
+3. **Run**: the proposed gait is checked against the bounds (a gait outside them is never run),
+   switched in at the next cycle boundary and run for ``settle_cycles`` (discarded: the fade and
+   the passive transient) plus ``step_cycles`` measured cycles.
+4. **Judge by measurement**: the objective measured on those cycles (per-cycle net motion of the
+   pose frame, g_c = g(t)⁻¹ g(t + 1/f), averaged over the cycles) is compared with the
+   incumbent's measurement.  The step is accepted only if the measurement confirms it: a higher
+   measured objective, and for ``speed``/``efficiency`` a measured |rotation| per cycle within
+   ``max_rotation`` (the spec's straight-course bound; for ``turn`` a measured speed no lower
+   than the start gait's).  A feasible gait always beats an infeasible one; between infeasible
+   gaits the smaller violation wins.  Accepted: the candidate becomes the incumbent and its
+   cycles the next model's data; the radius grows (× ``grow``, up to ``trust_max``) when the
+   measured gain is at least half the predicted gain and the step reached the region's edge.
+   Rejected: back to the incumbent's model, radius × ``shrink``.  Below ``trust_min`` the incumbent
+   is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
+   also undoes a lucky first one) and a new model, and the radius starts afresh.
+
+When the model predicts no gain inside a shrunken region, the incumbent is re-run likewise.  The
+loop stops when the model predicts no gain inside a region at least the initial radius, when it
+would propose a gait already rejected (possible only with ``trust_centre`` = ``template``: the
+radius cannot shrink below the incumbent's own offset from the template), or when the next
+gait's cycles would overrun ``budget_cycles``.  Every cycle the robot runs is counted, the
+settling cycles and the rejected candidates' cycles included (``shared/spec/gait.md``).
+It returns the best gait it measured.
+
+The OU perturbation acts on top of the gait's set-points (that is what makes the data
+informative), so the perturbed set-points themselves can leave the joint bounds by about the OU
+amplitude; the *gaits* run and proposed never do.  ``efficiency`` needs measured actuator work,
+which the streamed robot does not record: it is refused (code ``unsupported_objective``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from suds_ros.core import se2
+from suds_ros.core._typing import FloatArray
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.optimize.data import (
+    DataOptimizeConfig,
+    LearnedCycle,
+    LearnedModel,
+    align_to_model,
+    learn_model,
+    optimize_from_data,
+)
+from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values
+from suds_ros.core.physics.gait import (
+    DEFAULT_MAX_ORDER,
+    MAX_ORDER,
+    OBJECTIVES,
+    Gait,
+    GaitLimits,
+    check_constraints,
+    check_gait,
+    gait_limits,
+    nominal_gait,
+    with_predicted,
+)
+from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.stream import StreamingSimulator
+from suds_ros.core.physics.system import SudsSystem
+from suds_ros.core.recording import Recording
+
+BUDGET_TOO_SMALL = "budget_too_small"
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Settings of :func:`optimize_loop`.
+
+    Parameters
+    ----------
+    budget_cycles : int
+        Gait cycles the robot may run in all (settling and rejected cycles included).
+    seed : int
+        Seed of the simulated robot's OU perturbation and measurement noise.
+    objective : str
+        ``speed`` or ``turn`` (``efficiency`` is refused: no measured work on the stream).
+    first_cycles : int
+        Measured cycles of the start gait (≥ 4, as ``step_cycles``).
+    step_cycles : int
+        Measured cycles of each candidate gait (≥ 4: an accepted candidate's cycles are the next
+        model's data, and the phaser needs three whole cycles after the settling one is cut).
+    settle_cycles : int
+        Cycles run and discarded after the start and after every switch (≥ 1).
+    order : int
+        Harmonics K of the proposed gaits (1..8).
+    trust, trust_min, trust_max : float
+        Initial, smallest and largest trust-region radius κ, in σ of the data's δ spread.
+    trust_centre : str
+        ``start`` (default): the region is centred on the incumbent gait, around which its data
+        scatter; ``template``: on the model's gait template, as ``suds optimize BAG`` does (from a
+        few cycles the template is off the incumbent by about 1 σ, so the region cannot shrink
+        below that and a rejected step tends to come back).
+    shrink, grow : float
+        Radius factors after a rejected step (0 < shrink < 1) and a confirmed full step (≥ 1).
+    draws, min_gain_sigmas : int, float
+        Coefficient draws and the draw gate of each step (:class:`DataOptimizeConfig`).
+    max_rotation : float
+        Bound on the measured |net rotation| per cycle for ``speed``, rad.
+    accept_sigmas : float
+        A candidate is kept only if its measured gain exceeds this many standard errors of the
+        difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
+    rotation_margin : float
+        The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
+        (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
+        step planned at the bound often breaks it on the robot.
+    samples_per_cycle : int
+        Samples per gait cycle of the simulated robot's recording.
+    ou_std, kappa, noise_std : float
+        The simulator's OU perturbation (rad, 1/s) and measurement noise (rad, m).
+    """
+
+    budget_cycles: int
+    seed: int = 0
+    objective: str = "speed"
+    first_cycles: int = 5
+    step_cycles: int = 4
+    settle_cycles: int = 1
+    order: int = DEFAULT_MAX_ORDER
+    trust: float = 2.0
+    trust_min: float = 0.25
+    trust_max: float = 8.0
+    trust_centre: str = "start"
+    shrink: float = 0.5
+    grow: float = 2.0
+    draws: int = 0
+    min_gain_sigmas: float = 0.0
+    max_rotation: float = 0.05
+    rotation_margin: float = 0.5
+    accept_sigmas: float = 0.0
+    samples_per_cycle: int = 100
+    ou_std: float = 0.175
+    kappa: float = 8.0
+    noise_std: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.objective not in OBJECTIVES:
+            raise SudsConfigError(f"`objective`: expected one of {list(OBJECTIVES)}, got {self.objective!r}")
+        if self.objective == "efficiency":
+            raise SudsConfigError("`objective`: efficiency needs the actuator work measured on the robot, which the "
+                                  "simulated robot's stream does not record; expected speed or turn, got "
+                                  "'efficiency'", code=UNSUPPORTED_OBJECTIVE)
+        checks = [("budget_cycles", self.budget_cycles >= 1, "≥ 1"),
+                  ("first_cycles", self.first_cycles >= 4, "≥ 4"),
+                  ("step_cycles", self.step_cycles >= 4, "≥ 4"),
+                  ("settle_cycles", self.settle_cycles >= 1, "≥ 1"),
+                  ("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"),
+                  ("trust", math.isfinite(self.trust) and self.trust > 0, "> 0"),
+                  ("trust_min", 0 < self.trust_min <= self.trust, f"in (0, trust = {self.trust!r}]"),
+                  ("trust_max", math.isfinite(self.trust_max) and self.trust_max >= self.trust,
+                   f"≥ trust = {self.trust!r}"),
+                  ("shrink", 0 < self.shrink < 1, "in (0, 1)"), ("grow", self.grow >= 1, "≥ 1"),
+                  ("draws", self.draws >= 0, "≥ 0"), ("min_gain_sigmas", self.min_gain_sigmas >= 0, "≥ 0"),
+                  ("max_rotation", self.max_rotation > 0, "> 0"),
+                  ("rotation_margin", 0 < self.rotation_margin <= 1, "in (0, 1]"),
+                  ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
+                  ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
+                  ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
+                  ("noise_std", self.noise_std >= 0, "≥ 0")]
+        for name, ok, expected in checks:
+            if not ok:
+                raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+        if self.trust_centre not in ("start", "template"):
+            raise SudsConfigError(f"`trust_centre`: expected 'start' or 'template', got {self.trust_centre!r}")
+        first = self.settle_cycles + self.first_cycles
+        if self.budget_cycles < first:
+            raise SudsConfigError(f"`budget_cycles`: expected at least settle_cycles + first_cycles = {first} (the "
+                                  f"start gait's run), got {self.budget_cycles}", code=BUDGET_TOO_SMALL)
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """The objective measured on a gait's recorded cycles (pose frame, per-cycle net motion averaged).
+
+    Attributes
+    ----------
+    speed : float, m/s; rotation : float, rad per cycle; turn : float, rad/s.
+    speed_se, rotation_se : float, standard errors over the cycles (NaN for one cycle).
+    cycles : int, cycles measured.
+    """
+
+    speed: float
+    rotation: float
+    turn: float
+    speed_se: float
+    rotation_se: float
+    cycles: int
+
+    def value(self, objective: str) -> float:
+        """Return the objective: the speed, or for turn the |turn rate|."""
+        return abs(self.turn) if objective == "turn" else self.speed
+
+
+def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: int, gait_hz: float) -> Measurement:
+    """Per-cycle net motion g_c = g(t)⁻¹ g(t + 1/f) of a pose series, averaged over its whole cycles.
+
+    Speed: |mean translation of g_c| · f over the consecutive whole cycles (t at cycle starts).
+    Rotation: the mean of yaw(t + 1/f) − yaw(t) over *every* sample t with t + 1/f in the series (a
+    rotation is the same in any frame, so every start counts; this averages out the
+    within-cycle yaw wiggle of the perturbations: on snake5 and purcell3 at the default OU
+    drive its spread over 4-cycle windows was 0.6× and 0.3× that of cycle-start windows).
+    The standard errors are those of the consecutive cycles' values.
+
+    Parameters
+    ----------
+    pose : (n, 3) float, or a sequence of them
+        x (m), y (m), unwrapped yaw (rad) at uniform samples, ``samples_per_cycle`` per cycle; several
+        separate stretches of the same gait are pooled (their cycles and windows together).
+    samples_per_cycle : int
+    gait_hz : float
+        Cycle frequency f, Hz.
+    """
+    stretches = [np.asarray(p, dtype=float) for p in (pose if isinstance(pose, (list, tuple)) else [pose])]
+    cycles, turns = [], []
+    spc = samples_per_cycle
+    for p in stretches:
+        k = (p.shape[0] - 1) // spc
+        if k < 1:
+            raise SudsConfigError(f"`pose`: expected at least one cycle ({spc + 1} samples) per stretch, got "
+                                  f"{p.shape[0]}")
+        idx = np.arange(k + 1) * spc
+        cycles.append(se2.relative(p[idx[:-1]], p[idx[1:]]))  # (k, 3)
+        turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
+    g = np.concatenate(cycles)
+    m = g.shape[0]
+    mean = g.mean(axis=0)
+    speed = float(np.hypot(mean[0], mean[1]) * gait_hz)
+    rotation = float(np.mean(np.concatenate(turns)))
+    if m > 1:
+        sd = g.std(axis=0, ddof=1) / math.sqrt(m)
+        speed_se, rot_se = float(np.hypot(sd[0], sd[1]) * gait_hz), float(sd[2])
+    else:
+        speed_se = rot_se = float("nan")
+    return Measurement(speed=speed, rotation=rotation, turn=rotation * gait_hz, speed_se=speed_se,
+                       rotation_se=rot_se, cycles=int(m))
+
+
+@dataclass(frozen=True)
+class LoopIteration:
+    """One gait run on the robot.
+
+    Attributes
+    ----------
+    index : int, 0 for the start gait.
+    gait : Gait, the gait run.
+    cycles : int, cycles run for it (settling included); cycles_used : int, running total.
+    predicted, predicted_std : float or None, the model's prediction of its objective (std over draws).
+    predicted_incumbent : float or None, the same model's prediction for the gait it would replace.
+    measured : Measurement.
+    accepted : bool, whether it became (or, for the start, is) the incumbent.
+    trust : float or None, the radius κ of the step that proposed it; trust_used : float or None.
+    note : str, why accepted or not.
+    """
+
+    index: int
+    gait: Gait
+    cycles: int
+    cycles_used: int
+    predicted: float | None
+    predicted_std: float | None
+    predicted_incumbent: float | None
+    measured: Measurement
+    accepted: bool
+    trust: float | None
+    trust_used: float | None
+    note: str
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """What :func:`optimize_loop` returns.
+
+    Attributes
+    ----------
+    gait : Gait, the best gait measured (``objective``, ``predicted`` set when a model predicted it).
+    measured : Measurement of it; predicted : float or None, the model's prediction of it.
+    index : int, the iteration that ran it.
+    iterations : tuple of LoopIteration; cycles_used : int; stopped : str, why the loop ended.
+    limits : GaitLimits; seconds : float.
+    """
+
+    gait: Gait
+    measured: Measurement
+    predicted: float | None
+    index: int
+    iterations: tuple[LoopIteration, ...]
+    cycles_used: int
+    stopped: str
+    limits: GaitLimits
+    seconds: float
+
+
+class _Robot:
+    """The simulated robot as the loop sees it: run a gait for whole cycles, get a recording."""
+
+    def __init__(self, system: SudsSystem, gait: Gait, cfg: LoopConfig) -> None:
+        self.system, self.cfg = system, cfg
+        self.spc = cfg.samples_per_cycle
+        sim_cfg = SimConfig(cycles=1, samples_per_cycle=self.spc, gait_hz=gait.gait_hz, kappa=cfg.kappa,
+                            ou_std=cfg.ou_std, noise_std=cfg.noise_std, warmup=0.0, seed=cfg.seed, gait=gait)
+        self.sim = StreamingSimulator(system, sim_cfg)
+        names = system.joint_names
+        self.actuated = tuple(names[i] for i in system.actuated)
+        self.passive = tuple(names[i] for i in system.passive)
+        self.current: Gait | None = gait
+        self.cycles_run = 0
+
+    def run(self, gait: Gait, cycles: int) -> tuple[Recording, bool]:
+        """``cycles`` cycles of ``gait`` (switched in at this cycle boundary); True if it was already running."""
+        same = self.current is gait
+        if not same:
+            self.sim.set_gait(gait)
+            self.current = gait
+        chunk = self.sim.step(cycles * self.spc)
+        self.cycles_run += cycles
+        rec = Recording(t=chunk.t, r=chunk.r, joint_names=self.system.joint_names, actuated=self.actuated,
+                        passive=self.passive, pose_t=chunk.t, pose=chunk.pose, system=self.system.name,
+                        gait_hz=gait.gait_hz)
+        return rec, same
+
+
+def _trim(rec: Recording, skip: int, spc: int) -> Recording:
+    """The recording without its first ``skip`` cycles, from the last sample of the last skipped cycle."""
+    start = max(skip * spc - 1, 0)
+    return rec.slice(start, rec.n_samples)
+
+
+def _feasible(m: Measurement, cfg: LoopConfig, speed_floor: float) -> tuple[bool, float]:
+    """(within the spec's side bound, how far outside it)."""
+    if cfg.objective == "turn":
+        return m.speed >= speed_floor, max(0.0, speed_floor - m.speed)
+    return abs(m.rotation) <= cfg.max_rotation, max(0.0, abs(m.rotation) - cfg.max_rotation)
+
+
+def _value_se(m: Measurement, objective: str) -> float:
+    """Standard error of the measured objective (turn: of the rotation, · f)."""
+    return m.rotation_se * abs(m.turn / m.rotation) if objective == "turn" and m.rotation else m.speed_se
+
+
+def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: float = 0.0) -> bool:
+    """Whether ``new`` beats ``old`` by measurement (feasible first, then the objective; see the module)."""
+    ok_new, viol_new = _feasible(new, cfg, speed_floor)
+    ok_old, viol_old = _feasible(old, cfg, speed_floor)
+    if ok_new != ok_old:
+        return ok_new
+    if not ok_new:
+        return viol_new < viol_old
+    gain = new.value(cfg.objective) - old.value(cfg.objective)
+    if cfg.accept_sigmas > 0:
+        se = math.hypot(_value_se(new, cfg.objective), _value_se(old, cfg.objective))
+        if math.isfinite(se):
+            return gain > cfg.accept_sigmas * se
+    return gain > 0
+
+
+def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
+                  limits: GaitLimits | None = None,
+                  log: Callable[[LoopIteration], None] | None = None) -> LoopResult:
+    """Run → fit → step on the simulated ``system`` until ``config.budget_cycles`` are spent (module docstring).
+
+    Parameters
+    ----------
+    system : SudsSystem
+        The simulated robot (only its recorded streams reach the optimiser).
+    config : LoopConfig
+    start : Gait, optional
+        The first gait run (default: the robot's nominal gait).
+    limits : GaitLimits, optional
+        Joint bounds (default :func:`~suds_ros.core.physics.gait.gait_limits` of the robot).
+    log : callable, optional
+        Called with each :class:`LoopIteration` as it ends.
+
+    Raises
+    ------
+    SudsConfigError
+        A start gait of other joints, or outside the bounds (code ``gait_constraint``).
+    """
+    t0 = time.perf_counter()
+    cfg = config
+    gait = nominal_gait(system) if start is None else check_gait(start, system, "start")
+    limits = gait_limits(system) if limits is None else limits
+    check_constraints(gait, limits)
+    robot = _Robot(system, gait, cfg)
+    spc = robot.spc
+    n0 = cfg.settle_cycles + cfg.first_cycles
+    rec, _ = robot.run(gait, n0)
+    data = _trim(rec, cfg.settle_cycles, spc)
+    meas = measure_cycles(data.pose, spc, gait.gait_hz)
+    speed_floor = meas.speed  # turn: no slower than the start gait (measured)
+    first = LoopIteration(index=0, gait=gait, cycles=n0, cycles_used=robot.cycles_run, predicted=None,
+                          predicted_std=None, predicted_incumbent=None, measured=meas, accepted=True, trust=None,
+                          trust_used=None, note="start gait")
+    iterations = [first]
+    if log is not None:
+        log(first)
+    best_gait, best_meas, best_data, best_index = gait, meas, [data], 0
+    best_pred: float | None = None
+    kappa = cfg.trust
+    model = None
+    rejected: list[Gait] = []
+    stopped = "budget spent"
+    while True:
+        n = cfg.settle_cycles + cfg.step_cycles
+        if robot.cycles_run + n > cfg.budget_cycles:
+            stopped = f"budget spent: a candidate needs {n} more cycles, {cfg.budget_cycles - robot.cycles_run} left"
+            break
+        if model is None:
+            model = learn_model(best_data)
+        dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
+                                  min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(iterations),
+                                  max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre)
+        step = optimize_from_data(model, dcfg, limits=limits, start=best_gait)
+        if best_pred is None:
+            best_pred = step.recorded_value
+            iterations[best_index] = _with_prediction(iterations[best_index], step.recorded_value, step.recorded_std)
+        if not step.step_taken:
+            if kappa >= cfg.trust:
+                stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
+                break
+            # a shrunken region with no predicted gain: more data on the incumbent instead (below)
+            rerun = f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}"
+            if robot.cycles_run + n > cfg.budget_cycles:
+                stopped = f"{rerun}; no budget to re-run the incumbent"
+                break
+        else:
+            cand = step.gait
+            x = cand.to_vector(cfg.order)
+            if any(np.allclose(x, g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in rejected):
+                stopped = ("no new step: the trust region cannot shrink further around the incumbent (it must hold "
+                           "the incumbent's own offset from the template) and this gait was rejected before")
+                break
+            check_constraints(cand, limits)  # never run a gait outside the bounds
+            rec, _ = robot.run(cand, n)
+            data = _trim(rec, cfg.settle_cycles, spc)
+            meas = measure_cycles(data.pose, spc, cand.gait_hz)
+            old = best_meas
+            accepted = is_better(meas, old, cfg, speed_floor)
+            pred_gain = step.value - step.recorded_value
+            meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
+            kappa_used = step.trust_radius
+            if accepted:
+                ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
+                grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
+                note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
+                if grew:
+                    kappa = min(kappa * cfg.grow, cfg.trust_max)
+                    note += f"; trust grows to {kappa:.3g}"
+                best_gait, best_meas, best_data, best_index, best_pred = cand, meas, [data], len(iterations), step.value
+                model, rejected = None, []
+            else:
+                kappa *= cfg.shrink
+                rejected.append(cand)
+                why = ("measured objective not higher" if _feasible(meas, cfg, speed_floor)[0]
+                       else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
+                             if cfg.objective != "turn" else "measured speed under the start gait's"))
+                note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
+                        f"trust → {kappa:.3g}")
+            it = LoopIteration(index=len(iterations), gait=cand, cycles=n, cycles_used=robot.cycles_run,
+                               predicted=step.value, predicted_std=step.value_std,
+                               predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
+                               trust=kappa_used, trust_used=step.trust_used, note=note)
+            iterations.append(it)
+            if log is not None:
+                log(it)
+            if accepted or kappa >= cfg.trust_min:
+                continue
+            rerun = f"trust region below {cfg.trust_min:g} σ after rejected steps"
+            if robot.cycles_run + n > cfg.budget_cycles:
+                stopped = f"{rerun}; no budget to re-run the incumbent"
+                break
+        # more data instead: the incumbent again, pooled with its earlier cycles; the radius starts afresh
+        rec, _ = robot.run(best_gait, n)
+        best_data.append(_trim(rec, cfg.settle_cycles, spc))
+        best_meas = measure_cycles([d.pose for d in best_data], spc, best_gait.gait_hz)
+        model, kappa, rejected = None, cfg.trust, []
+        it = LoopIteration(index=len(iterations), gait=best_gait, cycles=n, cycles_used=robot.cycles_run,
+                           predicted=best_pred, predicted_std=None, predicted_incumbent=None, measured=best_meas,
+                           accepted=True, trust=None, trust_used=None,
+                           note=f"incumbent re-run ({rerun}): its {len(best_data)} stretches pooled, measured "
+                                f"again, model refitted, trust → {kappa:.3g}")
+        iterations.append(it)
+        best_index = it.index
+        if log is not None:
+            log(it)
+    if best_pred is None:  # no step was taken (the budget held only the start): the model's view of it anyway
+        best_pred = predict_value(learn_model(best_data), best_gait, cfg.objective)
+        iterations[best_index] = _with_prediction(iterations[best_index], best_pred, None)
+    pred = best_pred
+    out = with_predicted(best_gait, cfg.objective, {cfg.objective: pred}) if pred is not None else best_gait
+    return LoopResult(gait=out, measured=best_meas, predicted=pred, index=best_index,
+                      iterations=tuple(iterations),
+                      cycles_used=robot.cycles_run, stopped=stopped, limits=limits,
+                      seconds=time.perf_counter() - t0)
+
+
+def predict_value(model: LearnedModel, gait: Gait, objective: str) -> float:
+    """The learned model's objective of ``gait`` at its predicted passive periodic steady state (turn as |rate|)."""
+    g = align_to_model(model, gait)
+    ev = LearnedCycle(model, g.gait_hz, g.order)
+    vals = objective_values(ev.steady_of(g.to_vector()), g.gait_hz)
+    return float(abs(vals["turn"][0]) if objective == "turn" else vals[objective][0])
+
+
+def _with_prediction(it: LoopIteration, value: float, std: float | None) -> LoopIteration:
+    return LoopIteration(index=it.index, gait=it.gait, cycles=it.cycles, cycles_used=it.cycles_used,
+                         predicted=value, predicted_std=std, predicted_incumbent=it.predicted_incumbent,
+                         measured=it.measured, accepted=it.accepted, trust=it.trust, trust_used=it.trust_used,
+                         note=it.note)

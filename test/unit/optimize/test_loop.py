@@ -1,0 +1,119 @@
+"""The offline run → fit → step loop: measurement, acceptance, budget, bounds, refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.optimize.loop import LoopConfig, LoopResult, Measurement, is_better, measure_cycles, optimize_loop
+from suds_ros.core.optimize.physics import evaluate_gait
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.systems import make_system
+
+
+def test_measure_cycles_reads_the_per_cycle_net_motion() -> None:
+    spc, hz = 50, 2.0
+    t = np.arange(4 * spc + 1) / (spc * hz)
+    # body moving along its own x at 0.3 m/s while turning at 0.1 rad/s: a circular arc
+    w, v = 0.1, 0.3
+    yaw = w * t + 0.2 * np.sin(2 * np.pi * hz * t)  # a periodic wiggle does not change the net motion
+    x, y = v / w * np.sin(w * t), v / w * (1 - np.cos(w * t))
+    m = measure_cycles(np.stack([x, y, yaw], axis=1), spc, hz)
+    assert m.cycles == 4 and m.rotation == pytest.approx(w / hz, rel=1e-9)
+    assert m.turn == pytest.approx(w, rel=1e-9)
+    chord = 2 * v / w * np.sin(w / hz / 2)  # the arc's chord per cycle
+    assert m.speed == pytest.approx(chord * hz, rel=1e-6) and m.speed_se < 1e-9
+    with pytest.raises(SudsConfigError, match="expected at least one cycle"):
+        measure_cycles(np.zeros((spc, 3)), spc, hz)
+
+
+def _m(speed: float, rotation: float) -> Measurement:
+    return Measurement(speed=speed, rotation=rotation, turn=rotation, speed_se=0.0, rotation_se=0.0, cycles=4)
+
+
+def test_acceptance_is_by_measurement_feasible_first() -> None:
+    cfg = LoopConfig(budget_cycles=20)
+    assert is_better(_m(0.2, 0.01), _m(0.1, 0.0), cfg)
+    assert not is_better(_m(0.1, 0.0), _m(0.1, 0.0), cfg)  # equal is not better
+    assert not is_better(_m(0.9, 0.06), _m(0.1, 0.0), cfg)  # faster but off the straight course
+    assert is_better(_m(0.1, 0.0), _m(0.9, -0.06), cfg)
+    assert is_better(_m(0.1, 0.07), _m(0.9, 0.08), cfg)  # both off course: the smaller violation
+    turn = LoopConfig(budget_cycles=20, objective="turn")
+    assert is_better(_m(0.5, -0.3), _m(0.5, 0.2), turn, speed_floor=0.4)  # |turn| counts
+    assert not is_better(_m(0.3, 0.9), _m(0.5, 0.2), turn, speed_floor=0.4)  # below the speed floor
+
+
+@pytest.mark.parametrize("kwargs, message, code", [
+    ({"budget_cycles": 5}, "`budget_cycles`: expected at least settle_cycles \\+ first_cycles = 6", "budget_too_small"),
+    ({"budget_cycles": 20, "objective": "efficiency"}, "efficiency needs the actuator work measured",
+     "unsupported_objective"),
+    ({"budget_cycles": 20, "step_cycles": 3}, "`step_cycles`: expected ≥ 4, got 3", "bad_config"),
+    ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
+])
+def test_config_refusals(kwargs: dict[str, object], message: str, code: str) -> None:
+    with pytest.raises(SudsConfigError, match=message) as exc:
+        LoopConfig(**kwargs)  # type: ignore[arg-type]
+    assert exc.value.code == code
+
+
+@pytest.fixture(scope="module")
+def p3_half() -> tuple[object, object, LoopResult]:
+    system = make_system("purcell3")
+    nom = nominal_gait(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    return system, half, optimize_loop(system, LoopConfig(budget_cycles=17, seed=0), start=half)
+
+
+def test_loop_improves_a_poor_start_within_budget_and_bounds(p3_half: tuple[object, object, LoopResult]) -> None:
+    system, half, res = p3_half
+    limits = gait_limits(system)  # type: ignore[arg-type]
+    its = res.iterations
+    assert res.cycles_used <= 17 and res.cycles_used == sum(it.cycles for it in its) == its[-1].cycles_used
+    assert its[0].cycles == 6 and all(it.cycles == 5 for it in its[1:]) and len(its) == 3
+    assert "budget spent" in res.stopped
+    assert all(constraint_violations(it.gait, limits) == [] for it in its)  # nothing run outside the bounds
+    assert constraint_violations(res.gait, limits) == []
+    assert its[0].predicted is not None and all(it.predicted is not None for it in its)
+    # the returned gait is the best measured among the accepted ones, and carries its prediction
+    accepted = [it for it in its if it.accepted]
+    assert res.index == max(accepted, key=lambda it: it.index).index
+    assert res.measured == its[res.index].measured and res.gait.predicted[0][1] == pytest.approx(res.predicted)
+    assert all(is_better(b.measured, a.measured, LoopConfig(budget_cycles=17)) for a, b in zip(accepted, accepted[1:]))
+    # judged on the physics: a real gain over the half-amplitude start
+    true_start = evaluate_gait(system, half)["speed"]  # type: ignore[arg-type]
+    true_end = evaluate_gait(system, res.gait)["speed"]  # type: ignore[arg-type]
+    assert true_end > 1.3 * true_start
+
+
+def test_a_start_outside_the_bounds_is_refused() -> None:
+    system = make_system("purcell3")
+    nom = nominal_gait(system)
+    wide = nom.from_vector(1.5 * nom.to_vector(), nom.order)
+    with pytest.raises(SudsConfigError, match="limit") as exc:
+        optimize_loop(system, LoopConfig(budget_cycles=10), start=wide)
+    assert exc.value.code == "gait_constraint"
+
+
+def test_stretches_are_pooled_in_the_measurement() -> None:
+    spc = 20
+    t = np.arange(3 * spc + 1) / spc
+    a = np.stack([0.1 * t, 0 * t, 0.02 * t], axis=1)
+    b = np.stack([0.3 * t, 0 * t, 0.0 * t], axis=1)
+    m = measure_cycles([a, b[: 2 * spc + 1]], spc, 1.0)
+    # every one-cycle window counts: 2·spc + 1 windows turning 0.02 rad, spc + 1 turning none
+    assert m.cycles == 5 and m.rotation == pytest.approx(0.02 * (2 * spc + 1) / (3 * spc + 2), rel=1e-9)
+    assert m.speed == pytest.approx(np.hypot(*np.mean([[0.1, 0]] * 3 + [[0.3, 0]] * 2, axis=0)), rel=1e-3)
+
+
+def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
+    system = make_system("purcell3")
+    cfg = LoopConfig(budget_cycles=21, seed=0, trust=2.0, trust_min=2.0)  # the first rejection collapses it
+    res = optimize_loop(system, cfg)
+    its = res.iterations
+    assert not its[1].accepted and "trust → 1" in its[1].note
+    assert its[2].note.startswith("incumbent re-run") and its[2].gait is its[0].gait and its[2].accepted
+    assert its[2].measured.cycles == 5 + 4 and res.cycles_used == 21
+    # the next step comes from the model of both stretches, with the radius afresh
+    assert its[3].predicted is not None and its[3].trust == pytest.approx(2.0)
+    assert res.index == (3 if its[3].accepted else 2)
