@@ -135,49 +135,20 @@ class Scores:
         }
 
 
-def _moving(truth: FloatArray, template: FloatArray, cols: list[int]) -> list[int]:
-    """The columns that carry motion (1-D swimmers' ξy, ξθ never move and carry no information)."""
-    return [i for i in cols if np.abs(template[:, i]).max() > 1e-9 or np.abs(truth[:, i]).max() > 1e-9]
-
-
-def _rms(a: FloatArray, truth: FloatArray, i: int) -> float:
-    return float(np.sqrt(np.mean((a[:, i] - truth[:, i]) ** 2)))
-
-
 def score_prediction(p: Prediction) -> Scores:
-    """Γ per channel group and per-channel RMS of a :class:`Prediction`.
+    """Γ per channel group and per-channel RMS of a :class:`Prediction` (:class:`ScoreSums` of all of it).
 
     The body channels are scored over the pose intervals when ``p.body`` is given.
     """
-    pas = p.columns("rdot_")
-    tor = p.columns("tau_")
-
-    def g(cols: list[int], model: FloatArray, template: FloatArray, truth: FloatArray) -> float:
-        if not cols:
-            return float("nan")
-        return gamma(model[:, cols], template[:, cols], truth[:, cols])
-
-    rms_m = {c: _rms(p.model, p.truth, i) for i, c in enumerate(p.channels)}
-    rms_t = {c: _rms(p.template, p.truth, i) for i, c in enumerate(p.channels)}
+    sums = ScoreSums(p.channels)
     if p.body is None:
-        body = _moving(p.truth, p.template, p.columns("xi_"))
-        gamma_body = g(body, p.model, p.template, p.truth)
-    else:
+        sums.add(p.truth, p.model, p.template)
+    else:  # the other channels over the shape intervals, the body channels over the pose intervals
         b = p.body
-        body = _moving(b.truth, b.template, [BODY_CHANNELS.index(p.channels[i]) for i in p.columns("xi_")])
-        gamma_body = g(body, b.model, b.template, b.truth)
-        for i in p.columns("xi_"):
-            j = BODY_CHANNELS.index(p.channels[i])
-            rms_m[p.channels[i]] = _rms(b.model, b.truth, j)
-            rms_t[p.channels[i]] = _rms(b.template, b.truth, j)
-    return Scores(
-        gamma_body=gamma_body,
-        gamma_passive=g(pas, p.model, p.template, p.truth) if pas else None,
-        gamma_torque=g(tor, p.model, p.template, p.truth) if tor else None,
-        rms_model=rms_m,
-        rms_template=rms_t,
-        n_samples=int(p.t.size),
-    )
+        sums.add(p.truth, p.model, p.template, body=np.zeros(p.t.size, dtype=bool))
+        j = [BODY_CHANNELS.index(p.channels[i]) for i in p.columns("xi_")]
+        sums.add_columns(slice(0, len(j)), b.truth[:, j], b.model[:, j], b.template[:, j])
+    return sums.scores()
 
 
 class ScoreSums:
@@ -212,15 +183,22 @@ class ScoreSums:
             y, m, t = truth[:, cols], model[:, cols], template[:, cols]
             if keep is not None:
                 y, m, t = y[keep], m[keep], t[keep]
-            em, et = m - y, t - y
-            self.abs_model[cols] += np.abs(em).sum(axis=0)
-            self.abs_template[cols] += np.abs(et).sum(axis=0)
-            self.sq_model[cols] += (em * em).sum(axis=0)
-            self.sq_template[cols] += (et * et).sum(axis=0)
-            if y.shape[0]:
-                self.peak[cols] = np.maximum(self.peak[cols], np.maximum(np.abs(t).max(axis=0),
-                                                                         np.abs(y).max(axis=0)))
-            self.rows[cols] += y.shape[0]
+            self.add_columns(cols, y, m, t)
+
+    def add_columns(self, cols: slice, truth: FloatArray, model: FloatArray, template: FloatArray) -> None:
+        """Add rows of the channels ``cols`` alone (e.g. the body channels over pose intervals).
+
+        Unlike :meth:`add` this does not count samples (``n_samples`` counts the intervals).
+        """
+        em, et = model - truth, template - truth
+        self.abs_model[cols] += np.abs(em).sum(axis=0)
+        self.abs_template[cols] += np.abs(et).sum(axis=0)
+        self.sq_model[cols] += (em * em).sum(axis=0)
+        self.sq_template[cols] += (et * et).sum(axis=0)
+        if truth.shape[0]:
+            self.peak[cols] = np.maximum(self.peak[cols], np.maximum(np.abs(template).max(axis=0),
+                                                                     np.abs(truth).max(axis=0)))
+        self.rows[cols] += truth.shape[0]
 
     def scores(self) -> Scores:
         """The :class:`Scores` of everything added."""
