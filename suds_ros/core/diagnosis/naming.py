@@ -50,7 +50,7 @@ class _EqError:
         self.k3 = np.asarray(model.k3, dtype=float)[data.pas]
         self.d = np.asarray(model.damping, dtype=float)[data.pas]
         self.mu = np.asarray(model.coulomb, dtype=float)[data.pas]
-        self.kscale = float(model.stiffness_scale)
+        self.stiffness_scale = float(model.stiffness_scale)
         self.t = data.t[lo:hi]
         self.pose_t = data.pose_t
         self.pose_raw = data.pose_raw
@@ -143,7 +143,7 @@ class _EqError:
         """Torque residuals, shape (nint, np), and body-velocity residuals, shape (nwin, 3), under parameters ``p``."""
         tau, xi_w = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
-        scale = p.scale * self.kscale
+        scale = p.scale * self.stiffness_scale
         spring = -scale * p.kscale * self.k * e_spring - scale * (self.k3 + p.k3) * e_spring**3
         e = tau + (self.d + p.d) * self.rdot_p - spring
         # Intervals where a joint's measured velocity is within noise of zero are left out of its

@@ -101,7 +101,7 @@ class _Selector:
         # a joint effect on a joint the set already acts on is refitted jointly whatever its screen:
         # with the member held, its screen is blind to the member's share (a damping fitted alone
         # absorbs a friction on its joint; the friction then earns nothing with the damping held)
-        joints = {t for n, t in cur.cand.parts if t is not None and EFFECTS[n].needs_joint}
+        joints = {_joint_of(p) for p in cur.cand.parts} - {None}
         keep = [t for k, t in enumerate(screened)
                 if k < self.config.step_candidates or _joint_of(t[1].parts[-1]) in joints]
         out = [self.fit(cand, x) for _, cand, x in keep]
