@@ -409,6 +409,13 @@ def _floats(rows: np.ndarray, start: int, count: int, e: str) -> np.ndarray:
     return np.ascontiguousarray(rows[:, start:start + 8 * count]).view(e + "f8").astype(np.float64)
 
 
+def _header_stamps(rows: np.ndarray, e: str) -> tuple[np.ndarray, np.ndarray]:
+    """``header.stamp`` (sec, nanosec) of every row, int64 (k,) each (byte order ``e``)."""
+    sec = np.ascontiguousarray(rows[:, 4:8]).view(e + "i4")[:, 0].astype(np.int64)
+    nanosec = np.ascontiguousarray(rows[:, 8:12]).view(e + "u4")[:, 0].astype(np.int64)
+    return sec, nanosec
+
+
 def joint_state_layout(data: bytes) -> tuple[tuple[str, ...], int, list[tuple[int, int, int]], int]:
     """Where the parts of one CDR ``sensor_msgs/msg/JointState`` lie (the walk of :func:`parse_joint_state`).
 
@@ -453,8 +460,7 @@ def parse_joint_states(records: bytes, starts: np.ndarray, length: int
     if not _same_as_first(rows, [(0, 4), (12, names_end)] + [(c, c + 4) for c, _, _ in seqs]):
         return None
     e = "<" if first[1] == 1 else ">"
-    sec = np.ascontiguousarray(rows[:, 4:8]).view(e + "i4")[:, 0].astype(np.int64)
-    nanosec = np.ascontiguousarray(rows[:, 8:12]).view(e + "u4")[:, 0].astype(np.int64)
+    sec, nanosec = _header_stamps(rows, e)
     return (sec, nanosec, names, *(_floats(rows, at, n, e) for _, at, n in seqs))  # type: ignore[return-value]
 
 
@@ -476,6 +482,5 @@ def parse_pose_stampeds(records: bytes, starts: np.ndarray, length: int
     rows = _rows(records, starts, length)
     if not _same_as_first(rows, [(0, 4), (12, pos)]):
         return None
-    sec = np.ascontiguousarray(rows[:, 4:8]).view(e + "i4")[:, 0].astype(np.int64)
-    nanosec = np.ascontiguousarray(rows[:, 8:12]).view(e + "u4")[:, 0].astype(np.int64)
+    sec, nanosec = _header_stamps(rows, e)
     return sec, nanosec, _floats(rows, pos, 7, e)
