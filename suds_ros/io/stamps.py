@@ -14,7 +14,6 @@ correctly rounded division.
 from __future__ import annotations
 
 import math
-
 from typing import overload
 
 import numpy as np
@@ -39,6 +38,11 @@ def float_to_ns(t):  # type: ignore[no-untyped-def]
     SudsDataError
         (code ``nan_or_inf``) for a non-finite stamp.
     """
+    if isinstance(t, (float, int)):  # one stamp per message on the live path: no array round trip
+        if not math.isfinite(t):
+            raise SudsDataError(f"`stamp`: expected finite seconds, got {t!r}", code=NAN_OR_INF)
+        sec = math.floor(t)
+        return sec * NS_PER_S + round((t - sec) * 1e9)  # round() is half-to-even, as np.rint
     a = np.asarray(t, dtype=float)
     if not np.all(np.isfinite(a)):
         raise SudsDataError(f"`stamp`: expected finite seconds, got {t!r}", code=NAN_OR_INF)

@@ -19,6 +19,7 @@ raise :class:`~suds_ros.core.errors.SudsDataError`.
 from __future__ import annotations
 
 import array
+import functools
 import importlib
 import json
 import math
@@ -96,6 +97,13 @@ def _msg_class(type_name: str, typestore: Any) -> Any:
             return typestore.types[type_name]
         except KeyError:
             raise SudsDataError(f"typestore has no message type {type_name!r}") from None
+    return _rclpy_class(type_name)
+
+
+@functools.lru_cache(maxsize=None)
+def _rclpy_class(type_name: str) -> Any:
+    # cached: the predictor builds three messages per sample at 1 kHz, and an import per
+    # message class cost a tenth of its time
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
 
@@ -171,10 +179,26 @@ def time_to_float(msg: Any) -> float:
     return ns_to_float(time_to_ns(msg))
 
 
-def _header(stamp: float, frame_id: str, typestore: Any) -> Any:
-    return _msg_class("std_msgs/msg/Header", typestore)(
-        stamp=float_to_time(stamp, typestore=typestore), frame_id=str(frame_id)
-    )
+def _time(stamp: Any, typestore: Any) -> Any:
+    """A ``Time`` message: float seconds converted, or a ``builtin_interfaces/msg/Time`` kept as it is.
+
+    An output stamped with its input's Time carries it to the nanosecond; float seconds of a
+    wall-clock stamp are only good to a few hundred ns.
+    """
+    if hasattr(stamp, "nanosec"):
+        return stamp
+    return float_to_time(stamp, typestore=typestore)
+
+
+def _header(stamp: Any, frame_id: str, typestore: Any) -> Any:
+    return _msg_class("std_msgs/msg/Header", typestore)(stamp=_time(stamp, typestore), frame_id=str(frame_id))
+
+
+def _restamp(msg: Any, stamp: Any, frame_id: str) -> None:
+    """Set the header of a message to be published again (the live path reuses its outputs)."""
+    msg.header.stamp = _time(stamp, None)
+    if msg.header.frame_id != frame_id:
+        msg.header.frame_id = frame_id
 
 
 # ------------------------------------------------------------------ JointState
@@ -279,11 +303,22 @@ def select_joints(sample: JointSample, names: Sequence[str]) -> JointSample:
 
 
 def joint_velocity_to_msg(
-    stamp: float, names: Sequence[str], velocity: FloatArray, *, typestore: Any = None
+    stamp: Any, names: Sequence[str], velocity: FloatArray, *, typestore: Any = None, out: Any = None
 ) -> Any:
-    """Velocity-only ``JointState`` (empty position and effort), e.g. the passive joint rates (rad/s)."""
+    """Velocity-only ``JointState`` (empty position and effort), e.g. the passive joint rates (rad/s).
+
+    ``stamp``: float seconds, or a ``builtin_interfaces/msg/Time`` to copy exactly.  ``out``: a
+    message this function made before, filled in again and returned instead of a new one (a
+    live node at 1 kHz; rclpy serialises on publish, so the message can be reused at once).
+    """
     nm = _names(names)
     vel = _vector("velocity", velocity, len(nm))
+    if out is not None:
+        _restamp(out, stamp, "")
+        if tuple(out.name) != nm:
+            out.name = list(nm)
+        out.velocity = _floats(vel, None)
+        return out
     return _msg_class("sensor_msgs/msg/JointState", typestore)(
         header=_header(stamp, "", typestore),
         name=list(nm),
@@ -331,9 +366,19 @@ def pose_from_msg(msg: Any) -> PlanarPose:
 
 # ------------------------------------------------------------------ TwistStamped
 def twist_to_msg(
-    stamp: float, vx: float, vy: float, wz: float, *, frame_id: str = "body", typestore: Any = None
+    stamp: Any, vx: float, vy: float, wz: float, *, frame_id: str = "body", typestore: Any = None,
+    out: Any = None,
 ) -> Any:
-    """Planar body-frame ``geometry_msgs/msg/TwistStamped``: linear (vx, vy, 0), angular (0, 0, wz)."""
+    """Planar body-frame ``geometry_msgs/msg/TwistStamped``: linear (vx, vy, 0), angular (0, 0, wz).
+
+    ``stamp`` and ``out`` as in :func:`joint_velocity_to_msg`.
+    """
+    if out is not None:
+        vx, vy, wz = _finite("vx", vx), _finite("vy", vy), _finite("wz", wz)
+        _restamp(out, stamp, str(frame_id))
+        lin, ang = out.twist.linear, out.twist.angular
+        lin.x, lin.y, lin.z, ang.x, ang.y, ang.z = vx, vy, 0.0, 0.0, 0.0, wz
+        return out
     vec = _msg_class("geometry_msgs/msg/Vector3", typestore)
     twist = _msg_class("geometry_msgs/msg/Twist", typestore)(
         linear=vec(x=_finite("vx", vx), y=_finite("vy", vy), z=0.0),

@@ -91,6 +91,8 @@ class PredictorNode(Node):
         self.models = 0
         self.skipped: Counter[str] = Counter()
         self._last: Any = None
+        self._twist: Any = None  # the prediction messages, filled in again for every sample
+        self._rates: Any = None
         self._discovery = self.create_timer(0.1, self._discover)
         cfg = self.config
         self.get_logger().info(f"ready: frame_id {cfg.frame_id}, depth {cfg.depth}, executor {cfg.executor}; "
@@ -154,8 +156,15 @@ class PredictorNode(Node):
         if out is None:
             return
         xi, rdot_p = out
-        self._body_pub.publish(twist_to_msg(s.stamp, xi[0], xi[1], xi[2], frame_id=self.config.frame_id))
-        self._passive_pub.publish(joint_velocity_to_msg(s.stamp, self.predictor.passive, rdot_p))
+        try:  # stamped with the shape message's own stamp, to the nanosecond; the two outputs reused
+            self._twist = twist_to_msg(msg.header.stamp, xi[0], xi[1], xi[2], frame_id=self.config.frame_id,
+                                       out=self._twist)
+            self._rates = joint_velocity_to_msg(msg.header.stamp, self.predictor.passive, rdot_p, out=self._rates)
+        except SudsError as exc:  # a model that predicts NaN
+            self._skip("prediction", exc)
+            return
+        self._body_pub.publish(self._twist)
+        self._passive_pub.publish(self._rates)
         self.predictions += 1
 
 

@@ -105,6 +105,28 @@ def test_twist_roundtrip(build):
     assert t == cv.BodyTwist(5.5, 0.1, -0.2, 0.3)
 
 
+def test_prediction_messages_are_refilled_and_carry_an_input_stamp_exactly():
+    # the predictor reuses its two output messages and stamps them with the shape message's own
+    # Time: a float of a wall-clock stamp is only good to ~200 ns, the Time is copied to the ns
+    stamp = cv.ns_to_time(1_795_000_000_123_456_789)
+    assert cv.float_to_time(cv.time_to_float(stamp)).nanosec != stamp.nanosec  # why floats will not do
+    twist = cv.twist_to_msg(stamp, 0.1, -0.2, 0.3, frame_id="base")
+    again = cv.twist_to_msg(cv.ns_to_time(7), 1.0, 2.0, 3.0, frame_id="body", out=twist)
+    assert again is twist
+    assert cv.twist_from_msg(again) == cv.BodyTwist(7e-9, 1.0, 2.0, 3.0)
+    assert again.header.frame_id == "body" and again.twist.linear.z == 0.0
+    rates = cv.joint_velocity_to_msg(stamp, NAMES[:2], [0.5, -0.5])
+    assert (rates.header.stamp.sec, rates.header.stamp.nanosec) == (stamp.sec, stamp.nanosec)
+    again = cv.joint_velocity_to_msg(2.5, NAMES[1:], [1.0, 2.0], out=rates)
+    assert again is rates
+    t, names, vel = cv.joint_velocity_from_msg(again)
+    assert (t, names, list(vel)) == (2.5, tuple(NAMES[1:]), [1.0, 2.0])
+    with pytest.raises(SudsDataError, match="`wz`"):
+        cv.twist_to_msg(0.0, 0.0, 0.0, math.nan, out=twist)
+    with pytest.raises(SudsDataError, match="`velocity`"):
+        cv.joint_velocity_to_msg(0.0, NAMES[1:], [1.0, math.inf], out=rates)
+
+
 @pytest.mark.parametrize("level", [0, 1, 2, 3, "WARN"])
 def test_diagnostics_roundtrip(build, level):
     values = {"r2": "0.98", "n_samples": "1200"}

@@ -7,6 +7,8 @@ through a JSON-ready dictionary (the ``/suds/model`` message and ``--model-out``
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +24,7 @@ from suds_ros.core.errors import (
 )
 from suds_ros.core.fourier import fourier_basis, fourier_basis_and_derivative
 from suds_ros.core.ident.shape_kernel import KernelScale
-from suds_ros.core.ident.sysid import SudsConfig, design_matrix
+from suds_ros.core.ident.sysid import SudsConfig, design_matrix, feature_layout
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 
 
@@ -60,9 +62,15 @@ class SudsModel:
     n_samples: int
     kernel_scale: KernelScale | None = None
 
-    def _theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
-        B, dB = fourier_basis_and_derivative(phase, self.template_order)
-        return B @ self.template_coef, dB @ self.template_coef
+    @functools.cached_property
+    def _actuated_index(self) -> list[int]:
+        return [self.joint_names.index(j) for j in self.actuated]
+
+    @functools.cached_property
+    def _basis_order(self) -> int:
+        """The highest Fourier order :meth:`predict` needs: the template's or a regressor group's."""
+        layout = feature_layout(self.suds, len(self.joint_names), len(self.actuated))
+        return max(self.template_order, *(order for _, _, order in layout.groups))
 
     def predict(self, phase: FloatArray, r: FloatArray, rdot: FloatArray) -> FloatArray:
         """Outputs (n, n_out) of sampling intervals: midpoint phase (n,), r (n, nj), ṙ (n, nj).
@@ -71,13 +79,16 @@ class SudsModel:
         midpoint: :func:`~suds_ros.core.ident.sysid.interval_state`), ṙ its mean rate.
         """
         phase = np.atleast_1d(np.asarray(phase, dtype=float))
-        theta, dtheta = self._theta(phase)
-        delta = np.atleast_2d(r) - theta
-        ddelta = np.atleast_2d(rdot) - dtheta * self.omega
-        act = [self.joint_names.index(j) for j in self.actuated]
+        # one evaluation of the harmonics for the template and the regressors (the basis of
+        # order m is the first 2m + 1 columns of the basis of any higher order)
+        B, dB = fourier_basis_and_derivative(phase, self._basis_order)
+        nt = 2 * self.template_order + 1
+        delta = np.atleast_2d(r) - B[:, :nt] @ self.template_coef
+        ddelta = np.atleast_2d(rdot) - (dB[:, :nt] @ self.template_coef) * self.omega
+        act = self._actuated_index
         rdot_a = np.atleast_2d(rdot)[:, act]
         return design_matrix(self.suds, phase, delta, ddelta[:, act], np.atleast_2d(r), rdot_a,
-                             self.kernel_scale) @ self.coef
+                             self.kernel_scale, basis=B) @ self.coef
 
     def template(self, phase: FloatArray) -> FloatArray:
         """Phase-only template prediction (n, n_out)."""
@@ -174,6 +185,6 @@ def check_shape_sample(t: float, names: tuple[str, ...], position: FloatArray,
         raise SudsDataError(
             f"shape sample at {t:.6f} s has {position.size} positions for {len(joint_names)} joints",
             code=WRONG_JOINT_COUNT)
-    if not (np.isfinite(t) and np.all(np.isfinite(position))):
+    if not (math.isfinite(t) and math.isfinite(float(position.sum()))):  # a sum is NaN/Inf if any value is
         raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
     return position

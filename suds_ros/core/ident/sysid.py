@@ -45,6 +45,7 @@ choice is made.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,6 +166,7 @@ class FeatureLayout:
         return out
 
 
+@functools.lru_cache(maxsize=64)  # the predictor asks once per sample; configs are frozen
 def feature_layout(config: SudsConfig, n_joints: int, n_actuated: int) -> FeatureLayout:
     """The groups of regressor set ``config.regressors`` for nj joints and na actuated joints."""
     groups: list[tuple[str, int, int]] = [
@@ -185,11 +187,14 @@ def feature_layout(config: SudsConfig, n_joints: int, n_actuated: int) -> Featur
 def design_matrix(
     config: SudsConfig, phase: FloatArray, delta: FloatArray, ddelta_a: FloatArray,
     r: FloatArray | None = None, rdot_a: FloatArray | None = None, kernel_scale: KernelScale | None = None,
+    *, basis: FloatArray | None = None,
 ) -> FloatArray:
     """SUDS design matrix (n, p) for phases (n,), δ (n, nj) and δ̇_a (n, na).
 
     With ``config.kernel_features`` the shape r (n, nj), the actuated rate (n, na) and the
     gait's :class:`~suds_ros.core.ident.shape_kernel.KernelScale` are needed too.
+    ``basis``: the Fourier basis of ``phase`` (:func:`~suds_ros.core.fourier.fourier_basis`)
+    of at least the highest order of the groups, when the caller has it already.
     """
     n = phase.shape[0]
     feats: dict[str, FloatArray] = {
@@ -209,7 +214,11 @@ def design_matrix(
                                      kernel_scale, r, rdot_a, phase)
     layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
     # the basis of order m is the first 2m + 1 columns of the basis of any higher order
-    basis = fourier_basis(phase, max(order for _, _, order in layout.groups))
+    top = max(order for _, _, order in layout.groups)
+    if basis is None:
+        basis = fourier_basis(phase, top)
+    elif basis.shape[0] != n or basis.shape[1] < 2 * top + 1:
+        raise SudsDataError(f"`basis`: expected shape ({n}, ≥ {2 * top + 1}), got {basis.shape}")
     out = np.empty((n, layout.n_columns))
     start = 0
     for name, _, order in layout.groups:  # each group's products written in place (no concatenated copy)

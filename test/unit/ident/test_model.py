@@ -10,6 +10,7 @@ import pytest
 from suds_ros.core.errors import DUPLICATE_STAMP, OUT_OF_ORDER_STAMP, WRONG_JOINT_NAMES, SudsDataError
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, model_template
 from suds_ros.core.ident.online import fit_streaming
+from suds_ros.core.ident.sysid import design_matrix
 
 
 @pytest.fixture(scope="module")
@@ -24,16 +25,24 @@ def test_model_json_roundtrip(model) -> None:
     assert back.suds == model.suds and back.channels == model.channels
 
 
-def test_template_and_its_derivative(model) -> None:
+def test_prediction_takes_the_template_and_the_regressors_from_one_basis(model) -> None:
+    # predict() evaluates the harmonics once, at the highest order it needs, and slices the
+    # template's and each regressor group's columns from it: the same as evaluating each apart
     tmpl = model_template(model)
     phase = np.linspace(0.0, 7.0, 9)
-    theta, dtheta = model._theta(phase)
-    np.testing.assert_allclose(theta, tmpl.predict(phase), atol=1e-12)
-    np.testing.assert_allclose(dtheta, tmpl.derivative(phase), atol=1e-12)
-    # on the gait (δ = 0, δ̇ = 0) the model reduces to its intercept C(φ)
-    out = model.predict(phase, theta, dtheta * model.omega)
+    theta, dtheta = tmpl.predict(phase), tmpl.derivative(phase)
+    rng = np.random.default_rng(3)
+    r = theta + 0.05 * rng.standard_normal(theta.shape)
+    rdot = dtheta * model.omega + 0.1 * rng.standard_normal(theta.shape)
+    act = [model.joint_names.index(j) for j in model.actuated]
+    X = design_matrix(model.suds, phase, r - theta, (rdot - dtheta * model.omega)[:, act], r, rdot[:, act],
+                      model.kernel_scale)
+    out = model.predict(phase, r, rdot)
     assert out.shape == (9, len(model.channels))
+    np.testing.assert_allclose(out, X @ model.coef, rtol=1e-10, atol=1e-12)
     assert model.template(phase).shape == (9, len(model.channels))
+    with pytest.raises(SudsDataError, match="`basis`"):
+        design_matrix(model.suds, phase, r - theta, rdot[:, act], basis=np.ones((9, 3)))
 
 
 def test_sample_checks() -> None:
