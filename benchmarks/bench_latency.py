@@ -136,10 +136,11 @@ def role_sub(a: argparse.Namespace) -> int:
             executor.spin_once(timeout_sec=0.1)
             if not a.status and len(rows) >= a.n:
                 break
-    except KeyboardInterrupt:
-        pass
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass  # stopped by the orchestrator (a node that fell behind): what arrived is the result
+    finally:
+        np.save(a.out, np.array(rows).reshape(-1, 5 if a.status else 2))
     executor.shutdown()
-    np.save(a.out, np.array(rows).reshape(-1, 5 if a.status else 2))
     node.destroy_node()
     rclpy.try_shutdown()
     return 0

@@ -91,6 +91,16 @@ class SudsPhaseError(SudsError, ValueError):
     code = "phase"
 
 
+class SudsSimulationError(SudsError, FloatingPointError):
+    """The simulated physics has no consistent solution (e.g. a softening spring past its stable range).
+
+    A ``FloatingPointError`` too, so numerical code that tries a candidate model and moves on
+    when its physics breaks down keeps doing so.
+    """
+
+    code = "simulation_failed"
+
+
 class NotFittedError(SudsError, ValueError, AttributeError):
     """An estimator was used before ``fit`` or ``partial_fit``.
 

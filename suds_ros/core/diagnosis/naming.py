@@ -68,8 +68,9 @@ class _EqError:
         c = np.cumsum(np.concatenate([np.zeros((1,) + x.shape[1:]), x], axis=0), axis=0)
         return (c[self.w:] - c[:-self.w]) / self.w
 
-    def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray]:
-        """Per-interval (D q̇)_p (nint, np) and windowed still-fluid ξ of the pose frame (nwin, 3).
+    def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Per-interval (D q̇)_p (nint, np), windowed still-fluid ξ of the pose frame (nwin, 3), and the
+        reduced drag matrix M (nint, np, nj) with (D q̇)_p = M ṙ.
 
         The geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) are applied.
         The drag metric does not depend on the pose frame, so the metric's products are cached
@@ -86,21 +87,23 @@ class _EqError:
             chain = RFTChain(p0.chain_model(self.model))
             D = chain.drag_metric(self.rbar)  # (m, 3+nj, 3+nj)
             rdot = self.rdot
-            rhs = -np.einsum("bij,bj->bi", D[:, :3, 3:], rdot)
-            xi = np.linalg.solve(D[:, :3, :3], rhs[..., None])[..., 0]
-            qdot = np.concatenate([xi, rdot], axis=1)
-            tau = np.einsum("bij,bj->bi", D[:, 3 + self.pas, :], qdot)
-            base = (tau, xi)
+            # ξ = −D_bb⁻¹ D_br ṙ, and the passive drag torques τ_p = D_pb ξ + D_pr ṙ = M ṙ with the
+            # reduced drag matrix M = D_pr − D_pb D_bb⁻¹ D_br (also the torques' sensitivity to ṙ)
+            A = np.linalg.solve(D[:, :3, :3], D[:, :3, 3:])  # (m, 3, nj)
+            xi = -np.einsum("bij,bj->bi", A, rdot)
+            M = D[:, 3 + self.pas, 3:] - np.einsum("bpk,bkj->bpj", D[:, 3 + self.pas, :3], A)
+            tau = np.einsum("bpj,bj->bp", M, rdot)
+            base = (tau, xi, M)
             if len(self._link_cache) > 64:
                 self._link_cache.clear()
             self._link_cache[key0] = base
-        tau, xi = base
+        tau, xi, M = base
         chain = RFTChain(p.chain_model(self.model))
         xi_w = self._compose(chain.to_pose_frame(xi))  # the recorded ξ is the pose frame's
         if len(self._metric_cache) > 64:
             self._metric_cache.clear()
-        self._metric_cache[key] = (tau, xi_w)
-        return tau, xi_w
+        self._metric_cache[key] = (tau, xi_w, M)
+        return tau, xi_w, M
 
     def _compose(self, xi: FloatArray) -> FloatArray:
         """Windowed body velocity: log of the product of the w per-interval exponentials."""
@@ -131,6 +134,24 @@ class _EqError:
         self._xi_rec_cache[key] = out
         return out
 
+    def _noise_gain(self, M: FloatArray, damping: FloatArray, stiffness: FloatArray) -> FloatArray:
+        """How much each interval's torque residual moves per radian of joint-angle noise (nint, np).
+
+        The residual is an equation error, not a measurement: its noise comes from the noisy
+        joint angles, through ṙ = Δr/Δt (each joint, σ·√2/Δt) into the drag and damping torques
+        M ṙ + d ṙ_p, and through r̄ (σ/√2) into the spring.  A candidate that raises the drag
+        (a larger drag ratio) therefore raises the residual's noise, and a plain least-squares
+        likelihood counted that against it: anisotropy errors were named as stiffness-to-drag
+        errors, which lower the drag relative to the spring.  Dividing by this gain (the noise
+        assumed alike on every joint) leaves residuals whose noise is the same for every
+        candidate, as an errors-in-variables fit weighs its equation errors.
+        """
+        ar = np.arange(self.pas.size)
+        dtau = M.copy()
+        dtau[:, ar, self.pas] += damping  # the passive joint's own damping d·ṙ_p
+        g2 = (2.0 / self.dt**2) * np.sum(dtau**2, axis=2) + 0.5 * stiffness**2
+        return np.sqrt(np.maximum(g2, 1e-300))
+
     def valid(self, delay_max: float) -> FloatArray:
         """Windows whose re-sampled pose stays away from the ends of the span."""
         ok = np.ones(self.nwin, dtype=bool)
@@ -139,9 +160,14 @@ class _EqError:
         ok[-n_edge:] = False
         return ok
 
-    def residuals(self, p: EquationTerms, rdot_thr: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Torque residuals, shape (nint, np), and body-velocity residuals, shape (nwin, 3), under parameters ``p``."""
-        tau, xi_w = self.drag_terms(p)
+    def residuals(self, p: EquationTerms, rdot_thr: FloatArray,
+                  normalised: bool = False) -> tuple[FloatArray, FloatArray]:
+        """Torque residuals, shape (nint, np), and body-velocity residuals, shape (nwin, 3), under parameters ``p``.
+
+        ``normalised``: each torque residual divided by its sensitivity to the joint-angle noise
+        (:meth:`_noise_gain`), so it is in radians and its noise part does not depend on ``p``.
+        """
+        tau, xi_w, M = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
         scale = p.scale * self.stiffness_scale
         spring = -scale * p.kscale * self.k * e_spring - scale * (self.k3 + p.k3) * e_spring**3
@@ -152,6 +178,9 @@ class _EqError:
         v = self.rdot_p
         slip = np.abs(v) > rdot_thr
         e = np.where(slip, e + (self.mu + p.mu) * np.sign(v), 0.0)
+        if normalised:
+            k_local = scale * (p.kscale * self.k + 3.0 * (self.k3 + p.k3) * e_spring**2)  # −∂spring/∂r̄
+            e = e / self._noise_gain(M, self.d + p.d, k_local)
         xi_pred = xi_w
         if p.flow[0] != 0.0 or p.flow[1] != 0.0:
             c, s = np.cos(self.yaw_mid), np.sin(self.yaw_mid)
@@ -284,7 +313,7 @@ class Scorer:
 
     def _res(self, eq: _EqError, cand: Candidate, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         p = equation_terms(cand, x, self.data, self.model)
-        return eq.residuals(p, self.rdot_thr)
+        return eq.residuals(p, self.rdot_thr, normalised=True)
 
     @staticmethod
     def _rss(e: FloatArray, ex: FloatArray, ok: FloatArray) -> FloatArray:

@@ -22,6 +22,7 @@ import numpy as np
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core.errors import SudsSimulationError
 
 #: ``velocities(r, ṙ_a) -> (ξ, ṙ_p)`` for shapes r (B, nj) and set-point rates ṙ_a (B, na): the
 #: still-fluid body velocity (B, 3) and passive joint velocities (B, np), as
@@ -87,21 +88,32 @@ def integrate_batch(
         return velocities(full, va)
 
     every = max(1, m // 100)
-    for k in range(m - 1):
-        if progress is not None and k % every == 0:
-            progress(k, m - 1)
-        va = (r_a[:, k + 1] - r_a[:, k]) / step
-        for s in range(substeps):
-            ra0 = r_a[:, k] + va * (s * h)
-            xi1, k1 = f(ra0, rp, va)
-            xi2, k2 = f(ra0 + va * (h / 2), rp + (h / 2) * k1, va)
-            xi3, k3 = f(ra0 + va * (h / 2), rp + (h / 2) * k2, va)
-            xi4, k4 = f(ra0 + va * h, rp + h * k3, va)
-            rp = rp + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
-            pose = se2.exp_step(pose, h * (xi1 / 4 + xi2 / 6 + xi3 / 6 - xi4 / 12))
-            pose = se2.exp_step(pose, h * (-xi1 / 12 + xi2 / 6 + xi3 / 6 + xi4 / 4))
-        RP[:, k + 1] = rp
-        P[:, k + 1] = pose
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging run is refused below, with its reason
+        for k in range(m - 1):
+            if progress is not None and k % every == 0:
+                progress(k, m - 1)
+            va = (r_a[:, k + 1] - r_a[:, k]) / step
+            for s in range(substeps):
+                ra0 = r_a[:, k] + va * (s * h)
+                xi1, k1 = f(ra0, rp, va)
+                xi2, k2 = f(ra0 + va * (h / 2), rp + (h / 2) * k1, va)
+                xi3, k3 = f(ra0 + va * (h / 2), rp + (h / 2) * k2, va)
+                xi4, k4 = f(ra0 + va * h, rp + h * k3, va)
+                rp = rp + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+                pose = se2.exp_step(pose, h * (xi1 / 4 + xi2 / 6 + xi3 / 6 - xi4 / 12))
+                pose = se2.exp_step(pose, h * (-xi1 / 12 + xi2 / 6 + xi3 / 6 + xi4 / 4))
+            RP[:, k + 1] = rp
+            P[:, k + 1] = pose
     if progress is not None:
         progress(m - 1, m - 1)
+    # a run whose drive and start are finite must stay finite (callers may pass NaN starts on purpose)
+    fed = np.isfinite(r_a).all(axis=(1, 2)) & np.isfinite(RP[:, 0]).all(axis=1)
+    finite = np.isfinite(RP[fed]).all(axis=(0, 2))
+    if not finite.all():
+        k = int(np.argmin(finite))
+        raise SudsSimulationError(
+            f"the simulated motion diverged: the passive joints are not finite from sample {k} "
+            f"of {m} ({k * float(np.max(step)):.3g} s) on; a passive joint is unstable (a softening cubic "
+            "spring, k3 < 0, pushes a joint away beyond |r − rest| = √(k/|k3|)) or the time step is too long")
     return RP, P
+

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsSimulationError
 from suds_ros.core.recording import joint_names
 
 
@@ -391,7 +391,11 @@ class RFTChain:
                 break
         if not done.all():  # numerically on a boundary: fall back to the least-violating slip mode
             bad = np.flatnonzero(~done)
-            raise FloatingPointError(f"no consistent stick/slip mode for {bad.size} states")
+            soft = np.flatnonzero(self._k3 < 0)
+            hint = (f"; passive joint(s) {soft.tolist()} have a softening cubic spring (k3 < 0), which "
+                    "pushes a joint away beyond |r − rest| = √(k/|k3|)" if soft.size else "")
+            raise SudsSimulationError(
+                f"the passive joints have no consistent stick/slip motion in {bad.size} state(s){hint}")
         return u_out
 
     def velocities(

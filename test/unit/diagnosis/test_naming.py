@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -110,3 +112,25 @@ def test_friction_on_a_joint_stuck_most_of_the_time_is_fitted_at_its_value() -> 
     sc = Scorer(data, base, 10, np.full(1, 1e-3))
     x, _, g_te = sc.fit(Candidate((("joint_coulomb_friction", "joint_2"),)))
     assert abs(x[0] - 1.6) < 0.1 * 1.6 and g_te > 100
+
+
+def test_a_larger_drag_ratio_is_not_taken_for_a_weaker_spring() -> None:
+    """The equation error weighs its residuals by their sensitivity to the joint-angle noise.
+
+    Joint-angle noise enters the torque residual through ṙ = Δr/Δt times the drag, so a candidate
+    that raises the drag raised the residual's noise, and a plain least-squares likelihood held
+    that against it: on tail6 with its drag ratio 2.5 → 3.6, `stiffness_to_drag_error` (which lowers
+    the drag relative to the springs) out-scored the true `drag_anisotropy_error`.
+    """
+    from suds_ros.core.diagnosis.naming import Scorer
+    from suds_ros.core.physics.systems import load_system
+
+    base = load_system(str(Path(__file__).resolve().parents[2] / "data" / "robots" / "tail6.yaml")).model
+    model, _ = apply_effects(base, [{"name": "drag_anisotropy_error", "ratio": 3.6}])
+    rec = simulate(RFTChain(model), SimConfig(cycles=16, seed=11, gait_hz=base.gait_hz))
+    data = prepare(rec, base)
+    sc = Scorer(data, base, 10, np.full(data.pas.size, 1e-3))
+    x_a, _, g_a = sc.fit(Candidate((("drag_anisotropy_error", None),)))
+    x_s, _, g_s = sc.fit(Candidate((("stiffness_to_drag_error", None),)))
+    assert abs(x_a[0] - 3.6) < 0.05 * 3.6
+    assert g_a > g_s + 20.0, (g_a, g_s)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from suds_ros.core import se2
-from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError, SudsSimulationError
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, auto_substeps, integrate, ou_path, simulate
 from suds_ros.core.physics.systems import make_system, purcell3_model, swimmer9_model
@@ -141,3 +141,16 @@ def test_chain_without_passive_joints_simulates():
     rec = simulate(make_system("nlink3", n_actuated=2), SimConfig(cycles=3, seed=1))
     assert rec.passive == () and rec.r.shape == (300, 2)
     assert np.all(np.isfinite(rec.pose)) and np.ptp(rec.pose[:, 0]) + np.ptp(rec.pose[:, 1]) > 0.05
+
+
+def test_an_unstable_softening_spring_is_refused_with_the_reason() -> None:
+    """A passive joint that runs away is a SudsSimulationError that says why, with friction or without.
+
+    Without friction the run once ended in NaN joint angles, refused later as a NaN sample; with
+    friction in a FloatingPointError of the stick/slip solver.
+    """
+    for extra in ({}, {"coulomb": (0.0, 0.3)}):
+        model = purcell3_model().with_(k3=(0.0, -40.0), **extra)
+        with pytest.raises(SudsSimulationError, match="softening cubic spring") as info:
+            simulate(RFTChain(model), SimConfig(cycles=4, seed=1))
+        assert info.value.code == "simulation_failed" and isinstance(info.value, FloatingPointError)
