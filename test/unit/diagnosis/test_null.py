@@ -76,15 +76,18 @@ def test_null_of_the_true_model_looks_like_the_recording() -> None:
 
 
 @pytest.mark.slow
-def test_calibration_removes_the_equation_errors_bias_on_a_model_file_robot() -> None:
-    """tail6 with a spring rest offset on j4 (40 cycles): uncalibrated, the selection adds a
-    link-drag error on the tail link, a bias of the equation error on this robot that passes the
-    60-nat threshold on its own; calibrated on this recording's null, only the offset is named."""
+def test_a_model_file_robots_offset_is_named_alone_with_or_without_calibration() -> None:
+    """tail6 with a spring rest offset on j4 (40 cycles): calibrated on this recording's null, or not,
+    only the offset is named.
+
+    Uncalibrated, the selection once added a link-drag error on the tail link that passed the
+    60-nat threshold on its own.  That bias came from the torque residuals' noise growing with the
+    drag, and went with their weighing by their sensitivity to the joint-angle noise.
+    """
     base = load_system(str(TAIL6)).model
     model, _ = apply_effects(base, [dict(name="spring_rest_offset", joint="j4", offset=0.15)])
     rec = simulate(RFTChain(model), SimConfig(cycles=40, seed=3))
     raw, _ = rank_effects(rec, base, DiagnoseConfig(calibrate=False, arbitrate_max=0))
     cal, _ = rank_effects(rec, base, DiagnoseConfig(arbitrate_max=0))
-    assert raw.chosen.cand.label.startswith("spring_rest_offset:j4 + "), raw.steps  # the bias, named
+    assert raw.chosen.cand.label == "spring_rest_offset:j4", raw.steps
     assert cal.chosen.cand.label == "spring_rest_offset:j4", cal.steps
-    assert any("without being there" in s for s in cal.steps), cal.steps

@@ -102,27 +102,25 @@ def test_a_longer_tail_link_is_named_as_a_model_parameter_error() -> None:
 
 
 @pytest.mark.slow
-def test_the_simulator_arbitrates_a_near_tie_of_the_equation_error(  # type: ignore[no-untyped-def]
+def test_the_equation_error_names_a_drag_anisotropy_without_the_simulators_help(  # type: ignore[no-untyped-def]
     check_recovered,
 ) -> None:
-    """A drag anisotropy 2.1 on purcell3 (60 cycles, seed 1): the equation error puts a
-    stiffness-to-drag error 49 nats (5 %) ahead of it, since on the one passive joint the two
-    change the relaxation alike.  The selection started from the runner-up is refined in the
-    simulator too, and its output error (at the noise floor, where the stiffness error leaves
-    ξx at F ≈ 1.8) names the anisotropy."""
+    """A drag anisotropy 2.1 on purcell3 (60 cycles, seed 1).
+
+    While the torque residuals were not weighed by their sensitivity to the joint-angle noise, the
+    equation error put a stiffness-to-drag error 49 nats ahead of the anisotropy (a larger drag
+    ratio amplified the ṙ noise in its residual), and only the simulator's arbitration named the
+    anisotropy.  Now the equation error names it, with the arbitration on or off.
+    """
     from suds_ros.core.diagnosis import diagnose
 
     effects = [dict(name="drag_anisotropy_error", ratio=2.1)]
     n = _naming(effects, 60, 1)
-    assert n.chosen.cand.label == "stiffness_to_drag_error", n.steps  # the equation error's choice
-    assert [a.cur.cand.label for a in n.alternatives] == ["drag_anisotropy_error"]
+    assert n.chosen.cand.label == "drag_anisotropy_error", n.steps  # the equation error's choice
     base = purcell3_model()
     model, delay = apply_effects(base, effects)
     rec = simulate(RFTChain(model), SimConfig(cycles=60, seed=1, pose_delay=delay))
-    rep = diagnose(rec, base)
-    check_recovered(rep, effects)
-    assert rep.effects[0].parameters["ratio"] == pytest.approx(2.1, abs=0.01)
-    assert any("the simulator preferred drag_anisotropy_error" in note for note in rep.notes), rep.notes
-    # with the arbitration off, the equation error's choice is reported
-    off = diagnose(rec, base, dataclasses.replace(DiagnoseConfig(), arbitrate_max=0))
-    assert [e.name for e in off.effects] == ["stiffness_to_drag_error"]
+    for config in (DiagnoseConfig(), dataclasses.replace(DiagnoseConfig(), arbitrate_max=0)):
+        rep = diagnose(rec, base, config)
+        check_recovered(rep, effects)
+        assert rep.effects[0].parameters["ratio"] == pytest.approx(2.1, abs=0.01)
