@@ -69,8 +69,9 @@ class _EqError:
         return (c[self.w:] - c[:-self.w]) / self.w
 
     def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-interval (D q̇)_p (nint, np), windowed still-fluid ξ of the pose frame (nwin, 3), and the
-        reduced drag matrix M (nint, np, nj) with (D q̇)_p = M ṙ.
+        """Per-interval (D q̇)_p (nint, np), windowed still-fluid ξ (nwin, 3) and reduced drag M (nint, np, nj).
+
+        (D q̇)_p = M ṙ; ξ is the pose frame's.
 
         The geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) are applied.
         The drag metric does not depend on the pose frame, so the metric's products are cached

@@ -116,4 +116,3 @@ def integrate_batch(
             f"of {m} ({k * float(np.max(step)):.3g} s) on; a passive joint is unstable (a softening cubic "
             "spring, k3 < 0, pushes a joint away beyond |r − rest| = √(k/|k3|)) or the time step is too long")
     return RP, P
-
