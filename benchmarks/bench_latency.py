@@ -52,6 +52,7 @@ def role_pub(a: argparse.Namespace) -> int:
     from suds_ros.core.physics.sim import SimConfig
     from suds_ros.core.physics.stream import StreamingSimulator
     from suds_ros.core.physics.systems import make_system
+    from suds_ros.io.stamps import split_ns
     from suds_ros.ros.conversions import joint_state_to_msg, pose_to_msg
     from suds_ros.ros.qos import ESTIMATE_QOS, MODEL_QOS
 
@@ -79,8 +80,7 @@ def role_pub(a: argparse.Namespace) -> int:
         left = due - time.monotonic()
         if left > 0:
             time.sleep(left)  # no busy wait: the publisher must not starve the node on 2 cores
-        ns = time.time_ns()
-        sec, nanosec = divmod(ns, 1_000_000_000)
+        sec, nanosec = split_ns(time.time_ns())
         if pose is not None:
             poses[i].header.stamp.sec, poses[i].header.stamp.nanosec = sec, nanosec
             pose.publish(poses[i])

@@ -373,17 +373,15 @@ def twist_to_msg(
 
     ``stamp`` and ``out`` as in :func:`joint_velocity_to_msg`.
     """
+    vx, vy, wz = _finite("vx", vx), _finite("vy", vy), _finite("wz", wz)
     if out is not None:
-        vx, vy, wz = _finite("vx", vx), _finite("vy", vy), _finite("wz", wz)
         _restamp(out, stamp, str(frame_id))
         lin, ang = out.twist.linear, out.twist.angular
         lin.x, lin.y, lin.z, ang.x, ang.y, ang.z = vx, vy, 0.0, 0.0, 0.0, wz
         return out
     vec = _msg_class("geometry_msgs/msg/Vector3", typestore)
     twist = _msg_class("geometry_msgs/msg/Twist", typestore)(
-        linear=vec(x=_finite("vx", vx), y=_finite("vy", vy), z=0.0),
-        angular=vec(x=0.0, y=0.0, z=_finite("wz", wz)),
-    )
+        linear=vec(x=vx, y=vy, z=0.0), angular=vec(x=0.0, y=0.0, z=wz))
     return _msg_class("geometry_msgs/msg/TwistStamped", typestore)(
         header=_header(stamp, frame_id, typestore), twist=twist
     )

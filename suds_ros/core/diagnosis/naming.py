@@ -68,10 +68,13 @@ class _EqError:
         c = np.cumsum(np.concatenate([np.zeros((1,) + x.shape[1:]), x], axis=0), axis=0)
         return (c[self.w:] - c[:-self.w]) / self.w
 
-    def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-interval (D q̇)_p (nint, np), windowed still-fluid ξ (nwin, 3) and reduced drag M (nint, np, nj).
+    def drag_terms(self, p: EquationTerms) -> tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray]]:
+        """Per-interval (D q̇)_p (nint, np), windowed still-fluid ξ (nwin, 3) and the rows of the reduced drag.
 
-        (D q̇)_p = M ṙ; ξ is the pose frame's.
+        (D q̇)_p = M ṙ with the reduced drag matrix M (nint, np, nj); ξ is the pose frame's.  The
+        rows of M are returned as (own, others): each passive joint's entry for its own rate
+        (nint, np) and the sum of squares of its other entries (nint, np), what :meth:`_noise_gain`
+        needs.
 
         The geometric terms of ``p`` (drag ratio, link lengths and drag, pose frame) are applied.
         The drag metric does not depend on the pose frame, so the metric's products are cached
@@ -94,17 +97,23 @@ class _EqError:
             xi = -np.einsum("bij,bj->bi", A, rdot)
             M = D[:, 3 + self.pas, 3:] - np.einsum("bpk,bkj->bpj", D[:, 3 + self.pas, :3], A)
             tau = np.einsum("bpj,bj->bp", M, rdot)
-            base = (tau, xi, M)
+            # for the noise gain: M's own-joint entries (a candidate's damping adds to them) and the
+            # sum of squares of the others (the same for every candidate of this geometry)
+            ar = np.arange(self.pas.size)
+            own = M[:, ar, self.pas]
+            off = M.copy()
+            off[:, ar, self.pas] = 0.0
+            base = (tau, xi, (own, np.sum(off**2, axis=2)))
             if len(self._link_cache) > 64:
                 self._link_cache.clear()
             self._link_cache[key0] = base
-        tau, xi, M = base
+        tau, xi, drag_rows = base
         chain = RFTChain(p.chain_model(self.model))
         xi_w = self._compose(chain.to_pose_frame(xi))  # the recorded ξ is the pose frame's
         if len(self._metric_cache) > 64:
             self._metric_cache.clear()
-        self._metric_cache[key] = (tau, xi_w, M)
-        return tau, xi_w, M
+        self._metric_cache[key] = (tau, xi_w, drag_rows)
+        return tau, xi_w, drag_rows
 
     def _compose(self, xi: FloatArray) -> FloatArray:
         """Windowed body velocity: log of the product of the w per-interval exponentials."""
@@ -135,7 +144,8 @@ class _EqError:
         self._xi_rec_cache[key] = out
         return out
 
-    def _noise_gain(self, M: FloatArray, damping: FloatArray, stiffness: FloatArray) -> FloatArray:
+    def _noise_gain(self, drag_rows: tuple[FloatArray, FloatArray], damping: FloatArray,
+                    stiffness: FloatArray) -> FloatArray:
         """How much each interval's torque residual moves per radian of joint-angle noise (nint, np).
 
         The residual is an equation error, not a measurement: its noise comes from the noisy
@@ -147,10 +157,9 @@ class _EqError:
         assumed alike on every joint) leaves residuals whose noise is the same for every
         candidate, as an errors-in-variables fit weighs its equation errors.
         """
-        ar = np.arange(self.pas.size)
-        dtau = M.copy()
-        dtau[:, ar, self.pas] += damping  # the passive joint's own damping d·ṙ_p
-        g2 = (2.0 / self.dt**2) * np.sum(dtau**2, axis=2) + 0.5 * stiffness**2
+        own, others = drag_rows
+        # ∂τ_p/∂ṙ is the row of M, with the passive joint's own damping d·ṙ_p added to its own entry
+        g2 = (2.0 / self.dt**2) * (others + (own + damping) ** 2) + 0.5 * stiffness**2
         return np.sqrt(np.maximum(g2, 1e-300))
 
     def valid(self, delay_max: float) -> FloatArray:
@@ -168,7 +177,7 @@ class _EqError:
         ``normalised``: each torque residual divided by its sensitivity to the joint-angle noise
         (:meth:`_noise_gain`), so it is in radians and its noise part does not depend on ``p``.
         """
-        tau, xi_w, M = self.drag_terms(p)
+        tau, xi_w, drag_rows = self.drag_terms(p)
         e_spring = self.rbar[:, self.pas] - self.rest - p.offset
         scale = p.scale * self.stiffness_scale
         spring = -scale * p.kscale * self.k * e_spring - scale * (self.k3 + p.k3) * e_spring**3
@@ -181,7 +190,7 @@ class _EqError:
         e = np.where(slip, e + (self.mu + p.mu) * np.sign(v), 0.0)
         if normalised:
             k_local = scale * (p.kscale * self.k + 3.0 * (self.k3 + p.k3) * e_spring**2)  # −∂spring/∂r̄
-            e = e / self._noise_gain(M, self.d + p.d, k_local)
+            e = e / self._noise_gain(drag_rows, self.d + p.d, k_local)
         xi_pred = xi_w
         if p.flow[0] != 0.0 or p.flow[1] != 0.0:
             c, s = np.cos(self.yaw_mid), np.sin(self.yaw_mid)

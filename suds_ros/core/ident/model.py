@@ -69,8 +69,7 @@ class SudsModel:
     @functools.cached_property
     def _basis_order(self) -> int:
         """The highest Fourier order :meth:`predict` needs: the template's or a regressor group's."""
-        layout = feature_layout(self.suds, len(self.joint_names), len(self.actuated))
-        return max(self.template_order, *(order for _, _, order in layout.groups))
+        return max(self.template_order, feature_layout(self.suds, len(self.joint_names), len(self.actuated)).max_order)
 
     def predict(self, phase: FloatArray, r: FloatArray, rdot: FloatArray) -> FloatArray:
         """Outputs (n, n_out) of sampling intervals: midpoint phase (n,), r (n, nj), ṙ (n, nj).
@@ -185,6 +184,7 @@ def check_shape_sample(t: float, names: tuple[str, ...], position: FloatArray,
         raise SudsDataError(
             f"shape sample at {t:.6f} s has {position.size} positions for {len(joint_names)} joints",
             code=WRONG_JOINT_COUNT)
-    if not (math.isfinite(t) and math.isfinite(float(position.sum()))):  # a sum is NaN/Inf if any value is
+    # a finite sum is the fast test; only a non-finite one (NaN, Inf or an overflow) looks closer
+    if not math.isfinite(t) or (not math.isfinite(float(position.sum())) and not np.all(np.isfinite(position))):
         raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
     return position

@@ -54,7 +54,6 @@ class StreamingPredictor:
         self.model = model
         self.template = model_template(model)
         self.passive = model.passive
-        self._act = np.array([model.joint_names.index(j) for j in model.actuated])
         self._tracker: PhaseTracker | None = None
         self._prev: tuple[float, FloatArray, float] | None = None
         self.last_stamp = -np.inf

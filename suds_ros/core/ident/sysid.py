@@ -155,6 +155,11 @@ class FeatureLayout:
         """Total number of design columns (parameters per output)."""
         return sum(f * (2 * m + 1) for _, f, m in self.groups)
 
+    @property
+    def max_order(self) -> int:
+        """The highest Fourier order of any group (the basis every group's columns are cut from)."""
+        return max(m for _, _, m in self.groups)
+
     def slices(self) -> dict[str, slice]:
         """Column slice of each group."""
         out: dict[str, slice] = {}
@@ -214,7 +219,7 @@ def design_matrix(
                                      kernel_scale, r, rdot_a, phase)
     layout = feature_layout(config, delta.shape[1], ddelta_a.shape[1])
     # the basis of order m is the first 2m + 1 columns of the basis of any higher order
-    top = max(order for _, _, order in layout.groups)
+    top = layout.max_order
     if basis is None:
         basis = fourier_basis(phase, top)
     elif basis.shape[0] != n or basis.shape[1] < 2 * top + 1:

@@ -391,9 +391,9 @@ class RFTChain:
                 break
         if not done.all():  # numerically on a boundary: fall back to the least-violating slip mode
             bad = np.flatnonzero(~done)
-            soft = np.flatnonzero(self._k3 < 0)
-            hint = (f"; passive joint(s) {soft.tolist()} have a softening cubic spring (k3 < 0), which "
-                    "pushes a joint away beyond |r − rest| = √(k/|k3|)" if soft.size else "")
+            soft = [self.model.joint_names[j] for j in self._pas[self._k3 < 0]]
+            hint = (f"; joint(s) {soft} have a softening cubic spring (k3 < 0), which "
+                    "pushes a joint away beyond |r − rest| = √(k/|k3|)" if soft else "")
             raise SudsSimulationError(
                 f"the passive joints have no consistent stick/slip motion in {bad.size} state(s){hint}")
         return u_out
