@@ -20,6 +20,10 @@ never took, took but could not pair, or skipped.
 Throughput: the estimator node's per-message work (message → sample conversion,
 checks, pairing, phase tracking, rows, regression) on pre-built messages in one
 process pinned to one core, with a profile of where the time goes.
+
+Predictor work: the predictor node's shape callback (publish included) timed
+per sample in-process, its p50/p99: the part of the latency that is our code.
+``--in-process`` measures only the two in-process figures (latency_in_process.md).
 """
 
 from __future__ import annotations
@@ -287,6 +291,92 @@ def throughput(seconds: float = 60.0, rate: float = 1000.0) -> dict:
             "profile": sorted(((k, v / total) for k, v in by_room.items()), key=lambda kv: -kv[1])}
 
 
+def predictor_work(seconds: float = 60.0, rate: float = 1000.0) -> dict:
+    """The predictor node's per-sample work in-process on one core, publish included: a distribution.
+
+    The node's shape callback (JointState → sample, joint selection, phase and prediction, the two
+    output messages refilled, both published on real rclpy publishers with nobody subscribed), timed
+    sample by sample with ``perf_counter_ns``.  This is the share of the cross-process latency that
+    is ours; the rest is DDS transport and the scheduling of three processes.
+    """
+    import gc
+
+    import rclpy
+    from geometry_msgs.msg import TwistStamped
+    from sensor_msgs.msg import JointState
+
+    from suds_ros.core.ident.predictor import StreamingPredictor
+    from suds_ros.core.ident.model import SudsModel
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.ros.conversions import joint_state_from_msg, joint_state_to_msg, joint_velocity_to_msg
+    from suds_ros.ros.conversions import select_joints, twist_to_msg
+
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    with tempfile.TemporaryDirectory() as tmp:
+        model = SudsModel.from_dict(json.loads(Path(_model_file(tmp)).read_text()))
+    rec = simulate(make_system("purcell3"), SimConfig(cycles=max(int(seconds), 2), samples_per_cycle=int(rate),
+                                                       seed=2))
+    msgs = [joint_state_to_msg(float(rec.t[k]), rec.joint_names, rec.r[k]) for k in range(rec.n_samples)]
+    domain = 100 + os.getpid() % 50
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    try:
+        node = rclpy.create_node("suds_bench_predictor_work", context=ctx)
+        body_pub = node.create_publisher(TwistStamped, "suds/predicted/body_velocity", 10)
+        passive_pub = node.create_publisher(JointState, "suds/predicted/passive_velocity", 10)
+        pred = StreamingPredictor(model)
+        twist = rates = None
+        dt = np.empty(len(msgs), dtype=np.int64)
+        gc.collect()
+        gc.freeze()  # as run_node does for every node
+        clock = time.perf_counter_ns
+        for k, msg in enumerate(msgs):
+            t0 = clock()
+            s = select_joints(joint_state_from_msg(msg), model.joint_names)
+            out = pred.update(s.stamp, s.names, s.position)
+            if out is not None:
+                xi, rdot_p = out
+                twist = twist_to_msg(msg.header.stamp, xi[0], xi[1], xi[2], frame_id="body", out=twist)
+                rates = joint_velocity_to_msg(msg.header.stamp, pred.passive, rdot_p, out=rates)
+                body_pub.publish(twist)
+                passive_pub.publish(rates)
+            dt[k] = clock() - t0
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+    ms = dt[1:] / 1e6  # the first sample only primes the predictor
+    return {"samples": int(ms.size), "p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99)),
+            "p999_ms": float(np.percentile(ms, 99.9)), "max_ms": float(ms.max()),
+            "over_2ms": int(np.count_nonzero(ms > 2.0)), "mean_ms": float(ms.mean())}
+
+
+def in_process_lines(thr: dict, work: dict) -> list[str]:
+    """The in-process sections of the results: the predictor's per-sample work, the estimator's throughput."""
+    lines = ["## Predictor: the node's own work per sample (one core, in-process)", "",
+             f"The predictor node's shape callback on {work['samples']} pre-built JointState messages of a "
+             f"{work['samples'] / 1000:.0f} s purcell3 stream at 1 kHz (conversion, joint selection, phase, "
+             "prediction, both output messages refilled and published on rclpy publishers with no subscriber), "
+             "timed per sample in one process pinned to one core:", "",
+             "| mean (ms) | p50 (ms) | p99 (ms) | p99.9 (ms) | max (ms) | samples over 2 ms |",
+             "|---|---|---|---|---|---|",
+             f"| {work['mean_ms']:.3f} | {work['p50_ms']:.3f} | {work['p99_ms']:.3f} | {work['p999_ms']:.3f} "
+             f"| {work['max_ms']:.2f} | {work['over_2ms']} of {work['samples']} |", "",
+             "The rest of the cross-process latency is the DDS transport and the scheduling of the "
+             "publisher, node and subscriber processes on the machine's cores.", "",
+             "## Estimator throughput (one core, in-process)", "",
+             f"The estimator node's work per message pair (JointState → sample, PoseStamped → pose, "
+             f"checks, pairing, phase tracking, rows, regression, the final model) on {thr['samples']} "
+             f"pre-built message pairs of a {thr['samples'] / 1000:g} s purcell3 stream at 1 kHz, in one process "
+             f"pinned to one core, best of three: **{thr['hz']:.0f} samples/s** "
+             f"({1e6 / thr['hz']:.0f} µs per pair; {thr['rows']} rows fitted, {thr['dropped']} dropped).", "",
+             "Where the time goes (cProfile, own time by module):", "",
+             "| where | share |", "|---|---|"]
+    lines += [f"| {k} | {v:.0%} |" for k, v in thr["profile"][:12]]
+    return lines + [""]
+
+
 def run_json(a: argparse.Namespace) -> int:
     """One rate, one JSON object on stdout."""
     domain = 150 + os.getpid() % 50
@@ -295,12 +385,14 @@ def run_json(a: argparse.Namespace) -> int:
         pred = _run("predictor", a.rate, int(a.rate * a.seconds), "events", model, tmp, domain + 1)
         est = _run("estimator", a.rate, int(a.rate * a.seconds), "single", model, tmp, domain + 2)
     thr = throughput(min(a.seconds, 60.0), a.rate)
+    work = predictor_work(min(a.seconds, 60.0), a.rate)
     out = {"rate_hz": a.rate, "seconds": a.seconds, "achieved_hz": pred["achieved_hz"],
            "predictor_p50_ms": pred["p50_ms"], "predictor_p99_ms": pred["p99_ms"],
            "predictor_received": pred["received"], "predictor_samples": pred["n"] - 1,
            "estimator_lag_s": est["lag_s"], "estimator_taken": est["taken"], "estimator_samples": est["n"],
            "dropped": est["dropped"] + (pred["n"] - 1 - pred["received"]),
-           "estimator_throughput_hz": thr["hz"]}
+           "estimator_throughput_hz": thr["hz"],
+           "predictor_work_p50_ms": work["p50_ms"], "predictor_work_p99_ms": work["p99_ms"]}
     print(json.dumps(out), flush=True)
     return 0
 
@@ -321,6 +413,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", action="store_true", help="one rate (--rate) for --seconds: print one JSON object")
     p.add_argument("--baseline", default="", help="another checkout whose nodes are also run at 1 kHz")
     p.add_argument("--baseline-label", default="baseline", help="its name in the table")
+    p.add_argument("--in-process", action="store_true",
+                   help="only the in-process measurements (no DDS; a busy machine matters less): "
+                        "writes docs/results/latency_in_process.md")
     a = p.parse_args(argv)
     if a.role == "pub":
         return role_pub(a)
@@ -328,6 +423,14 @@ def main(argv: list[str] | None = None) -> int:
         return role_sub(a)
     if a.json:
         return run_json(a)
+    if a.in_process:
+        seconds = 10.0 if a.quick else 60.0
+        lines = ["# The nodes' own per-sample work, in-process (no DDS)", "",
+                 f"Measured {stamp()} on {machine()} with `python benchmarks/bench_latency.py --in-process"
+                 f"{' --quick' if a.quick else ''}`; the cross-process figures are in latency.md.", ""]
+        lines += in_process_lines(throughput(seconds, 1000.0), predictor_work(seconds, 1000.0))
+        write("latency_in_process.md", "\n".join(lines))
+        return 0
 
     dur = 3.0 if a.quick else 8.0
     domain = 150 + os.getpid() % 50
@@ -392,16 +495,8 @@ def main(argv: list[str] | None = None) -> int:
               "reports every sample taken"
               + (f"; `{a.baseline_label}` is the package in another checkout, run in the same session "
                  "for comparison" if a.baseline else "") + ".", "",
-              "## Estimator throughput (one core, in-process)", "",
-              f"The estimator node's work per message pair (JointState → sample, PoseStamped → pose, "
-              f"checks, pairing, phase tracking, rows, regression, the final model) on {thr['samples']} "
-              f"pre-built message pairs of a {thr['samples'] / 1000:g} s purcell3 stream at 1 kHz, in one process "
-              f"pinned to one core, best of three: **{thr['hz']:.0f} samples/s** "
-              f"({1e6 / thr['hz']:.0f} µs per pair; {thr['rows']} rows fitted, {thr['dropped']} dropped).", "",
-              "Where the time goes (cProfile, own time by module):", "",
-              "| where | share |", "|---|---|"]
-    lines += [f"| {k} | {v:.0%} |" for k, v in thr["profile"][:12]]
-    lines += [""]
+              ]
+    lines += in_process_lines(thr, predictor_work(10.0 if a.quick else 60.0, 1000.0))
     write("latency.md", "\n".join(lines))
     return 0
 

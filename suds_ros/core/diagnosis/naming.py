@@ -15,7 +15,7 @@ import scipy.optimize
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
-from suds_ros.core.diagnosis.lsq import with_jacobian
+from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.replay import window_xi
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
@@ -415,6 +415,25 @@ class Scorer:
         g_tr, x = max(sols, key=lambda s: s[0])
         x = full(x)
         return x, g_tr, self.heldout_gain(cand, x)
+
+    def sensitivity(self, cand: Candidate, x: FloatArray, first: int = 0) -> FloatArray:
+        """How the training residuals move with ``cand``'s parameters from index ``first`` on, at ``x``.
+
+        Forward differences of the stacked residuals, each channel weighted by its nominal RMS as the
+        fit starts; one column per parameter.  Steps are 1e-4 of the parameter (or of its scale at
+        0), so an exact relation between effects shows to about that relative error.
+        """
+        x = np.asarray(x, dtype=float)
+        weights = 1.0 / np.sqrt(self.rss0_train)
+        head = x[:first]
+
+        def fun(z: FloatArray) -> FloatArray:
+            e, ex = self._res(self.train, cand, np.concatenate([head, z]))
+            return self._stack(e, ex, self.ok_train, weights)
+
+        z = x[first:]
+        steps = np.maximum(1e-4 * np.abs(z), 1e-4 * cand.scales()[first:])
+        return fd_jacobian(fun, z, fun(z), steps, np.asarray(cand.bounds()[1][first:], dtype=float))
 
     def heldout_gain(self, cand: Candidate, x: FloatArray) -> float:
         """Held-out log-likelihood gain of ``cand`` at ``x`` over the nominal model, nats."""

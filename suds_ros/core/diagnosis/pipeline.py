@@ -474,7 +474,12 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
             cand = Candidate(tuple(parts))
             seen.add(frozenset(parts))
             whole = naming.fits.get(cand.label)
-            swaps.append(_Option(cand, np.concatenate(xs), (), (),
+            # the confounded groups as seen from the swapped set: the swapped-in member leads its group
+            mine = {Candidate((q,)).label for q in parts}
+            led = [(label, g) if g is group else (g[0], g[1:]) for g in naming.confounded]
+            groups = tuple(g for lead, rest in led if lead in mine
+                           for g in [(lead,) + tuple(lab for lab in rest if lab not in mine)] if len(g) > 1)
+            swaps.append(_Option(cand, np.concatenate(xs), (), groups,
                                  whole.score.score if whole is not None else float("nan"), swap=True))
     return out + swaps
 
@@ -482,6 +487,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
 def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternative, ...]:
     """The refined sets other than ``win`` within ``band`` nats of its held-out evidence (closest first)."""
     mine = {Candidate((p,)).label for p in win.cand.parts}
+    reported = {Candidate(((e.name, e.target),)).label: e for e in fitted_effects(win.cand, win.x, win.se)}
     out: list[tuple[float, Alternative]] = []
     seen = {frozenset(win.cand.parts)}
     for t in tried:
@@ -490,15 +496,31 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
         if key in seen or not t.cand.parts or abs(gap) > band:
             continue
         seen.add(key)
-        new = [(e.name, e.target, e.parameters)
-               for e in fitted_effects(t.cand, t.x, t.se) if Candidate(((e.name, e.target),)).label not in mine]
+        fits = fitted_effects(t.cand, t.x, t.se)
+        new = [(e.name, e.target, e.parameters) for e in fits if Candidate(((e.name, e.target),)).label not in mine]
         if not new:
             continue
+        # a member both sets share but the alternative needs at other values (a reparameterisation:
+        # stiffness_to_drag_error 1.37 + joint_4 × 0.79 for joint_3 × 1.37 + joint_4 × 1.08) is
+        # listed with its values, and the reported one it replaces in ``instead_of``
+        refitted = [e for e in fits if Candidate(((e.name, e.target),)).label in mine
+                    and _moved(e, reported[Candidate(((e.name, e.target),)).label])]
         theirs = {Candidate((p,)).label for p in t.cand.parts}
         (name, target, params), rest = new[0], tuple(new[1:])
-        out.append((gap, Alternative(name, target, params, float(gap), rest,
-                                     tuple(sorted(mine - theirs)))))
+        rest += tuple((e.name, e.target, e.parameters) for e in refitted)
+        instead = (mine - theirs) | {Candidate(((e.name, e.target),)).label for e in refitted}
+        out.append((gap, Alternative(name, target, params, float(gap), rest, tuple(sorted(instead)))))
     return tuple(a for _, a in sorted(out, key=lambda ga: ga[0]))
+
+
+def _moved(alt: FittedEffect, mine: FittedEffect) -> bool:
+    """Whether a shared effect's alternative value is off the reported one by > 3 stderr and > 1 %."""
+    for k, v in mine.parameters.items():
+        d = abs(alt.parameters[k] - v)
+        se = max(alt.stderr.get(k, 0.0), mine.stderr.get(k, 0.0))
+        if np.isfinite(d) and d > 3.0 * (se if np.isfinite(se) else 0.0) and d > 0.01 * max(abs(v), 1e-12):
+            return True
+    return False
 
 
 def _show(

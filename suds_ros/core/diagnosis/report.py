@@ -177,7 +177,9 @@ class Alternative:
     The alternative set, refined in the simulator like the reported one, differs from it by the
     effects listed: ``name``, ``target`` and ``parameters`` of its first differing effect,
     ``with_effects`` the other effects it adds, each as (name, target, parameters), and
-    ``instead_of`` the labels of the reported effects it does without.  ``evidence_gap``: the
+    ``instead_of`` the labels of the reported effects it does without.  A reported effect that
+    the alternative keeps at other values (a reparameterisation of the same physics) is in both:
+    its alternative values in ``with_effects``, its label in ``instead_of``.  ``evidence_gap``: the
     reported set's held-out output-error evidence minus the alternative's, nats (within
     ± ``ambiguity_band``; negative: the alternative has a little more held-out evidence, the
     reported set more on the training half, which arbitrates).

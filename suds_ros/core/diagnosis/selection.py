@@ -16,6 +16,7 @@ gain; its calibration on null recordings is in ``docs/results/evidence_threshold
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -218,6 +219,8 @@ def name_mismatch(
     pool = list(candidates) if candidates is not None else catalogue_candidates(model, config.model_suspects)
     singles = sorted((sel.fit(c) for c in pool), key=lambda r: -r.score.score)
     main = _forward(sel, singles, None)
+    if main.cur.score.score > 0:
+        main = _with_equivalents(sel, main, singles)
     alternatives = _alternatives(sel, singles, main) if main.cur.score.score > 0 else ()
     ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
     log = main.log + (tuple(sel.calibration.log) if sel.calibration is not None else ())
@@ -284,6 +287,73 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
     kept = {lab for n, t in cur.cand.parts for lab in [_part_label(n, t)]}
     return _Path(cur, tuple(g for g in groups if g[0] in kept), tuple(float(e) for e in evidence), tuple(log),
                  tuple(gains), first_group)
+
+
+def _with_equivalents(sel: _Selector, main: _Path, singles: Sequence[Ranked]) -> _Path:
+    """``main`` with the members that another candidate replaces exactly added to its confounded groups.
+
+    A set can be reparameterised without changing its fit: on a robot with two passive joints,
+    ``stiffness_to_drag_error`` + a stiffness error on one joint is the same physics as stiffness
+    errors on both, and the forward selection, which adds one effect at a time, sees only the
+    path it took.  Screen, on the set's sensitivities at its fit: the candidate's columns lie in
+    the span of the set's, and the member's in the span of the rest of the set and the candidate
+    (relative residual ≤ ``EQUIVALENCE_TOL`` for both: the swap spans the same directions).
+    Confirmed by refitting the swapped set: its evidence within ``config.confound_margin`` of the
+    set's.  Confirmed swaps join the member's confounded group; the pipeline refines them in the
+    simulator, which reports them as alternatives or tells them apart.
+    """
+    cur = main.cur
+    parts = cur.cand.parts
+    if not parts:
+        return main
+    sc = sel.scorer
+    J_set = sc.sensitivity(cur.cand, cur.x)
+    sizes = [len(EFFECTS[n].params) for n, _ in parts]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    groups = {g[0]: list(g) for g in main.groups}
+    for s in singles:
+        part = s.cand.parts[0]
+        if part in parts or len(parts) >= 1 and not any(
+                _compatible(Candidate(parts[:k] + parts[k + 1:]), part) for k in range(len(parts))):
+            continue
+        with_c = Candidate(parts + (part,))
+        J_c = sc.sensitivity(with_c, np.concatenate([cur.x, s.cand.neutral()]), first=cur.x.size)
+        if not _in_span(J_set, J_c):
+            continue
+        for k, (m, (a, b)) in enumerate(zip(parts, zip(starts[:-1], starts[1:]))):
+            rest = parts[:k] + parts[k + 1:]
+            if not _compatible(Candidate(rest), part):
+                continue
+            keep = np.r_[0:a, b:J_set.shape[1]]
+            if not _in_span(np.hstack([J_set[:, keep], J_c]), J_set[:, a:b]):
+                continue
+            swapped = Candidate(parts[:k] + (part,) + parts[k + 1:])
+            x0 = np.concatenate([cur.x[:a], s.x, cur.x[b:]])
+            alt = sel.fit(swapped, x0)
+            gap = cur.score.score - alt.score.score
+            m_label, c_label = _part_label(*m), _part_label(*part)
+            if abs(gap) <= sel.config.confound_margin:
+                group = groups.setdefault(m_label, [m_label])
+                if c_label not in group:
+                    group.append(c_label)
+    new_groups = tuple(tuple(g) for g in groups.values() if len(g) > 1)
+    if new_groups == main.groups:
+        return main
+    log = main.log + tuple(f"equivalent: {g[0]} or {', '.join(g[1:])} (the same fit with the rest of the set)"
+                           for g in new_groups if g not in main.groups)
+    return dataclasses.replace(main, groups=new_groups, log=log)
+
+
+EQUIVALENCE_TOL = 1e-3
+
+
+def _in_span(A: FloatArray, B: FloatArray) -> bool:
+    """Whether every column of ``B`` lies in the column span of ``A`` (relative residual ≤ tolerance)."""
+    norm_b = np.linalg.norm(B, axis=0)
+    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)) or np.any(norm_b == 0):
+        return False
+    coef, *_ = np.linalg.lstsq(A, B, rcond=None)
+    return bool(np.all(np.linalg.norm(B - A @ coef, axis=0) <= EQUIVALENCE_TOL * norm_b))
 
 
 def _alternatives(sel: _Selector, singles: Sequence[Ranked], main: _Path) -> tuple[_Path, ...]:

@@ -251,3 +251,44 @@ def test_cli_json_and_errors(tmp_path, capsys) -> None:  # type: ignore[no-untyp
     assert main(["diagnose", "--system", "purcell3", str(tmp_path / "missing.mcap")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("ERROR: no such file") and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_a_reparameterised_pair_is_reported_with_every_equivalent_set_and_its_own_values() -> None:
+    """nlink5 (two passive joints p, q) with stiffness_to_drag_error 1.4 and q's stiffness × 0.8:
+    the same physics as p × 1.4 + q × 1.12 and as the global scale 1.12 + p × 1.25.  The report
+    names one of the three, and the other two as alternatives, each a whole set with its own
+    values: a member both share but needs at another value is listed with that value and in
+    ``instead_of``, so the alternative set built from the report is the physics it stands for."""
+    from suds_ros.core.diagnosis.experiment import effect_sets
+    from suds_ros.core.physics.systems import make_system
+
+    base = make_system("nlink5").model
+    p, q = (base.joint_names[j] for j in base.passive)
+    truth = [dict(name="stiffness_to_drag_error", scale=1.4), dict(name="joint_stiffness_error", joint=q, scale=0.8)]
+    model, _ = apply_effects(base, truth)
+    rec = simulate(RFTChain(model), SimConfig(cycles=40, seed=6, gait_hz=base.gait_hz))
+    rep = diagnose(rec, base)
+
+    def stiffness(effects: list[dict[str, Any]]) -> tuple[float, float]:
+        """The two passive springs' scales the set of effects stands for."""
+        k = {p: 1.0, q: 1.0}
+        for e in effects:
+            if e["name"] == "stiffness_to_drag_error":
+                k = {j: v * float(e["scale"]) for j, v in k.items()}
+            elif e["name"] == "joint_stiffness_error":
+                k[str(e["joint"])] *= float(e["scale"])
+            else:
+                raise AssertionError(f"not a stiffness effect: {e}")
+        return k[p], k[q]
+
+    assert rep.mismatch and len(rep.effects) == 2, summary_text(rep)
+    alternatives = rep.effects[0].alternatives
+    assert len(alternatives) == 2, summary_text(rep)
+    sets = [effect_sets(rep.effects, a) for a in alternatives]
+    found = [sets[0][0]] + [alt for _, alt in sets]
+    labels = {frozenset(f"{e['name']}:{e.get('joint')}" for e in s) for s in found}
+    assert len(labels) == 3, found  # three different pairs ...
+    for s in found:  # ... each the injected physics: p × 1.4, q × 1.12
+        assert stiffness(s) == pytest.approx((1.4, 1.12), rel=0.02), (s, summary_text(rep))
+    assert any("stiffness_to_drag_error" in g for g in rep.confounded_with)

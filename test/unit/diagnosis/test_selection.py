@@ -10,12 +10,12 @@ import pytest
 from suds_ros.core.diagnosis import DiagnoseConfig
 from suds_ros.core.diagnosis.data import prepare
 from suds_ros.core.diagnosis.naming import Candidate
-from suds_ros.core.diagnosis.selection import _compatible, name_mismatch
+from suds_ros.core.diagnosis.selection import _compatible, _in_span, name_mismatch
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
-from suds_ros.core.physics.systems import purcell3_model
+from suds_ros.core.physics.systems import make_system, purcell3_model
 
 
 def test_compatible_refuses_a_member_twice_and_a_global_effect_twice() -> None:
@@ -124,3 +124,40 @@ def test_the_equation_error_names_a_drag_anisotropy_without_the_simulators_help(
         rep = diagnose(rec, base, config)
         check_recovered(rep, effects)
         assert rep.effects[0].parameters["ratio"] == pytest.approx(2.1, abs=0.01)
+
+
+# ------------------------------------------------------------------ exact reparameterisations
+def test_in_span_tells_a_combination_from_a_new_direction() -> None:
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(200, 2))
+    assert _in_span(A, A @ np.array([[0.3], [-2.0]]))
+    assert not _in_span(A, rng.normal(size=(200, 1)))
+    assert not _in_span(A, np.zeros((200, 1)))  # a candidate that changes nothing is no swap
+
+
+def _nlink5_naming(effects):  # type: ignore[no-untyped-def]
+    base = make_system("nlink5").model
+    model, delay = apply_effects(base, effects)
+    rec = simulate(RFTChain(model), SimConfig(cycles=12, seed=5, pose_delay=delay, gait_hz=base.gait_hz))
+    config = DiagnoseConfig(max_effects=2)  # the pair; a third step is another test's business
+    return name_mismatch(prepare(rec, base), base, config, np.array([1e-3, 1e-3]))
+
+
+def test_a_set_that_another_set_reparameterises_reports_the_swaps_as_confounded() -> None:
+    """Two passive joints p, q: stiffness_to_drag_error 1.4 + q's stiffness × 0.8 is the same physics
+    as p × 1.4 + q × 1.12.  Whichever of the three equivalent pairs the forward selection reaches,
+    the member that another candidate replaces is reported confounded with it; a single joint's
+    stiffness error has no such partner (the global scale would move both joints)."""
+    base = make_system("nlink5").model
+    p, q = (base.joint_names[j] for j in base.passive)
+    n = _nlink5_naming([dict(name="stiffness_to_drag_error", scale=1.4),
+                        dict(name="joint_stiffness_error", joint=q, scale=0.8)])
+    jp, jq, s2d = f"joint_stiffness_error:{p}", f"joint_stiffness_error:{q}", "stiffness_to_drag_error"
+    chosen = set(n.chosen.cand.label.split(" + "))
+    assert len(chosen) == 2 and chosen <= {jp, jq, s2d}, n.steps
+    named = chosen | {lab for g in n.confounded for lab in g}
+    assert named == {jp, jq, s2d}, (n.steps, n.confounded)
+    assert any(line.startswith("equivalent:") for line in n.steps)
+    n1 = _nlink5_naming([dict(name="joint_stiffness_error", joint=p, scale=1.4)])
+    assert n1.chosen.cand.parts[0] == ("joint_stiffness_error", p), n1.steps
+    assert not any(s2d in g for g in n1.confounded), (n1.steps, n1.confounded)
