@@ -316,8 +316,8 @@ def predictor_work(seconds: float = 60.0, rate: float = 1000.0) -> dict:
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     with tempfile.TemporaryDirectory() as tmp:
         model = SudsModel.from_dict(json.loads(Path(_model_file(tmp)).read_text()))
-    rec = simulate(make_system("purcell3"), SimConfig(cycles=max(int(seconds), 2), samples_per_cycle=int(rate),
-                                                       seed=2))
+    cfg = SimConfig(cycles=max(int(seconds), 2), samples_per_cycle=int(rate), seed=2)
+    rec = simulate(make_system("purcell3"), cfg)
     msgs = [joint_state_to_msg(float(rec.t[k]), rec.joint_names, rec.r[k]) for k in range(rec.n_samples)]
     domain = 100 + os.getpid() % 50
     ctx = rclpy.Context()

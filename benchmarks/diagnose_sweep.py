@@ -14,8 +14,8 @@ reported as confounded with the reported one counts as named), each parameter ve
 mismatch falls by at least half; a null case when no mismatch is reported.  An injected effect
 listed among the ``alternatives`` of a reported effect counts as named (the finding is ambiguous
 and says so), and so does an alternative that is, as a whole set (the reported effects but those
-it replaces, with its own), exactly the injected one.  A *false discovery* is a reported effect that was not injected and is not an
-alternative of one.  With ``--max-effects 1`` and ``--catalogue-only`` it is the earlier
+it replaces, with its own), exactly the injected one.  A *false discovery* is a reported effect
+that was not injected and is not an alternative of one.  With ``--max-effects 1`` and ``--catalogue-only`` it is the earlier
 single-effect sweep.  Cases run in ``--jobs`` processes.
 
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]

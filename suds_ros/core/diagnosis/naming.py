@@ -344,22 +344,17 @@ class Scorer:
         return np.concatenate([a, b])
 
     def fit(
-        self, cand: Candidate, x0: FloatArray | None = None, fixed: FloatArray | None = None,
-        quick: bool = False,
+        self, cand: Candidate, x0: FloatArray | None = None, quick: bool = False,
     ) -> tuple[FloatArray, float, float]:
         """Fit on the training half; returns (parameters, training gain, held-out gain).
 
-        ``fixed`` holds the values of the candidate's first parameters, kept fixed (the forward
-        selection's screening step fits only the added effect); ``x0`` starts the free ones.
-        ``quick`` (a screen; needs ``x0``): one short least-squares run from ``x0`` alone, no
-        multi-start and no weight re-estimation.
+        ``x0`` is a start besides the multi-start's.  ``quick`` (a screen; needs ``x0``): one short
+        least-squares run from ``x0`` alone, no multi-start and no weight re-estimation.
         """
-        xf = np.zeros(0) if fixed is None else np.asarray(fixed, dtype=float)
-        nf = xf.size
         lo_all, hi_all = cand.bounds()
-        lo, hi = np.asarray(lo_all[nf:], dtype=float), np.asarray(hi_all[nf:], dtype=float)
-        scales = cand.scales()[nf:]
-        base = cand.neutral()[nf:]
+        lo, hi = np.asarray(lo_all, dtype=float), np.asarray(hi_all, dtype=float)
+        scales = cand.scales()
+        base = cand.neutral()
         starts = [] if x0 is None else [np.asarray(x0, dtype=float)]
         quick = quick and x0 is not None
         if not quick:
@@ -375,11 +370,8 @@ class Scorer:
         # (measured: a damping of 0.1 with 628 nats of known-parameter evidence fitted as 0)
         lo_in, hi_in = lo + 1e-3 * scales, hi - 1e-3 * scales
 
-        def full(x: FloatArray) -> FloatArray:
-            return np.concatenate([xf, x])
-
         def fun(x: FloatArray, wts: FloatArray) -> FloatArray:
-            e, ex = self._res(self.train, cand, full(x))
+            e, ex = self._res(self.train, cand, x)
             return self._stack(e, ex, ok, wts)
 
         value, jac = with_jacobian(fun, 1e-3, 1e-3 * scales, hi)  # steps that do not vanish at 0
@@ -393,7 +385,7 @@ class Scorer:
             if np.isfinite(c0) and c0 < best_c:
                 best_x, best_c = s, c0
         if best_x is None:
-            return full(base), -np.inf, -np.inf
+            return base + 0.0, -np.inf, -np.inf
         sols = []
         # refine from the best start and from the given one
         for s in [best_x] + ([starts[0]] if x0 is not None and not quick else []):
@@ -408,12 +400,11 @@ class Scorer:
                 except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, ValueError):
                     break
                 x = sol.x
-                e, ex = self._res(self.train, cand, full(x))
+                e, ex = self._res(self.train, cand, x)
                 wts = 1.0 / np.sqrt(np.maximum(self._rss(e, ex, ok), 1e-300))
-            e, ex = self._res(self.train, cand, full(x))
+            e, ex = self._res(self.train, cand, x)
             sols.append((self.gain(self._rss(e, ex, ok), self.rss0_train, self.n_eff_train), x))
         g_tr, x = max(sols, key=lambda s: s[0])
-        x = full(x)
         return x, g_tr, self.heldout_gain(cand, x)
 
     def sensitivity(self, cand: Candidate, x: FloatArray, first: int = 0) -> FloatArray:

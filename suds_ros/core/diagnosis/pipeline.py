@@ -150,6 +150,7 @@ class _Nominal:
     E0: FloatArray
     rms0: dict[str, float]
     F0: dict[str, float]
+    xi_gain: float  # the windowed body velocity's noise gain (:func:`~.data.xi_noise_gain`), once per recording
     referenced: bool = False  # ``replay`` is a reference recording's, not the nominal model's replay
 
 
@@ -240,7 +241,7 @@ def _null_maker(nom: _Nominal) -> Callable[[Candidate, FloatArray], Data] | None
     if not config.calibrate:
         return None
     starts = piece_starts(data, nom.w, nom.chunk, nom.warm)
-    gain = xi_noise_gain(data, nom.w)
+    gain = nom.xi_gain
 
     def make(cand: Candidate, x: FloatArray) -> Data:
         fitted, delay = apply_effects(nom.model, cand.effects(x))
@@ -283,7 +284,8 @@ def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refere
     chunk = int(round(config.replay_chunk * data.spc))
     warm = int(round(config.replay_warm / data.dt))
     rep = replay_recording(data, model, 0.0, w, substeps, reference, chunk, warm)
-    floors = noise_floor(*rep.floor_arrays, w, data.dt, xi_noise_gain(data, w))
+    xi_gain = xi_noise_gain(data, w)
+    floors = noise_floor(*rep.floor_arrays, w, data.dt, xi_gain)
     data = _settle_gaps(data, model, substeps, floors[0])
     table = ChannelTable.of(data, w)
     floor = table.floor(floors)
@@ -291,7 +293,7 @@ def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, refere
     return _Nominal(
         data=data, model=model, config=config, w=w, substeps=substeps, chunk=chunk, warm=warm,
         table=table, cycle=np.floor(data.phase[:data.n_used] / (2 * np.pi)), replay=rep,
-        floors=floors, floor=floor, E0=E0, rms0=table.rms(E0), F0=table.fstats(E0, floor),
+        floors=floors, floor=floor, E0=E0, rms0=table.rms(E0), F0=table.fstats(E0, floor), xi_gain=xi_gain,
         referenced=reference is not None,
     )
 
@@ -392,7 +394,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     ranked, member_ev, groups = win.option, win.option.member_ev, win.option.groups
     clock.mark("refine")
     # floor with the better model (effects can leak into the fourth differences)
-    better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt, xi_noise_gain(data, nom.w)))
+    better = table.floor(noise_floor(*rep1.floor_arrays, nom.w, data.dt, nom.xi_gain))
     floor = {c: float(min(nom.floor[c], v)) for c, v in better.items()}
     F0 = table.fstats(nom.E0, floor)
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)

@@ -31,7 +31,7 @@ class DiagnoseConfig:
         Family-wise significance of the phase-bin test (Bonferroni over bins).
     step_candidates : int
         At each forward-selection step after the first, the number of leading candidates (screened
-        with the current set held fixed) refitted jointly with it.
+        by a short fit of every parameter) refitted fully with the current set.
     max_effects : int
         Most effects named at once.
     evidence_threshold : float

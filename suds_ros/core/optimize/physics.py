@@ -55,6 +55,7 @@ from suds_ros.core.physics.gait import (
     Gait,
     GaitLimits,
     constraint_grid,
+    gait_extremes,
     gait_limits,
     nominal_gait,
     with_predicted,
@@ -475,10 +476,8 @@ def linear_bounds(gait: Gait, order: int, limits: GaitLimits, per_harmonic: int)
 
 
 def feasible_scale(gait: Gait, limits: GaitLimits) -> float:
-    """Largest s ≤ 1 with s·gait within the bounds on a 4096-point grid (the bounds are homogeneous)."""
-    t = np.arange(4096) / (4096 * gait.gait_hz)
-    r = np.abs(gait.r(t)).max(axis=0)
-    v = np.abs(gait.rdot(t)).max(axis=0)
+    """Largest s ≤ 1 with s·gait within the bounds (they are homogeneous in s; :func:`gait_extremes`)."""
+    r, v = gait_extremes(gait)
     ratio = np.concatenate([np.asarray(limits.limit) / np.maximum(r, 1e-300),
                             np.asarray(limits.speed_limit) / np.maximum(v, 1e-300)])
     return float(min(1.0, ratio.min()))

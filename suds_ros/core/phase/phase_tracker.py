@@ -161,8 +161,10 @@ class PhaseTracker:
         r = np.asarray(r, dtype=float)
         if r.shape != (self.n_channels,):
             raise SudsDataError(f"`r`: expected shape ({self.n_channels},), got shape {r.shape}")
+        # one test for NaN, Inf and values so large that their sum overflows: the tracker's own
+        # sums would overflow on those too and leave its phase NaN for every later sample
         if not math.isfinite(float(r.sum())):
-            raise SudsDataError(f"`r`: expected finite values, got {r!r}")
+            raise SudsDataError(f"`r`: expected finite values whose sum is finite, got {r!r}")
         return r
 
     def update(self, t: float, r: FloatArray) -> float:

@@ -354,8 +354,11 @@ class GaitLimits:
                 raise SudsConfigError(f"`{name}`: expected {len(self.joints)} bounds > 0, got {values}")
 
 
-def _extremes(gait: Gait) -> tuple[FloatArray, FloatArray]:
-    """Largest |r_j| and |ṙ_j| over a cycle: exact for K = 1, a 4096-point grid otherwise."""
+def gait_extremes(gait: Gait) -> tuple[FloatArray, FloatArray]:
+    """Largest |r_j| and |ṙ_j| over a cycle: exact for K = 1, a 4096-point grid otherwise.
+
+    The one measure of how far a gait goes (the bounds' defaults, how far a gait may be scaled).
+    """
     off, c, s = gait.arrays()
     if gait.order == 1 or not np.any(c[:, 1:]) and not np.any(s[:, 1:]):
         amp = np.hypot(c[:, 0], s[:, 0])
@@ -373,7 +376,7 @@ def gait_limits(system: SudsSystem, nominal: Gait | None = None) -> GaitLimits:
     names = system.joint_names
     act = list(system.actuated)
     nominal = nominal_gait(system) if nominal is None else nominal
-    r_max, v_max = _extremes(nominal)
+    r_max, v_max = gait_extremes(nominal)
     lim = getattr(model, "limit", None) or (None,) * len(names)
     spd = getattr(model, "speed_limit", None) or (None,) * len(names)
     return GaitLimits(joints=tuple(names[i] for i in act),
@@ -391,8 +394,8 @@ def constraint_grid(order: int, gait_hz: float, per_harmonic: int = 64) -> Float
 def checked_extremes(gait: Gait, per_harmonic: int = 64) -> tuple[FloatArray, FloatArray]:
     """Largest |r_j| and |ṙ_j| as the constraints are checked: on :func:`constraint_grid`, exact for K = 1."""
     t = constraint_grid(gait.order, gait.gait_hz, per_harmonic)
-    r_max = np.maximum(np.abs(gait.r(t)).max(axis=0), _extremes(gait)[0] if gait.order == 1 else 0.0)
-    v_max = np.maximum(np.abs(gait.rdot(t)).max(axis=0), _extremes(gait)[1] if gait.order == 1 else 0.0)
+    r_max = np.maximum(np.abs(gait.r(t)).max(axis=0), gait_extremes(gait)[0] if gait.order == 1 else 0.0)
+    v_max = np.maximum(np.abs(gait.rdot(t)).max(axis=0), gait_extremes(gait)[1] if gait.order == 1 else 0.0)
     return r_max, v_max
 
 

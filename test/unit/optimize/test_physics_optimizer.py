@@ -68,3 +68,26 @@ def test_turn_and_efficiency_keep_the_nominal_speed(objective: str) -> None:
     assert constraint_violations(res.gait, gait_limits(system)) == []
     if objective == "efficiency":
         assert abs(res.values["rotation"]) <= 0.05
+
+
+def test_feasible_scale_puts_a_gait_exactly_on_its_tightest_bound() -> None:
+    """Scaled by feasible_scale, a gait meets every bound and touches one (to the grid's resolution)."""
+    from suds_ros.core.optimize.physics import feasible_scale
+    from suds_ros.core.physics.gait import gait_extremes
+
+    system = make_system("swimmer9")
+    lim = gait_limits(system)
+    g = nominal_gait(system)
+    assert feasible_scale(g, lim) == 1.0
+    for order, extra in ((1, 1.7), (3, 1.0)):
+        x = g.to_vector(order) * extra
+        if order == 3:
+            x[7:] += 0.3  # higher harmonics: the speed bound binds first
+        big = g.from_vector(x, order)
+        s = feasible_scale(big, lim)
+        assert 0 < s < 1
+        scaled = big.from_vector(big.to_vector(order) * s, order)
+        assert constraint_violations(scaled, lim) == []
+        r, v = gait_extremes(scaled)
+        tight = max(np.max(r / np.asarray(lim.limit)), np.max(v / np.asarray(lim.speed_limit)))
+        assert tight == pytest.approx(1.0, abs=1e-9)

@@ -120,5 +120,8 @@ def test_errors() -> None:
         tracker.update(1.1, np.zeros(3))
     with pytest.raises(SudsDataError, match="`r`: expected finite values"):
         tracker.update(1.1, np.array([0.0, np.nan]))
+    with np.errstate(over="ignore"), pytest.raises(SudsDataError, match="whose sum is finite"):
+        tracker.update(1.1, np.array([1e308, 1e308]))  # finite, but it would leave the phase NaN
+    assert np.isfinite(tracker.update(1.1, np.zeros(2)))  # a refused sample leaves the tracker as it was
     with pytest.raises(SudsDataError, match=r"`t`, `R`: expected shapes \(n,\) and \(n, 2\)"):
         tracker.update_batch(np.zeros(3), np.zeros((3, 3)))
