@@ -62,7 +62,12 @@ number in the report is computed on the held-out half.
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) is reported (the equation
    error has biases of its own; a note says so).  Sets that
    swap a member of the selection for one it was confounded with in the equation error are refined
-   too (``swap_max``).  Ambiguity: every refined set whose held-out output-error evidence
+   too (``swap_max``).  Then the effects of the leading sets of the forward step that failed the
+   threshold (``extend_max``) are scored on top of the reported set in output error (a score
+   test, :func:`_extension`); the best is refined with it and added only when its replay
+   evidence is more than ``evidence_threshold`` above the set's on both halves (the equation
+   error can hold a real effect back; a note says so).  Ambiguity: every refined set whose
+   held-out output-error evidence
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) lies within ``ambiguity_band``
    nats of the reported set's is reported with it, as ``alternatives`` of its first effect (the
    finding is one, its explanation is not), and a confounded member whose swap the replay does
@@ -117,13 +122,13 @@ from suds_ros.core.diagnosis.locate import (
 )
 from suds_ros.core.diagnosis.discovery import discover, formula
 from suds_ros.core.diagnosis.naming import Candidate
-from suds_ros.core.diagnosis.refine import fitted_effects, refine_choice
+from suds_ros.core.diagnosis.refine import extension_gains, fitted_effects, refine_choice
 from suds_ros.core.diagnosis.null import null_recording
 from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay, replay_recording
 from suds_ros.core.diagnosis.report import (
     Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
 )
-from suds_ros.core.diagnosis.selection import Naming, name_mismatch
+from suds_ros.core.diagnosis.selection import Naming, _compatible, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -366,16 +371,8 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
     # the selection, those started from the first step's runners-up, and swaps of confounded
     # members: each is refined in the simulator, which arbitrates
-    tried = []
-    for opt in _options(naming, config):
-        cand, x, se, dropped = refine_choice(opt.cand, opt.x, model, data, config,
-                                             nom.w, nom.substeps, nom.floors)
-        fitted_model, delay = apply_effects(model, cand.effects(x))
-        rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
-        E1 = table.residuals(rep1.rp, rep1.xi)
-        # the output error arbitrates: replay evidence on the training half
-        tried.append(_Tried(opt, cand, x, se, dropped, rep1, E1,
-                            table.evidence(nom.E0, E1, x.size, held=False), table.evidence(nom.E0, E1, x.size)))
+    tried = [_try(nom, opt) for opt in _options(naming, config)]
+    # the output error arbitrates: replay evidence on the training half
     best = max(range(len(tried)), key=lambda i: tried[i].train_evidence)
     win = tried[best]
     notes = []
@@ -386,6 +383,12 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         notes.append(f"the simulator preferred {win.option.cand.label} (replay evidence on the training half "
                      f"{win.train_evidence:.1f} nats) to the forward selection's {naming.chosen.cand.label} "
                      f"({tried[0].train_evidence:.1f}{eq})")
+    extended, note = _extension(nom, naming, win)
+    if extended is not None:
+        win = extended
+        tried.append(extended)
+    if note:
+        notes.append(note)
     alternatives = _ambiguous(win, tried, config.ambiguity_band)
     if alternatives:
         notes.append(f"ambiguous: {len(alternatives)} other explanation(s) within {config.ambiguity_band:g} nats "
@@ -426,6 +429,7 @@ class _Option:
     groups: tuple[tuple[str, ...], ...]
     eq_score: float  # equation-error evidence of the set (nats; NaN if never scored as a whole)
     swap: bool = False  # a confounded member swapped in for one of the selection's
+    extends: bool = False  # the selection and one more effect that failed the threshold there
 
 
 @dataclass(frozen=True)
@@ -444,11 +448,13 @@ class _Tried:
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
-    """The selection, the selections from the first step's runners-up, and confounded swaps.
+    """The selection, the selections from the first step's runners-up, confounded swaps, extensions.
 
     A swap replaces one member of the chosen set by a candidate it was confounded with in the
     equation error (within the confounding margin at its step), started from the chosen set's
-    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
+    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.  An
+    extension is one of the leading sets of the step that failed the threshold (the selection and
+    one more effect; ``Naming.rejected``), judged by :func:`_arbitrate`.
     """
     chosen = naming.chosen
     out = [_Option(chosen.cand, chosen.x, naming.evidence, naming.confounded, chosen.score.score)]
@@ -486,6 +492,52 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
     return out + swaps
 
 
+def _try(nom: _Nominal, opt: _Option) -> _Tried:
+    """Refine an option in the simulator and replay the whole recording with it."""
+    data, model, table = nom.data, nom.model, nom.table
+    cand, x, se, dropped = refine_choice(opt.cand, opt.x, model, data, nom.config, nom.w, nom.substeps, nom.floors)
+    fitted_model, delay = apply_effects(model, cand.effects(x))
+    rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
+    E1 = table.residuals(rep1.rp, rep1.xi)
+    return _Tried(opt, cand, x, se, dropped, rep1, E1,
+                  table.evidence(nom.E0, E1, x.size, held=False), table.evidence(nom.E0, E1, x.size))
+
+
+def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | None, str]:
+    """The reported set with one more effect that the equation error held back, if the replay shows it.
+
+    The leading sets of the forward step that failed the threshold (``Naming.rejected``) name
+    the effects to try.  Each is scored against the refined set in output error by a score test
+    (:func:`~.refine.extension_gains`, one replay per parameter); the best, if its first-order
+    gain passes ``evidence_threshold``, is refined with the set, and replaces it only when its
+    replay evidence is more than ``evidence_threshold`` above the set's on the training half *and*
+    the held-out half.  Returns (the extended set or None, a note or '').
+    """
+    config = nom.config
+    parts, starts = [], {}
+    for r in naming.rejected:
+        part = r.cand.parts[-1]
+        if part not in parts and _compatible(win.cand, part):
+            parts.append(part)
+            starts[part] = r.x[r.x.size - len(EFFECTS[part[0]].params):]
+    if not parts:
+        return None, ""
+    gains = extension_gains(win.cand, win.x, parts, nom.model, nom.data, config, nom.w, nom.substeps, nom.floors)
+    k = int(np.argmax(gains))
+    label = Candidate((parts[k],)).label
+    if not gains[k] > config.evidence_threshold:
+        return None, ""
+    cand = Candidate(win.cand.parts + (parts[k],))
+    ext = _try(nom, _Option(cand, np.concatenate([win.x, starts[parts[k]]]), naming.evidence, naming.confounded,
+                            float("nan"), extends=True))
+    d_train, d_held = ext.train_evidence - win.train_evidence, ext.evidence - win.evidence
+    if parts[k] in ext.cand.parts and min(d_train, d_held) > config.evidence_threshold:
+        return ext, (f"the simulator added {label}, which the equation error held back: replay evidence "
+                     f"{d_train:.0f} nats above {win.cand.label} on the training half and {d_held:.0f} held out")
+    return None, (f"{label} tried on top of {win.cand.label} in the simulator (first-order gain {gains[k]:.0f} "
+                  f"nats) and not kept: {d_train:.0f} nats on the training half, {d_held:.0f} held out")
+
+
 def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternative, ...]:
     """The refined sets other than ``win`` within ``band`` nats of its held-out evidence (closest first)."""
     mine = {Candidate((p,)).label for p in win.cand.parts}
@@ -495,8 +547,8 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
     for t in tried:
         key = frozenset(t.cand.parts)
         gap = win.evidence - t.evidence
-        if key in seen or not t.cand.parts or abs(gap) > band:
-            continue
+        if key in seen or not t.cand.parts or abs(gap) > band or (t.option.extends and t is not win):
+            continue  # an extension that did not win adds nothing the recording shows
         seen.add(key)
         fits = fitted_effects(t.cand, t.x, t.se)
         new = [(e.name, e.target, e.parameters) for e in fits if Candidate(((e.name, e.target),)).label not in mine]

@@ -102,6 +102,71 @@ def _residual_vector(
     return np.concatenate([e_rp.reshape(B, -1), e_xi.reshape(B, -1)], axis=1)
 
 
+def _training_segments(data: Data, cfg: DiagnoseConfig) -> tuple[list[int], int]:
+    """Starts and length of the training segments the refinement replays (at most ``refine_cycles``)."""
+    length = cfg.segment_cycles * data.spc
+    starts = _segments(0, data.n_train, length)
+    if not starts:
+        starts, length = [0], data.n_train
+    max_seg = max(1, cfg.refine_cycles // cfg.segment_cycles)
+    if len(starts) > max_seg:  # spread a subset over the training half
+        pick = np.unique(np.round(np.linspace(0, len(starts) - 1, max_seg)).astype(int))
+        starts = [starts[i] for i in pick]
+    return starts, length
+
+
+def _replay_residuals(
+    cand: Candidate, x: FloatArray, base: ChainModel, data: Data, starts: Sequence[int], length: int, w: int,
+    substeps: int, floors: Floors,
+) -> FloatArray:
+    """The weighted replay residuals of ``cand`` at ``x`` on the segments (:func:`_residual_vector`)."""
+    model, delay = apply_effects(base, cand.effects(x))
+    rep = replay(model, delay, data, starts, length, w, substeps)
+    return _residual_vector(data, rep, starts, length, w, *floors)
+
+
+def extension_gains(
+    cand: Candidate, x: FloatArray, parts: Sequence[tuple[str, str | None]], model: ChainModel, data: Data,
+    config: DiagnoseConfig, w: int, substeps: int, floors: Floors,
+) -> list[float]:
+    """Per part, what adding it to ``cand`` (fitted at ``x``) would gain in output error, to first order, nats.
+
+    A score test on the refinement's training segments: with r the weighted replay residuals at
+    ``x`` and j the part's column (forward difference from its neutral value) made orthogonal to
+    the set's own columns, the linearised fit of the part and the set together removes
+    (j'r)²/(j'j) of r'r, i.e. half that in log-likelihood.  One replay per parameter of each part
+    and of the set, where refining each part would cost a least-squares run.
+    """
+    starts, length = _training_segments(data, config)
+    r0 = _replay_residuals(cand, x, model, data, starts, length, w, substeps, floors).ravel()
+    hi = np.asarray(cand.bounds()[1], dtype=float)
+    scales = cand.scales()
+
+    def column(c: Candidate, z: FloatArray, i: int, step: float, top: float) -> FloatArray:
+        h = step if z[i] + step <= top else -step
+        zp = np.array(z, dtype=float)
+        zp[i] += h
+        return (_replay_residuals(c, zp, model, data, starts, length, w, substeps, floors).ravel() - r0) / h
+
+    own = [column(cand, x, i, max(1e-3 * abs(x[i]), 1e-2 * scales[i]), hi[i]) for i in range(x.size)]
+    Q = np.linalg.qr(np.column_stack(own))[0] if own else np.zeros((r0.size, 0))
+    out = []
+    for part in parts:
+        c = Candidate(cand.parts + (part,))
+        z = np.concatenate([x, c.neutral()[x.size:]])
+        c_hi, c_sc = np.asarray(c.bounds()[1], dtype=float), c.scales()
+        try:
+            J = np.column_stack([column(c, z, i, 1e-2 * c_sc[i], c_hi[i]) for i in range(x.size, z.size)])
+        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+            out.append(-np.inf)
+            continue
+        J = J - Q @ (Q.T @ J)
+        g = J.T @ r0
+        drop = float(g @ np.linalg.lstsq(J.T @ J, g, rcond=None)[0]) if np.all(np.isfinite(J)) else -np.inf
+        out.append(0.5 * drop)
+    return out
+
+
 def _refine(
     cand: Candidate,
     x0: FloatArray,
@@ -113,21 +178,12 @@ def _refine(
     floors: Floors,
 ) -> tuple[FloatArray, FloatArray]:
     """Output-error least squares of the candidate's parameters; returns (x, stderr)."""
-    length = cfg.segment_cycles * data.spc
-    starts = _segments(0, data.n_train, length)
-    if not starts:
-        starts, length = [0], data.n_train
-    max_seg = max(1, cfg.refine_cycles // cfg.segment_cycles)
-    if len(starts) > max_seg:  # spread a subset over the training half
-        pick = np.unique(np.round(np.linspace(0, len(starts) - 1, max_seg)).astype(int))
-        starts = [starts[i] for i in pick]
+    starts, length = _training_segments(data, cfg)
     lo, hi = (np.asarray(b, dtype=float) for b in cand.bounds())
     scales = cand.scales()
 
     def sim(x: FloatArray) -> FloatArray:
-        model, delay = apply_effects(base, cand.effects(x))
-        rep = replay(model, delay, data, starts, length, w, substeps)
-        return _residual_vector(data, rep, starts, length, w, *floors)
+        return _replay_residuals(cand, x, base, data, starts, length, w, substeps, floors)
 
     def fun(x: FloatArray) -> FloatArray:
         try:

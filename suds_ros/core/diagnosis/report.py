@@ -63,6 +63,13 @@ class DiagnoseConfig:
     swap_max : int
         Most sets refined in the simulator that swap a member of the chosen set for one it was
         confounded with in the equation error (0: none).
+    extend_max : int
+        At the forward step that failed the threshold, the effects of its leading candidate sets
+        (at most this many) are scored on top of the reported set in output error (0: none); the
+        best is refined with it and added only when its replay evidence beats the set's by more
+        than ``evidence_threshold`` on the training half *and* on the held-out half.  The equation
+        error can hold back a real effect (a Coulomb friction beside a damping on the same joint,
+        whose sign(ṙ) the angle noise blurs); the output error does not.
     ambiguity_band : float
         Every set refined in the simulator whose held-out output-error evidence (replay log
         likelihood gain over the nominal model after the BIC penalty, nats) is within this band of
@@ -113,6 +120,7 @@ class DiagnoseConfig:
     arbitrate_margin: float = 20.0
     arbitrate_max: int = 2
     swap_max: int = 3
+    extend_max: int = 6
     ambiguity_band: float = 10.0
     calibrate: bool = True
     calibration_max: int = 8
@@ -142,6 +150,7 @@ class DiagnoseConfig:
             ("arbitrate_margin", self.arbitrate_margin >= 0),
             ("arbitrate_max", self.arbitrate_max >= 0),
             ("swap_max", self.swap_max >= 0),
+            ("extend_max", self.extend_max >= 0),
             ("ambiguity_band", self.ambiguity_band >= 0),
             ("calibration_max", self.calibration_max >= 1),
             ("unexplained_fraction", 0 < self.unexplained_fraction < 1),

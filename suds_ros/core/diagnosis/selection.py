@@ -50,7 +50,9 @@ class Naming:
     ``gains``: the best evidence gain found at each forward step tried (the last one may have
     failed the threshold), nats; ``alternatives``: the selections started from the first step's
     runners-up (:func:`_alternatives`), for the simulator to arbitrate; ``fits``: every candidate
-    fitted on the way, by label (its best fit), e.g. to start a swap of confounded members from.
+    fitted on the way, by label (its best fit), e.g. to start a swap of confounded members from;
+    ``rejected``: the leading sets of the step that failed the threshold (at most
+    ``config.extend_max``, best first), for the simulator to judge.
     """
 
     ranking: tuple[CandidateScore, ...]
@@ -61,6 +63,7 @@ class Naming:
     gains: tuple[float, ...] = ()
     alternatives: tuple["_Path", ...] = ()
     fits: Mapping[str, Ranked] = field(default_factory=dict)
+    rejected: tuple[Ranked, ...] = ()
 
 
 class _Selector:
@@ -232,7 +235,7 @@ def name_mismatch(
     ranking = tuple(r.score for r in sorted(sel.fitted.values(), key=lambda r: -r.score.score) if r.cand.parts)
     log = main.log + (tuple(sel.calibration.log) if sel.calibration is not None else ())
     return Naming(ranking, main.cur, main.groups, main.evidence, log, main.gains, alternatives,
-                  dict(sel.fitted))
+                  dict(sel.fitted), main.rejected)
 
 
 @dataclass(frozen=True)
@@ -245,6 +248,7 @@ class _Path:
     log: tuple[str, ...]
     gains: tuple[float, ...]
     first_group: tuple[str, ...] = ()  # the first step's confounded group, if any
+    rejected: tuple[Ranked, ...] = ()  # the leading sets of the step that failed the threshold
 
 
 def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) -> _Path:
@@ -256,6 +260,7 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
     log: list[str] = []
     evidence: list[float] = []
     gains: list[float] = []
+    rejected: tuple[Ranked, ...] = ()
     for step in range(config.max_effects):
         options = list(singles) if step == 0 else sel.extend(cur, singles)
         if not options:
@@ -276,6 +281,8 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
         if gain <= need:
             if step == 0:
                 cur = best  # nothing has positive evidence; the pipeline reports it unexplained
+            else:
+                rejected = tuple(options[:config.extend_max])
             break
         margin = max(config.confound_margin, config.confound_rel * gain)
         close = [o for o in options
@@ -292,8 +299,9 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
     if not evidence and cur.cand.parts:
         evidence = [ev for ev, _ in sel.member_evidence(cur)]
     kept = {lab for n, t in cur.cand.parts for lab in [_part_label(n, t)]}
+    rejected = tuple(r for r in rejected if set(cur.cand.parts) < set(r.cand.parts))
     return _Path(cur, tuple(g for g in groups if g[0] in kept), tuple(float(e) for e in evidence), tuple(log),
-                 tuple(gains), first_group)
+                 tuple(gains), first_group, rejected)
 
 
 def _with_equivalents(sel: _Selector, main: _Path, singles: Sequence[Ranked]) -> _Path:

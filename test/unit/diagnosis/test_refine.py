@@ -42,3 +42,41 @@ def test_sandwich_stderr_matches_ordinary_least_squares_for_iid_residuals() -> N
     expect = 0.5 / np.sqrt(np.sum(J**2))
     assert se[0] == pytest.approx(expect, rel=0.1)
     assert np.isnan(_sandwich_stderr(np.zeros((B * k, 1)), R, 1)).all()
+
+
+# ------------------------------------------------------------------------------ score test
+def _gains(effects, parts):  # type: ignore[no-untyped-def]
+    """First-order output-error gains of ``parts`` on top of a damping on joint_2 refined alone."""
+    from suds_ros.core.diagnosis import DiagnoseConfig
+    from suds_ros.core.diagnosis.data import prepare
+    from suds_ros.core.diagnosis.naming import Candidate
+    from suds_ros.core.diagnosis.pipeline import replay_nominal
+    from suds_ros.core.diagnosis.refine import extension_gains, refine_choice
+    from suds_ros.core.physics.effects import apply_effects
+    from suds_ros.core.physics.rft import RFTChain
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import purcell3_model
+
+    base = purcell3_model()
+    model, _ = apply_effects(base, effects)
+    config = DiagnoseConfig(refine_cycles=10)
+    nom = replay_nominal(prepare(simulate(RFTChain(model), SimConfig(cycles=20, seed=8)), base), base, config, None)
+    damping = Candidate((("joint_viscous_damping", "joint_2"),))
+    cand, x, _, _ = refine_choice(damping, np.array([0.5]), base, nom.data, config, nom.w, nom.substeps, nom.floors)
+    return extension_gains(cand, x, parts, base, nom.data, config, nom.w, nom.substeps, nom.floors)
+
+
+def test_the_score_test_sees_an_effect_that_a_damping_on_its_joint_stood_in_for() -> None:
+    """A damping refined alone on a joint that also has a Coulomb friction: the friction's first-order
+    gain on top of it is far above the evidence threshold and ten times any other effect's (which
+    also explain a little of what the damping misses); with no friction in the robot, nothing
+    passes the threshold."""
+    from suds_ros.core.diagnosis import DiagnoseConfig
+
+    parts = [("joint_coulomb_friction", "joint_2"), ("spring_rest_offset", "joint_2"), ("link_drag_error", "link_1")]
+    threshold = DiagnoseConfig().evidence_threshold
+    both = _gains([dict(name="joint_viscous_damping", joint="joint_2", d=0.45),
+                   dict(name="joint_coulomb_friction", joint="joint_2", mu=0.4)], parts)
+    assert both[0] > 10 * threshold and both[0] > 10 * max(both[1:]), both
+    alone = _gains([dict(name="joint_viscous_damping", joint="joint_2", d=0.45)], parts)
+    assert max(alone) < threshold, alone
