@@ -15,8 +15,8 @@ mismatch falls by at least half; a null case when no mismatch is reported.  An i
 listed among the ``alternatives`` of a reported effect counts as named (the finding is ambiguous
 and says so), and so does an alternative that is, as a whole set (the reported effects but those
 it replaces, with its own), exactly the injected one.  A *false discovery* is a reported effect
-that was not injected and is not an alternative of one.  With ``--max-effects 1`` and ``--catalogue-only`` it is the earlier
-single-effect sweep.  Cases run in ``--jobs`` processes.
+that was not injected and is not an alternative of one.  With ``--max-effects 1`` and
+``--catalogue-only`` it is the earlier single-effect sweep.  Cases run in ``--jobs`` processes.
 
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]
 Writes docs/results/diagnose_sweep_lab.md (docs/results/diagnose_sweep.md is the earlier built-in-only, aligned sweep).

@@ -116,18 +116,34 @@ def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
     assert info.has_summary and info.metadata["suds"]["actuated"] == "joint_1"
 
 
-def test_drain_lets_the_others_finish_their_work():
-    late = ("import signal, sys, time\n"
-            "signal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n"
-            "time.sleep(1.0)\n"
-            "print('late', flush=True)\n"
-            "time.sleep(60)\n")
-    for drain, seen in ((0.0, False), (2.5, True)):
+def test_drain_lets_the_others_finish_their_work(tmp_path):
+    """With a drain the others finish what they do after ``main`` exits; without one they are stopped.
+
+    Ordered by events, not by sleeps: the estimator child says (a file) when its SIGINT handler is
+    set, ``main`` exits only then (so the stop never lands in the interpreter's start-up), and
+    the estimator's work waits for ``main``'s exit.
+    """
+    wait = ("import os, time\n"
+            "def wait(path):\n"
+            "    deadline = time.monotonic() + 120\n"
+            "    while not os.path.exists(path):\n"
+            "        assert time.monotonic() < deadline, path\n"
+            "        time.sleep(0.02)\n")
+    for drain, seen in ((0.0, False), (60.0, True)):
+        d = tmp_path / f"drain{drain:g}"
+        d.mkdir()
+        ready, main_done = str(d / "ready"), str(d / "main_done")
+        work_after = main_done if seen else str(d / "never")  # without a drain: stopped while waiting
+        main = wait + f"wait({ready!r})\nopen({main_done!r}, 'w').close()\nprint('sim', flush=True)\n"
+        late = ("import signal, sys\nsignal.signal(signal.SIGINT, lambda *a: sys.exit(0))\n" + wait
+                + f"open({ready!r}, 'w').close()\nwait({work_after!r})\nprint('late', flush=True)\n")
         out = io.StringIO()
-        rc = pipeline.supervise({"simulator": py("print('sim')"), "estimator": py(late)},
-                                out=out, timeouts=(3.0, 1.0), drain=drain)
+        t0 = time.monotonic()
+        rc = pipeline.supervise({"simulator": py(main), "estimator": py(late)},
+                                out=out, timeouts=(30.0, 10.0), drain=drain)
         assert rc == 0, out.getvalue()
         assert ("[estimator] late" in out.getvalue()) is seen, out.getvalue()
+        assert time.monotonic() - t0 < 60.0, out.getvalue()  # the drain ends when the work is done
 
 
 @pytest.mark.ros

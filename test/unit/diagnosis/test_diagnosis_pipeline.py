@@ -28,8 +28,8 @@ def test_the_simulator_arbitrates_between_selections_by_replay_evidence() -> Non
     as the alternative path.  Offered the other way round, the right set stays and no note is made.
     """
     base = purcell3_model()
-    truth = [dict(name="drag_anisotropy_error", ratio=1.68), dict(name="joint_coulomb_friction", joint="joint_2",
-                                                                    mu=0.66)]
+    truth = [dict(name="drag_anisotropy_error", ratio=1.68),
+             dict(name="joint_coulomb_friction", joint="joint_2", mu=0.66)]
     model, _ = apply_effects(base, truth)
     rec = simulate(RFTChain(model), SimConfig(cycles=30, seed=11))
     config = DiagnoseConfig()
