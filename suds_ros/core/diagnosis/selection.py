@@ -328,9 +328,9 @@ def _with_equivalents(sel: _Selector, main: _Path, singles: Sequence[Ranked]) ->
     groups = {g[0]: list(g) for g in main.groups}
     for s in singles:
         part = s.cand.parts[0]
-        if part in parts or len(parts) >= 1 and not any(
-                _compatible(Candidate(parts[:k] + parts[k + 1:]), part) for k in range(len(parts))):
-            continue
+        if part in parts or not any(_compatible(Candidate(parts[:k] + parts[k + 1:]), part)
+                                    for k in range(len(parts))):
+            continue  # no member it could stand in for
         with_c = Candidate(parts + (part,))
         J_c = sc.sensitivity(with_c, np.concatenate([cur.x, s.cand.neutral()]), first=cur.x.size)
         if not _in_span(J_set, J_c):
