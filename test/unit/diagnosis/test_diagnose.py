@@ -291,4 +291,5 @@ def test_a_reparameterised_pair_is_reported_with_every_equivalent_set_and_its_ow
     assert len(labels) == 3, found  # three different pairs ...
     for s in found:  # ... each the injected physics: p × 1.4, q × 1.12
         assert stiffness(s) == pytest.approx((1.4, 1.12), rel=0.02), (s, summary_text(rep))
-    assert any("stiffness_to_drag_error" in g for g in rep.confounded_with)
+    reported = {e.name if e.target is None else f"{e.name}:{e.target}" for e in rep.effects}
+    assert rep.confounded_with and all(g[0] in reported for g in rep.confounded_with), rep.confounded_with
