@@ -227,7 +227,7 @@ def known_evidence(rec, base: ChainModel, effects: list[dict]) -> float:  # type
     config = DiagnoseConfig()
     nom = replay_nominal(prepare(rec, base), base, config, None)
     sc = Scorer(nom.data, base, config.eq_window, nom.floors[0])
-    pen = 0.5 * np.log(max(float(np.median(sc.n_eff_train)), 2.0))
+    pen = sc.pen_unit
     parts = [(e["name"], _target(e)) for e in effects]
     xs = [np.array([e[q.name] for q in EFFECTS[e["name"]].params], dtype=float) for e in effects]
     whole = sc.heldout_gain(Candidate(tuple(parts)), np.concatenate(xs))

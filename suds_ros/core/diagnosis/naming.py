@@ -314,6 +314,8 @@ class Scorer:
         self.n_eff_test = np.array([self.test.nint] * npas + [self.ok_test.sum() / w] * 3, dtype=float)
         # least-squares row weights: overlapping ξ windows count 1/w each
         self.row_w = np.array([1.0] * npas + [1.0 / np.sqrt(w)] * 3)
+        # the BIC penalty per parameter, (1/2)·log n_eff, nats
+        self.pen_unit = 0.5 * np.log(max(float(np.median(self.n_eff_train)), 2.0))
         null = Candidate(())
         self.null = null
         e_tr, x_tr = self._res(self.train, null, np.zeros(0))

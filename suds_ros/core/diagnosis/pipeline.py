@@ -429,7 +429,6 @@ class _Option:
     groups: tuple[tuple[str, ...], ...]
     eq_score: float  # equation-error evidence of the set (nats; NaN if never scored as a whole)
     swap: bool = False  # a confounded member swapped in for one of the selection's
-    extends: bool = False  # the selection and one more effect that failed the threshold there
 
 
 @dataclass(frozen=True)
@@ -448,13 +447,11 @@ class _Tried:
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
-    """The selection, the selections from the first step's runners-up, confounded swaps, extensions.
+    """The selection, the selections from the first step's runners-up, and confounded swaps.
 
     A swap replaces one member of the chosen set by a candidate it was confounded with in the
     equation error (within the confounding margin at its step), started from the chosen set's
-    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.  An
-    extension is one of the leading sets of the step that failed the threshold (the selection and
-    one more effect; ``Naming.rejected``), judged by :func:`_arbitrate`.
+    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
     """
     chosen = naming.chosen
     out = [_Option(chosen.cand, chosen.x, naming.evidence, naming.confounded, chosen.score.score)]
@@ -529,7 +526,7 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
         return None, ""
     cand = Candidate(win.cand.parts + (parts[k],))
     ext = _try(nom, _Option(cand, np.concatenate([win.x, starts[parts[k]]]), naming.evidence, naming.confounded,
-                            float("nan"), extends=True))
+                            float("nan")))
     d_train, d_held = ext.train_evidence - win.train_evidence, ext.evidence - win.evidence
     if parts[k] in ext.cand.parts and min(d_train, d_held) > config.evidence_threshold:
         return ext, (f"the simulator added {label}, which the equation error held back: replay evidence "
@@ -547,8 +544,8 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
     for t in tried:
         key = frozenset(t.cand.parts)
         gap = win.evidence - t.evidence
-        if key in seen or not t.cand.parts or abs(gap) > band or (t.option.extends and t is not win):
-            continue  # an extension that did not win adds nothing the recording shows
+        if key in seen or not t.cand.parts or abs(gap) > band:
+            continue
         seen.add(key)
         fits = fitted_effects(t.cand, t.x, t.se)
         new = [(e.name, e.target, e.parameters) for e in fits if Candidate(((e.name, e.target),)).label not in mine]

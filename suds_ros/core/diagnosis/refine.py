@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import scipy.optimize
@@ -138,25 +138,23 @@ def extension_gains(
     and of the set, where refining each part would cost a least-squares run.
     """
     starts, length = _training_segments(data, config)
-    r0 = _replay_residuals(cand, x, model, data, starts, length, w, substeps, floors).ravel()
-    hi = np.asarray(cand.bounds()[1], dtype=float)
-    scales = cand.scales()
 
-    def column(c: Candidate, z: FloatArray, i: int, step: float, top: float) -> FloatArray:
-        h = step if z[i] + step <= top else -step
-        zp = np.array(z, dtype=float)
-        zp[i] += h
-        return (_replay_residuals(c, zp, model, data, starts, length, w, substeps, floors).ravel() - r0) / h
+    def residuals(c: Candidate, head: FloatArray) -> Callable[[FloatArray], FloatArray]:
+        """``c``'s replay residuals as a function of its parameters after ``head``."""
+        return lambda z: _replay_residuals(c, np.concatenate([head, z]), model, data, starts, length, w,
+                                           substeps, floors).ravel()
 
-    own = [column(cand, x, i, max(1e-3 * abs(x[i]), 1e-2 * scales[i]), hi[i]) for i in range(x.size)]
-    Q = np.linalg.qr(np.column_stack(own))[0] if own else np.zeros((r0.size, 0))
+    r0 = residuals(cand, x[:0])(x)
+    own = fd_jacobian(residuals(cand, x[:0]), x, r0, np.maximum(1e-3 * np.abs(x), 1e-2 * cand.scales()),
+                      np.asarray(cand.bounds()[1], dtype=float))
+    Q = np.linalg.qr(own)[0]
     out = []
     for part in parts:
         c = Candidate(cand.parts + (part,))
-        z = np.concatenate([x, c.neutral()[x.size:]])
-        c_hi, c_sc = np.asarray(c.bounds()[1], dtype=float), c.scales()
-        try:
-            J = np.column_stack([column(c, z, i, 1e-2 * c_sc[i], c_hi[i]) for i in range(x.size, z.size)])
+        z = c.neutral()[x.size:]
+        try:  # the part's columns, forward differences from its neutral value
+            J = fd_jacobian(residuals(c, x), z, r0, 1e-2 * c.scales()[x.size:],
+                            np.asarray(c.bounds()[1][x.size:], dtype=float))
         except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
             out.append(-np.inf)
             continue

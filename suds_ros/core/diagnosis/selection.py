@@ -72,7 +72,7 @@ class _Selector:
     def __init__(self, scorer: Scorer, config: DiagnoseConfig) -> None:
         self.scorer = scorer
         self.config = config
-        self.pen_unit = 0.5 * np.log(max(float(np.median(scorer.n_eff_train)), 2.0))
+        self.pen_unit = scorer.pen_unit
         self.fitted: dict[str, Ranked] = {}
         self.calibration: _Calibration | None = None
 
