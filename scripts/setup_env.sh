@@ -15,13 +15,15 @@ fi
 VPY="$VENV/bin/python"
 
 # runtime: rclpy and the messages, numpy, scipy, threadpoolctl, mcap, rosbags (the CDR codec, io/cdr.py);
-# tests and extras: mcap-ros2-support (a second CDR decoder), matplotlib, pytest, linters, foxglove-sdk
+# tests and extras: mcap-ros2-support (a second CDR decoder), matplotlib, pytest, linters, foxglove-sdk,
+# movement (the animal-tracking readers and writers: `suds import` of DeepLabCut .h5 / SLEAP / LightningPose
+# needs it, and the import round-trip tests write their files with it; ~1.3 GB, about 80 s from the registry)
 DEPS=("ros-jazzy-rclpy[fastrtps]" ros-jazzy-common-interfaces numpy scipy threadpoolctl mcap rosbags
-      mcap-ros2-support matplotlib pytest flake8 pydocstyle foxglove-sdk)
+      mcap-ros2-support matplotlib pytest flake8 pydocstyle foxglove-sdk movement)
 # setuptools' bdist_wheel needs `wheel` before setuptools 70.1 (editable and --no-build-isolation builds)
 BUILD=(wheel)
 
-if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, threadpoolctl, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove' 2>/dev/null; then
+if ! "$VPY" -c 'import rclpy, sensor_msgs.msg, numpy, scipy, threadpoolctl, mcap, mcap_ros2, matplotlib, pytest, rosbags, wheel, flake8, pydocstyle, foxglove, movement' 2>/dev/null; then
   echo "setup_env: installing dependencies"
   "$VPY" -m pip install --quiet --disable-pip-version-check "${DEPS[@]}" "${BUILD[@]}"
 fi
