@@ -7,7 +7,9 @@
 The arguments are the ``pipeline`` supervisor's options (``suds_ros/ros/pipeline.py``;
 test/ros/test_launch_file.py keeps the two in step): ``namespace``, ``system`` or
 ``model`` (a robot model file), ``cycles``, ``rate``, ``seed``, ``realtime_factor``,
-``output``, ``overwrite``, ``foxglove`` (a WebSocket port for the Foxglove app, 0: off);
+``output``, ``overwrite``, ``foxglove`` (a WebSocket port for the Foxglove app, 0: off),
+``optimize`` (an objective: starts the ``optimizer`` node, which commands gaits to the simulator)
+and ``optimize_budget``;
 plus ``actuated`` and ``passive``, the joint roles the
 recorder writes into the bag's metadata (the supervisor reads them from the system).
 Each node loads ``share/suds_ros/config/<node>.yaml`` first, then the launch
@@ -40,6 +42,8 @@ ARGUMENTS = {
     "output": ("", "bag to record (.mcap); empty: no recorder"),
     "overwrite": ("false", "let the recorder replace `output`"),
     "foxglove": ("0", "serve the topics to the Foxglove app on this WebSocket port (0: off)"),
+    "optimize": ("", "optimise the gait live for this objective (speed or turn; empty: off)"),
+    "optimize_budget": ("200", "gait cycles the optimizer may ask for"),
     "actuated": ("joint_1", "recorder metadata: actuated joints"),
     "passive": ("joint_2", "recorder metadata: passive joints"),
 }
@@ -68,7 +72,8 @@ def generate_launch_description() -> LaunchDescription:
             "real_time_factor": ParameterValue(arg["realtime_factor"], value_type=float),
             # start the stream once the other nodes listen (estimator, predictor, recorder, bridge)
             "wait_for_subscribers": ParameterValue(PythonExpression(
-                ["2 + int('", arg["output"], "' != '') + int(int('", arg["foxglove"], "') != 0)"]),
+                ["2 + int('", arg["output"], "' != '') + int(int('", arg["foxglove"], "') != 0) + int('",
+                 arg["optimize"], "' != '')"]),
                 value_type=int),
         }),
         node("estimator", {"system": ParameterValue(estimator_system, value_type=str)}),
@@ -80,4 +85,8 @@ def generate_launch_description() -> LaunchDescription:
             condition=IfCondition(PythonExpression(["'", arg["output"], "' != ''"]))),
         node("foxglove_bridge", {"port": ParameterValue(arg["foxglove"], value_type=int)},
              condition=IfCondition(PythonExpression(["int('", arg["foxglove"], "') != 0"]))),
+        node("optimizer", {
+            "system": arg["system"], "model_file": ParameterValue(arg["model"], value_type=str),
+            "objective": arg["optimize"], "budget_cycles": ParameterValue(arg["optimize_budget"], value_type=int)},
+            condition=IfCondition(PythonExpression(["'", arg["optimize"], "' != ''"]))),
     ])

@@ -38,7 +38,7 @@ echo "setup_env: installing suds_ros into $VENV"
 "$VPY" -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
   --force-reinstall "$ROOT"
 
-for exe in simulator estimator predictor monitor recorder player foxglove_bridge pipeline suds; do
+for exe in simulator estimator predictor monitor optimizer recorder player foxglove_bridge pipeline suds; do
   if [ ! -x "$VENV/lib/suds_ros/$exe" ]; then
     echo "setup_env: ERROR: $VENV/lib/suds_ros/$exe was not installed" >&2
     exit 1

@@ -13,6 +13,7 @@ EXECUTABLES = {
     "recorder": "suds_ros.ros.recorder_node",
     "player": "suds_ros.ros.player_node",
     "monitor": "suds_ros.ros.monitor_node",
+    "optimizer": "suds_ros.ros.optimizer_node",
     "foxglove_bridge": "suds_ros.ros.foxglove_node",
     "pipeline": "suds_ros.ros.pipeline",
     "suds": "suds_ros.cli.main",

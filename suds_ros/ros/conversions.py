@@ -502,3 +502,55 @@ def gait_to_msg(gait: Gait) -> Any:
 def gait_from_msg(msg: Any) -> Gait:
     """Parse a ``suds/gait`` message; raises SudsConfigError (code ``bad_gait_file``) naming the key."""
     return loads_gait(msg.data, source=GAIT_TOPIC)
+
+
+def gait_switch_to_msg(stamp: float, gait: Gait) -> Any:
+    """``std_msgs/String`` JSON ``{"stamp", "stamp_ns", "gait"}``: ``gait`` runs from the sample stamped ``stamp``."""
+    from std_msgs.msg import String
+
+    return String(data=dumps({"stamp": float(stamp), "stamp_ns": float_to_ns(stamp), "gait": dump_gait(gait)},
+                             sort_keys=True))
+
+
+def gait_switch_from_msg(msg: Any) -> tuple[float, Gait]:
+    """Parse a ``suds/gait_switch`` message: (stamp of the first sample of the new gait, s; the gait).
+
+    Raises
+    ------
+    SudsConfigError
+        Not the JSON object with a numeric ``stamp_ns`` and a valid ``gait`` (code ``bad_gait_switch``).
+    """
+    try:
+        doc = json.loads(msg.data)
+        ns, text = doc["stamp_ns"], doc["gait"]
+        if not isinstance(ns, int) or isinstance(ns, bool) or not isinstance(text, str):
+            raise TypeError
+    except (ValueError, KeyError, TypeError):
+        raise SudsConfigError("`suds/gait_switch`: expected JSON {\"stamp_ns\": int, \"gait\": text}, got "
+                              f"{str(msg.data)[:80]!r}", code="bad_gait_switch") from None
+    return ns_to_float(ns), loads_gait(text, source="suds/gait_switch")
+
+
+def gait_trajectory_msg(gait: Gait, stamp: float, points_per_cycle: int) -> Any:
+    """One cycle of ``gait`` as a ``trajectory_msgs/JointTrajectory`` (a ros2_control trajectory controller's input).
+
+    ``points_per_cycle`` + 1 points at t = k/(N·f), k = 0..N (the last closes the cycle), with
+    positions (rad) and velocities (rad/s) of the actuated joints; ``time_from_start`` = t;
+    ``header.stamp`` = ``stamp`` (s).
+    """
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    n = int(points_per_cycle)
+    t = np.arange(n + 1) / (n * gait.gait_hz)
+    r, rd = gait.r(t), gait.rdot(t)
+    msg = JointTrajectory()
+    msg.header.stamp = float_to_time(stamp)
+    msg.joint_names = list(gait.joints)
+    for k in range(n + 1):
+        ns = int(round(t[k] * 1e9))
+        msg.points.append(JointTrajectoryPoint(positions=[float(v) for v in r[k]],
+                                               velocities=[float(v) for v in rd[k]],
+                                               time_from_start=Duration(sec=ns // 1_000_000_000,
+                                                                        nanosec=ns % 1_000_000_000)))
+    return msg

@@ -23,6 +23,10 @@ it returns:
   ``suds/measured/passive_velocity`` (velocity-only JointState): the velocities of
   every interval the model is fitted on, stamped with the interval's end sample as
   the predictor stamps its prediction of the same interval.
+* ``suds/gait_switch`` (the simulator's, or a driver's: the stamp from which a new gait runs):
+  on a switch to a gait other than the last one, the estimator starts afresh
+  (:meth:`~suds_ros.core.ident.session.EstimatorSession.new_gait`: the template and model are
+  local to one gait, so the old fit is forgotten and the fade-in cycle is skipped).
 
 Topic names are relative (:mod:`suds_ros.ros.topics`): ``__ns`` and remapping apply.
 """
@@ -41,11 +45,13 @@ from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.ident.model import SudsModel
 from suds_ros.core.ident.online import OnlineSudsEstimator
 from suds_ros.core.ident.session import EstimatorSession, SessionConfig, Status
+from suds_ros.core.physics.gait import Gait, same_gait
 from suds_ros.core.physics.systems import make_system
 from suds_ros.io import checkpoint
 from suds_ros.io.stamps import ns_to_float
 from suds_ros.ros.conversions import (
     diagnostics_to_msg,
+    gait_switch_from_msg,
     joint_state_from_msg,
     joint_velocity_to_msg,
     model_to_msg,
@@ -55,9 +61,9 @@ from suds_ros.ros.conversions import (
     twist_to_msg,
 )
 from suds_ros.ros.params import config_from_parameters, watch_parameters
-from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, burst_qos, overriding_options, subscription_qos_for
+from suds_ros.ros.qos import MODEL_QOS, STATUS_QOS, SWITCH_QOS, burst_qos, overriding_options, subscription_qos_for
 from suds_ros.ros.runner import run_node
-from suds_ros.ros.topics import MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SHAPE, STATUS, SYSTEM
+from suds_ros.ros.topics import GAIT_SWITCH, MEASURED_BODY, MEASURED_PASSIVE, MODEL, POSE, SHAPE, STATUS, SYSTEM
 
 
 @dataclass(frozen=True)
@@ -109,6 +115,8 @@ class EstimatorNode(Node):
         self._subs: dict[str, Any] = {}
         if self.session.needs_system:
             self._subs[SYSTEM] = self.create_subscription(String, SYSTEM, self._on_system, MODEL_QOS)
+        self._gait: Gait | None = None
+        self.create_subscription(String, GAIT_SWITCH, self._on_gait_switch, SWITCH_QOS)
         self.create_timer(0.1, self._housekeeping)
         self._discovery = self.create_timer(0.2, self._discover)
         self.get_logger().info(f"ready: waiting for publishers of {self.resolve_topic_name(SHAPE)} and "
@@ -162,6 +170,16 @@ class EstimatorNode(Node):
             self.session.skip("system", exc)
             return
         self.session.on_system(info)
+
+    def _on_gait_switch(self, msg: Any) -> None:
+        try:
+            stamp, gait = gait_switch_from_msg(msg)
+        except SudsError as exc:
+            self.session.skip("gait_switch", exc)
+            return
+        previous, self._gait = self._gait, gait
+        if previous is None or not same_gait(previous, gait):
+            self.session.new_gait(gait.gait_hz, stamp)
 
     def joints(self) -> tuple[str, ...] | None:
         """The joints taken from a shape message, in order (None: all of the message, as they are)."""

@@ -23,6 +23,11 @@ their imports alone take seconds, and at 5× real time the stream would otherwis
 cycles ahead of the estimator).  The recorder gets ``drain_timeout`` = 0.6 × ``--stop-timeout``,
 so it writes what is still queued after SIGINT before the supervisor escalates.
 
+``--optimize OBJECTIVE`` (speed or turn) also starts the ``optimizer`` node
+(:mod:`suds_ros.ros.optimizer_node`, ``-p objective:=OBJECTIVE``, the robot's ``system`` or
+``model_file``, ``--optimize-budget`` cycles): it commands gaits on ``suds/gait_command``, which the
+simulator switches to at its next cycle boundary, and the estimator starts afresh on each new gait.
+
 ``--foxglove PORT`` (default 0: off) also starts ``foxglove_bridge``
 (:mod:`suds_ros.ros.foxglove_node`, ``-p port:=PORT``): the Foxglove app then shows
 the live topics at ``ws://127.0.0.1:PORT`` without a ROS installation.
@@ -53,9 +58,9 @@ from suds_ros.io.recording_bag import valid_namespace
 
 #: the nodes the pipeline can start: name → module (``python -m <module>``)
 NODES = {name: EXECUTABLES[name]
-         for name in ("simulator", "estimator", "predictor", "recorder", "foxglove_bridge")}
+         for name in ("simulator", "estimator", "predictor", "recorder", "foxglove_bridge", "optimizer")}
 #: the nodes that subscribe to the simulator's suds/shape (the simulator waits for them)
-SHAPE_LISTENERS = ("estimator", "predictor", "recorder", "foxglove_bridge")
+SHAPE_LISTENERS = ("estimator", "predictor", "recorder", "foxglove_bridge", "optimizer")
 #: exit codes that count as a clean stop after we asked a child to stop
 _STOPPED_OK = {0, -signal.SIGINT, -signal.SIGTERM, 130, 143}
 
@@ -180,7 +185,8 @@ def _model_params(path: str, args: argparse.Namespace) -> dict[str, list[str]]:
     gait = _param("gait_hz", float(model.gait_hz))
     params = {"simulator": sim,
               "estimator": _param("actuated", f"[{_role_names(names, model.actuated)}]") + gait,
-              "predictor": _param("system", model.name)}
+              "predictor": _param("system", model.name),
+              "optimizer": _param("model_file", path)}
     if args.output:
         params["recorder"] = (_param("system", model.name)
                               + _param("actuated", _role_names(names, model.actuated))
@@ -191,7 +197,7 @@ def _model_params(path: str, args: argparse.Namespace) -> dict[str, list[str]]:
 def _system_params(args: argparse.Namespace) -> dict[str, list[str]]:
     """Node parameters for a built-in system id."""
     params = {"simulator": _param("system", args.system), "estimator": _param("system", args.system),
-              "predictor": _param("system", args.system)}
+              "predictor": _param("system", args.system), "optimizer": _param("system", args.system)}
     if args.output:
         from suds_ros.core.physics.systems import make_system
 
@@ -224,6 +230,10 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
     if "recorder" in params:
         params["recorder"] = (_param("output", os.path.abspath(args.output)) + params["recorder"]
                               + _param("overwrite", "true" if args.overwrite else "false"))
+    if args.optimize:
+        params["optimizer"] += _param("objective", args.optimize) + _param("budget_cycles", args.optimize_budget)
+        if "optimizer" not in nodes:
+            nodes.append("optimizer")
     if args.foxglove:
         params["foxglove_bridge"] = _param("port", args.foxglove)
         if "foxglove_bridge" not in nodes:
@@ -280,6 +290,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--foxglove", type=int, default=0, metavar="PORT",
                    help="also serve the topics to the Foxglove app on ws://127.0.0.1:PORT "
                         "(foxglove_bridge; default 0: off)")
+    p.add_argument("--optimize", choices=("speed", "turn"), metavar="OBJECTIVE",
+                   help="also optimise the gait live for this objective (speed or turn; starts the optimizer)")
+    p.add_argument("--optimize-budget", dest="optimize_budget", type=int, default=200, metavar="CYCLES",
+                   help="gait cycles the optimizer may ask for (default 200)")
     p.add_argument("--nodes", default="simulator,estimator,predictor,recorder",
                    help="comma-separated nodes to start (the recorder needs --output, "
                         "foxglove_bridge --foxglove)")

@@ -12,7 +12,8 @@
 * the identified model → :data:`MODEL_QOS` (reliable, depth 1, transient local,
   so a late subscriber still gets the last model);
 * status / diagnostics → :data:`STATUS_QOS` (reliable, depth 10);
-* the gait in force → :data:`GAIT_QOS` (as the model: reliable, depth 1, transient local).
+* the gait in force → :data:`GAIT_QOS` (as the model: reliable, depth 1, transient local);
+* gait switches → :data:`SWITCH_QOS` (reliable, depth 10, transient local).
 
 A RELIABLE subscriber does not match a BEST_EFFORT publisher: subscribe to
 state topics with :data:`STATE_QOS` (or best effort) too.
@@ -45,6 +46,9 @@ MODEL_QOS = QoSProfile(
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: the gait in force (``suds/gait``): latched like the model, so a late subscriber gets the current one
 GAIT_QOS = MODEL_QOS
+#: gait switches (``suds/gait_switch``): reliable and kept (the last 10), so a listener whose
+#: subscription matched after a switch still places it by its stamp
+SWITCH_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Publisher QoS of the player: reliable matches both reliable and best-effort subscribers.
 REPLAY_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

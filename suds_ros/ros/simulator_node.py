@@ -48,7 +48,12 @@ the set-points continue without a jump (the difference to the new gait fades out
 cycle, :meth:`~suds_ros.core.physics.stream.StreamingSimulator.set_gait`) and the stream goes
 on; the node logs ``gait <file> on from stamp <s>``.  Empty returns to the nominal gait.  The
 gait in force is published latched on ``suds/gait`` (std_msgs/String, the gait file text;
-reliable, transient local, depth 1) at start and at every switch.
+reliable, transient local, depth 1) at start and at every switch.  A gait's text on
+``suds/gait_command`` (std_msgs/String, e.g. from the ``optimizer`` node) is switched to the same
+way; one for another robot, other joints or another frequency is logged and ignored.  Every
+switch is also published on ``suds/gait_switch`` (std_msgs/String JSON: ``stamp_ns``, ``stamp``
+and ``gait``; reliable, depth 10) with the stamp of the first sample of the new gait, before that
+sample, so listeners place the switch by stamps.
 
 Effects at run time
 -------------------
@@ -78,23 +83,25 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from suds_ros.core.config import check_settings
-from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.physics.gait import Gait, load_gait, nominal_gait
+from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.physics.gait import Gait, check_gait, load_gait, nominal_gait
 from suds_ros.core.physics.sim import SimConfig
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
 from suds_ros.ros.conversions import (
     float_to_time,
+    gait_from_msg,
+    gait_switch_to_msg,
     gait_to_msg,
     joint_state_to_msg,
     pose_to_msg,
     system_info_to_msg,
 )
 from suds_ros.ros.params import config_from_parameters, watch_parameters
-from suds_ros.ros.qos import GAIT_QOS, MODEL_QOS, latched_state_qos, overriding_options
+from suds_ros.ros.qos import GAIT_QOS, MODEL_QOS, SWITCH_QOS, latched_state_qos, overriding_options
 from suds_ros.ros.runner import run_node
-from suds_ros.ros.topics import CLOCK, GAIT, POSE, SHAPE, SYSTEM
+from suds_ros.ros.topics import CLOCK, GAIT, GAIT_COMMAND, GAIT_SWITCH, POSE, SHAPE, SYSTEM
 
 #: Stamp of the first sample when not running in real time (and ``t0`` is not set).
 DEFAULT_T0 = 1.7e9
@@ -251,6 +258,8 @@ class SimulatorNode(Node):
                                                qos_overriding_options=overriding_options())
         self._system_pub = self.create_publisher(String, SYSTEM, MODEL_QOS)
         self._gait_pub = self.create_publisher(String, GAIT, GAIT_QOS)
+        self.create_subscription(String, GAIT_COMMAND, self._on_gait_command, GAIT_QOS)
+        self._switch_pub = self.create_publisher(String, GAIT_SWITCH, SWITCH_QOS)
         in_force = self.gait if self.gait is not None else self._nominal()
         if in_force is not None:
             self._gait_pub.publish(gait_to_msg(in_force))
@@ -301,10 +310,22 @@ class SimulatorNode(Node):
         gait = load_gait(path, self.system) if path else self._nominal()
         if gait is None:
             raise SudsConfigError(f"`gait_file`: {self.system.name!r} has no nominal gait to return to")
+        return self._same_rate(gait, "gait_file")
+
+    def _same_rate(self, gait: Gait, source: str) -> Gait:
         if gait.gait_hz != self.config.gait_hz:
-            raise SudsConfigError(f"`gait_file`: the gait runs at {gait.gait_hz:g} Hz, the stream at "
+            raise SudsConfigError(f"`{source}`: the gait runs at {gait.gait_hz:g} Hz, the stream at "
                                   f"{self.config.gait_hz:g} Hz")
         return gait
+
+    def _on_gait_command(self, msg: Any) -> None:
+        """A gait on ``suds/gait_command``: switched to at the next cycle boundary (a bad one is logged, ignored)."""
+        try:
+            gait = self._same_rate(check_gait(gait_from_msg(msg), self.system, GAIT_COMMAND), GAIT_COMMAND)
+        except SudsError as exc:
+            self.get_logger().error(f"gait command ignored: {exc}")
+            return
+        self._pending_gait = (f"from {GAIT_COMMAND}", gait)
 
     def _check_gait(self, params: list[Any]) -> Any:
         """Refuse a ``gait_file`` that does not load, is for another robot or another frequency."""
@@ -353,6 +374,8 @@ class SimulatorNode(Node):
                 self._gait_pub.publish(gait_to_msg(gait[1]))
             self._chunk = self.sim.step(self.config.samples_per_cycle)
             self._chunk_i = 0
+            if gait is not None:  # before the chunk's samples: a listener places the switch by its stamp
+                self._switch_pub.publish(gait_switch_to_msg(float(self._chunk.t[0]), gait[1]))
             if effects is not None:
                 self.get_logger().info(f"effects {json.dumps(effects)} on from stamp {self._chunk.t[0]:.6f}")
             if gait is not None:

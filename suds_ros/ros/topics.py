@@ -38,14 +38,23 @@ MEASURED_PATTERN = "suds/measured/*"
 DIAGNOSIS = "suds/diagnosis"
 #: the live mismatch status (diagnostic_msgs/DiagnosticArray) of the mismatch monitor
 MISMATCH = "suds/mismatch"
+#: gait commands (std_msgs/String, suds-gait/1 text) the simulator switches to at its next cycle boundary
+GAIT_COMMAND = "suds/gait_command"
+#: a gait switch (std_msgs/String JSON: the stamp of the first sample of the new gait, and the gait)
+GAIT_SWITCH = "suds/gait_switch"
+#: one cycle of the commanded gait for a ros2_control trajectory controller (trajectory_msgs/JointTrajectory)
+GAIT_TRAJECTORY = "suds/gait_trajectory"
+#: the optimizer's progress (std_msgs/String, JSON per run)
+OPTIMIZER = "suds/optimizer"
 CLOCK = "/clock"
 
 #: every topic a suds node publishes, relative (patterns excluded)
 PUBLISHED = (SHAPE, POSE, SYSTEM, GAIT, MODEL, STATUS, PREDICTED_BODY, PREDICTED_PASSIVE,
-             MEASURED_BODY, MEASURED_PASSIVE, DIAGNOSIS, MISMATCH)
+             MEASURED_BODY, MEASURED_PASSIVE, DIAGNOSIS, MISMATCH, GAIT_COMMAND, GAIT_SWITCH, GAIT_TRAJECTORY,
+             OPTIMIZER)
 #: the recorder's default patterns (relative: resolved in the recorder's namespace)
 RECORDED = (SHAPE, POSE, SYSTEM, PREDICTED_PATTERN, MEASURED_PATTERN, MODEL, STATUS, DIAGNOSIS,
-            MISMATCH)
+            MISMATCH, GAIT, GAIT_SWITCH, OPTIMIZER)
 
 
 def resolve(topic: str, namespace: str) -> str:

@@ -164,6 +164,11 @@ class Probe:
             inbox.subscription = self.node.create_subscription(msg_type, topic, inbox._add, qos)
         return inbox
 
+    def publisher(self, topic: str, msg_type: Any, qos: Any) -> Any:
+        """A publisher of the probe's node on ``topic``."""
+        with self._lock:
+            return self.node.create_publisher(msg_type, topic, qos)
+
     def close(self) -> None:
         """Stop spinning and destroy the node (the context is the caller's)."""
         self._stop.set()

@@ -235,3 +235,36 @@ def test_model_of_a_fully_actuated_robot_roundtrips_as_strict_json(worm8_run):
     back = cv.model_from_msg(msg)
     assert back.passive == () and back.channels == model.channels
     np.testing.assert_array_equal(back.coef, model.coef)
+
+
+def test_gait_switch_roundtrips_to_the_nanosecond_and_refuses_other_text():
+    from std_msgs.msg import String
+
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.core.physics.gait import nominal_gait, same_gait
+    from suds_ros.core.physics.systems import make_system
+
+    gait = nominal_gait(make_system("purcell3"))
+    stamp = 1_700_000_031.000_000_123
+    t, back = cv.gait_switch_from_msg(cv.gait_switch_to_msg(stamp, gait))
+    assert cv.float_to_time(t) == cv.float_to_time(stamp) and same_gait(back, gait)
+    for text in ("not json", '{"stamp_ns": 1.5, "gait": ""}', '{"gait": "x"}', '[1, 2]'):
+        with pytest.raises(SudsConfigError, match="suds/gait_switch") as exc:
+            cv.gait_switch_from_msg(String(data=text))
+        assert exc.value.code == "bad_gait_switch", text
+
+
+def test_gait_trajectory_is_one_cycle_of_the_actuated_joints():
+    from suds_ros.core.physics.gait import nominal_gait
+    from suds_ros.core.physics.systems import make_system
+
+    gait = nominal_gait(make_system("swimmer9"))  # several actuated joints
+    msg = cv.gait_trajectory_msg(gait, 12.25, 8)
+    t = np.arange(9) / (8 * gait.gait_hz)
+    assert list(msg.joint_names) == list(gait.joints) and len(msg.points) == 9
+    assert cv.time_to_float(msg.header.stamp) == 12.25
+    np.testing.assert_allclose([p.positions for p in msg.points], gait.r(t), rtol=0, atol=1e-15)
+    np.testing.assert_allclose([p.velocities for p in msg.points], gait.rdot(t), rtol=0, atol=1e-15)
+    ends = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in msg.points]
+    np.testing.assert_allclose(ends, t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(msg.points[-1].positions, msg.points[0].positions, atol=1e-12)  # a closed cycle

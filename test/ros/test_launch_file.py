@@ -27,6 +27,8 @@ SUPERVISOR_TO_LAUNCH = {
     "output": "output",
     "overwrite": "overwrite",
     "foxglove": "foxglove",
+    "optimize": "optimize",
+    "optimize_budget": "optimize_budget",
     "nodes": None,          # launch: comment nodes out / use conditions
     "drain": None,          # launch stops with Ctrl-C, no supervisor timing
     "score": None,          # scoring is `suds score BAG` after a launch

@@ -25,7 +25,7 @@ from suds_ros.executables import EXECUTABLES
 pytestmark = pytest.mark.ros
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
-NODES = ("simulator", "estimator", "predictor", "recorder", "player", "monitor", "foxglove_bridge")
+NODES = ("simulator", "estimator", "predictor", "recorder", "player", "monitor", "foxglove_bridge", "optimizer")
 
 
 def params_file(path: Path, values: dict[str, str]) -> Path:
@@ -61,6 +61,7 @@ CHANGE = {
     "player": ({"rate": "3.5"}, "at rate 3.5"),
     "monitor": ({"warn": "5.0"}, "warn F > 5,"),
     "foxglove_bridge": ({"port": "0"}, "on ws://127.0.0.1:"),
+    "optimizer": ({"objective": "turn", "budget_cycles": "77"}, "optimising turn of purcell3: budget 77 cycles"),
 }
 #: node -> (a bad value, the parameter name and reason the node stops with)
 BAD = {
@@ -71,6 +72,7 @@ BAD = {
     "player": ({"rate": "-2.0"}, ("rate", "range")),
     "monitor": ({"warn": "0.5"}, ("warn", "range")),
     "foxglove_bridge": ({"port": "70000"}, ("port", "range")),
+    "optimizer": ({"objective": "efficiency"}, ("objective", "speed")),
 }
 
 

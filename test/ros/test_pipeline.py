@@ -97,6 +97,18 @@ def test_recorder_command_gets_joint_roles(tmp_path):
     assert "wait_for_subscribers:=1" in cmds["simulator"]
 
 
+def test_optimize_adds_the_optimizer_for_the_robot(tmp_path):
+    cmds = pipeline.build_commands(pipeline.parse_args(["--system", "purcell3", "--optimize", "turn",
+                                                        "--optimize-budget", "60"]))
+    assert set(cmds) == {"simulator", "estimator", "predictor", "optimizer"}
+    assert _params(cmds["optimizer"]) == ["system:=purcell3", "objective:=turn", "budget_cycles:=60"]
+    assert "wait_for_subscribers:=3" in cmds["simulator"]  # the optimizer listens to the stream too
+    cmds = pipeline.build_commands(pipeline.parse_args(["--model", str(EEL4), "--optimize", "speed"]))
+    assert _params(cmds["optimizer"]) == [f"model_file:={EEL4}", "objective:=speed", "budget_cycles:=200"]
+    with pytest.raises(SystemExit):
+        pipeline.parse_args(["--optimize", "efficiency"])  # the live robot records no actuator work
+
+
 @pytest.mark.ros
 def test_ctrl_c_stops_recorder_cleanly(start_process, tmp_path):
     out = tmp_path / "p.mcap"

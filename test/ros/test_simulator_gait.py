@@ -80,6 +80,35 @@ def test_gait_switch_without_a_jump(start_process, node_command, probe, tmp_path
     assert stop(sim) == 0, sim.output()
 
 
+def test_gait_command_topic_switches_and_reports_the_stamp(start_process, node_command, probe):
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from suds_ros.core.physics.gait import dump_gait, nominal_gait, same_gait
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.ros.conversions import gait_switch_from_msg
+    from suds_ros.ros.qos import GAIT_QOS, SWITCH_QOS, latched_state_qos
+
+    nominal = nominal_gait(make_system("purcell3"))
+    new = nominal.from_vector(np.array([0.0, 0.2, 0.0, 0.0, 0.9, 0.0, 0.0]), 3)
+    shape = probe.listen("/suds/shape", JointState, latched_state_qos(100_000))
+    switches = probe.listen("/suds/gait_switch", String, SWITCH_QOS)
+    command = probe.publisher("/suds/gait_command", String, GAIT_QOS)
+    sim = start_process(node_command("simulator_node", "system:=purcell3", "real_time_factor:=3.0",
+                                     f"rate:={RATE}", "noise:=0.0", "seed:=2"), "simulator")
+    wait_for(lambda: len(shape) >= RATE, 60, lambda: f"a cycle\n{sim.output()}")
+    command.publish(String(data=dump_gait(nominal_gait(make_system("swimmer9")))))  # another robot's
+    wait_for(lambda: "gait command ignored" in sim.output(), 60, lambda: f"the refusal\n{sim.output()}")
+    assert "the gait is for 'swimmer9'" in sim.output() and len(switches) == 0
+    command.publish(String(data=dump_gait(new)))
+    wait_for(lambda: len(switches) >= 1, 60, lambda: f"the switch report\n{sim.output()}")
+    onset, gait = gait_switch_from_msg(switches.messages()[0])
+    assert same_gait(gait, new)
+    assert (onset - T0) == pytest.approx(round(onset - T0), abs=1e-6)  # a cycle boundary
+    assert f"gait from suds/gait_command on from stamp {onset:.6f}" in sim.output()
+    assert stop(sim) == 0, sim.output()
+
+
 # ------------------------------------------------------------------ in process
 def test_gait_message_round_trip_and_refusal() -> None:
     from std_msgs.msg import String

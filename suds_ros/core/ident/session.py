@@ -158,6 +158,9 @@ class EstimatorSession:
         self.refused_checkpoint = ""
         self._io = checkpoints
         self._resume = (-math.inf, -math.inf)  # last shape / pose stamps of a resumed checkpoint
+        self._gait_from = -math.inf  # samples before this stamp belong to a gait left (new_gait)
+        self.gait_settling = 0  # samples skipped for it
+        self.gaits = 1
         self._shapes: deque[Any] = deque()  # shape samples waiting for the joint roles, in stamp order
         self._poses: deque[Any] = deque(maxlen=config.history_depth)  # before the roles are known
         self._newest_shape = -math.inf  # newest shape stamp accepted in this session
@@ -221,6 +224,27 @@ class EstimatorSession:
         for s in shapes:  # checked against the joints now
             self._feed_shape(s)
 
+    def new_gait(self, gait_hz: float, switched: float) -> bool:
+        """The robot runs another gait from the sample stamped ``switched``: start the estimator afresh.
+
+        The gait template and the SUDS model are local to one gait, so nothing of the old gait's
+        fit is kept: a fresh estimator (same joints and roles, ``gait_hz``) takes the samples
+        stamped one cycle after the switch on (the new gait fades in over that cycle); earlier ones
+        are skipped (counted in ``gait_settling``).  Returns False (nothing done) before the roles
+        are known or when no sample before the switch was taken (the stream began with that gait).
+        """
+        est = self.est
+        if est is None or not self._first_shape < switched:
+            return False
+        self.gaits += 1
+        self.est = OnlineSudsEstimator(est.joint_names, est.actuated, self.config.online_config(gait_hz))
+        self._gait_from = switched + 1.0 / gait_hz
+        self._rows_published = -1
+        self._log("info", f"new gait ({gait_hz:g} Hz) from stamp {switched:.3f}: the model is local to a gait, so "
+                          f"the estimator starts afresh from stamp {self._gait_from:.3f} (phase, template and "
+                          "model re-learned)")
+        return True
+
     def on_system(self, info: Mapping[str, Any]) -> None:
         """A system description (``joint_names``, ``actuated``, ``gait_hz``, ``system``) gives the roles."""
         if self.est is not None:
@@ -242,6 +266,9 @@ class EstimatorSession:
         self._last_arrival = now
         if sample.stamp <= self._resume[0]:
             self.replayed += 1  # already in the resumed checkpoint
+            return None
+        if sample.stamp < self._gait_from:
+            self.gait_settling += 1  # the switch to a new gait and its fade
             return None
         if self.est is None and self.config.actuated and set(self.config.actuated) <= set(sample.names):
             self.start(tuple(sample.names), tuple(self.config.actuated), self.config.gait_hz or 1.0,
@@ -268,6 +295,9 @@ class EstimatorSession:
         self._last_arrival = now
         if pose.stamp <= self._resume[1]:
             self.replayed_pose += 1
+            return None
+        if pose.stamp < self._gait_from:
+            self.gait_settling += 1
             return None
         if self.est is None:
             self._poses.append(pose)

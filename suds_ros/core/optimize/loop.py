@@ -53,6 +53,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +87,7 @@ from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording
 
 BUDGET_TOO_SMALL = "budget_too_small"
+NO_REQUEST = "no_request"
 
 
 @dataclass(frozen=True)
@@ -260,6 +262,30 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
                        rotation_se=rot_se, cycles=int(m))
 
 
+def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: int,
+                      gait_hz: float) -> Measurement:
+    """:func:`measure_cycles` of recordings' pose streams, at any pose rate and with any stamps.
+
+    A pose stream sampled at exactly ``samples_per_cycle`` per cycle (the simulator's) is measured as
+    it is; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
+    linearly, in x, y and the unwrapped yaw, onto that many samples per cycle from its first stamp.
+    """
+    recs = list(data) if isinstance(data, (list, tuple)) else [data]
+    dt = 1.0 / (gait_hz * samples_per_cycle)
+    poses = []
+    for rec in recs:
+        t, p = np.asarray(rec.pose_t, dtype=float), np.asarray(rec.pose, dtype=float)
+        if t.size > 1 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=0):
+            poses.append(p)
+            continue
+        n = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1 if t.size else 0
+        grid = t[0] + dt * np.arange(n) if n else t
+        yaw = np.unwrap(p[:, 2]) if n else p[:, 2]
+        poses.append(np.column_stack([np.interp(grid, t, p[:, 0]), np.interp(grid, t, p[:, 1]),
+                                      np.interp(grid, t, yaw)]))
+    return measure_cycles(poses, samples_per_cycle, gait_hz)
+
+
 @dataclass(frozen=True)
 class LoopIteration:
     """One gait run on the robot.
@@ -378,6 +404,208 @@ def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: 
     return gain > 0
 
 
+@dataclass(frozen=True)
+class RunRequest:
+    """The next gait :class:`GaitSearch` wants run on the robot.
+
+    Attributes
+    ----------
+    gait : Gait, the gait to switch to (at a cycle boundary) and run.
+    cycles : int, cycles to run it: ``settle_cycles`` to discard, then the cycles to measure.
+    kind : str, ``start``, ``candidate`` (a trust-region step) or ``rerun`` (the incumbent again).
+    """
+
+    gait: Gait
+    cycles: int
+    kind: str
+    note: str = ""
+    step: Any = None  # the DataStepResult of a candidate (its prediction), None otherwise
+
+
+class GaitSearch:
+    """The run → fit → step search as ask/tell: :meth:`request` a gait, run it, :meth:`observe` its cycles.
+
+    The offline loop (:func:`optimize_loop`) and the live ``optimizer`` node drive the same search;
+    the search never sees the robot, only the recordings handed to :meth:`observe` (the measured
+    cycles of the requested run, its settling cycles already cut).  Every requested run's cycles
+    count against ``budget_cycles``.
+
+    Parameters
+    ----------
+    start : Gait
+        The first gait run (within ``limits``).
+    limits : GaitLimits
+    config : LoopConfig
+        Only its search fields are used here (the simulated robot's ``seed`` seeds the model draws).
+    log : callable, optional
+        Called with each :class:`LoopIteration` as it ends.
+    """
+
+    def __init__(self, start: Gait, limits: GaitLimits, config: LoopConfig, *,
+                 log: Callable[[LoopIteration], None] | None = None) -> None:
+        check_constraints(start, limits)
+        self.config, self.limits, self._log = config, limits, log
+        self.cycles_used = 0
+        self.iterations: list[LoopIteration] = []
+        self.stopped: str | None = None
+        self._best_gait, self._best_data, self._best_index = start, [], 0
+        self._best_meas: Measurement | None = None
+        self._best_pred: float | None = None
+        self._speed_floor = 0.0
+        self._kappa = config.trust
+        self._model: LearnedModel | None = None
+        self._rejected: list[Gait] = []
+        self._pending: RunRequest | None = RunRequest(start, config.settle_cycles + config.first_cycles, "start",
+                                                      "start gait")
+
+    @property
+    def best(self) -> Gait:
+        """The incumbent: the best gait measured so far (the start gait before any measurement)."""
+        return self._best_gait
+
+    def request(self) -> RunRequest | None:
+        """The run wanted next (the same one until it is observed); None once the search has stopped."""
+        if self._pending is None and self.stopped is None:
+            self._pending = self._next()
+        return self._pending
+
+    def _next(self) -> RunRequest | None:
+        """Fit the incumbent's model if needed and take one trust-region step (module docstring)."""
+        cfg = self.config
+        n = cfg.settle_cycles + cfg.step_cycles
+        if self.cycles_used + n > cfg.budget_cycles:
+            self.stopped = (f"budget spent: a candidate needs {n} more cycles, "
+                            f"{cfg.budget_cycles - self.cycles_used} left")
+            return None
+        if self._model is None:
+            self._model = learn_model(self._best_data)
+        kappa = self._kappa
+        dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
+                                  min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(self.iterations),
+                                  max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre)
+        step = optimize_from_data(self._model, dcfg, limits=self.limits, start=self._best_gait)
+        if self._best_pred is None:
+            self._best_pred = step.recorded_value
+            self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
+                                                                 step.recorded_value, step.recorded_std)
+        if not step.step_taken:
+            if kappa >= cfg.trust:
+                self.stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
+                return None
+            # a shrunken region with no predicted gain: more data on the incumbent instead
+            return RunRequest(self._best_gait, n, "rerun",
+                              f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}")
+        cand = step.gait
+        x = cand.to_vector(cfg.order)
+        if any(np.allclose(x, g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in self._rejected):
+            self.stopped = ("no new step: the trust region cannot shrink further around the incumbent (it must hold "
+                            "the incumbent's own offset from the template) and this gait was rejected before")
+            return None
+        check_constraints(cand, self.limits)  # never run a gait outside the bounds
+        return RunRequest(cand, n, "candidate", step=step)
+
+    def observe(self, data: Recording) -> LoopIteration:
+        """Take the measured cycles of the requested run (settling cut) and decide; return its iteration.
+
+        Raises
+        ------
+        SudsConfigError
+            Nothing was requested (code ``no_request``), or ``data`` holds less than one cycle.
+        """
+        req = self._pending
+        if req is None:
+            raise SudsConfigError("`data`: expected the cycles of a requested run, but no run is requested "
+                                  f"({self.stopped or 'call request() first'})", code=NO_REQUEST)
+        cfg = self.config
+        meas = measure_recording([*self._best_data, data] if req.kind == "rerun" else data,
+                                 cfg.samples_per_cycle, req.gait.gait_hz)
+        self._pending = None
+        self.cycles_used += req.cycles
+        if req.kind == "start":
+            self._speed_floor = meas.speed  # turn: no slower than the start gait (measured)
+            self._best_meas, self._best_data = meas, [data]
+            it = LoopIteration(index=0, gait=req.gait, cycles=req.cycles, cycles_used=self.cycles_used,
+                               predicted=None, predicted_std=None, predicted_incumbent=None, measured=meas,
+                               accepted=True, trust=None, trust_used=None, note=req.note)
+        elif req.kind == "rerun":
+            self._best_data.append(data)
+            self._best_meas = meas
+            self._model, self._kappa, self._rejected = None, cfg.trust, []
+            it = LoopIteration(index=len(self.iterations), gait=self._best_gait, cycles=req.cycles,
+                               cycles_used=self.cycles_used, predicted=self._best_pred, predicted_std=None,
+                               predicted_incumbent=None, measured=meas, accepted=True, trust=None, trust_used=None,
+                               note=f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, "
+                                    f"measured again, model refitted, trust → {self._kappa:.3g}")
+            self._best_index = it.index
+        else:
+            it = self._judge(req, meas, data)
+        self.iterations.append(it)
+        if self._log is not None:
+            self._log(it)
+        return it
+
+    def _judge(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
+        """Accept or reject a candidate by its measurement; schedule a re-run when the region collapsed."""
+        cfg, step, cand = self.config, req.step, req.gait
+        old = self._best_meas
+        assert old is not None
+        accepted = is_better(meas, old, cfg, self._speed_floor)
+        pred_gain = step.value - step.recorded_value
+        meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
+        kappa_used = step.trust_radius
+        if accepted:
+            ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
+            grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
+            note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
+            if grew:
+                self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
+                note += f"; trust grows to {self._kappa:.3g}"
+            self._best_gait, self._best_meas, self._best_data = cand, meas, [data]
+            self._best_index, self._best_pred = len(self.iterations), step.value
+            self._model, self._rejected = None, []
+        else:
+            self._kappa *= cfg.shrink
+            self._rejected.append(cand)
+            why = ("measured objective not higher" if _feasible(meas, cfg, self._speed_floor)[0]
+                   else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
+                         if cfg.objective != "turn" else "measured speed under the start gait's"))
+            note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
+                    f"trust → {self._kappa:.3g}")
+            if self._kappa < cfg.trust_min:
+                rerun = f"trust region below {cfg.trust_min:g} σ after rejected steps"
+                n = cfg.settle_cycles + cfg.step_cycles
+                if self.cycles_used + n > cfg.budget_cycles:
+                    self.stopped = f"{rerun}; no budget to re-run the incumbent"
+                else:
+                    self._pending = RunRequest(self._best_gait, n, "rerun", rerun)
+        return LoopIteration(index=len(self.iterations), gait=cand, cycles=req.cycles, cycles_used=self.cycles_used,
+                             predicted=step.value, predicted_std=step.value_std,
+                             predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
+                             trust=kappa_used, trust_used=step.trust_used, note=note)
+
+    def result(self, seconds: float = float("nan")) -> LoopResult:
+        """The best gait measured, with the model's prediction of it (fitted now if no step was taken).
+
+        Raises
+        ------
+        SudsConfigError
+            Nothing was measured yet (code ``no_request``).
+        """
+        if self._best_meas is None:
+            raise SudsConfigError("`result`: expected at least the start gait's cycles observed, got none",
+                                  code=NO_REQUEST)
+        cfg = self.config
+        if self._best_pred is None:  # no step was taken (the budget held only the start): the model's view anyway
+            self._best_pred = predict_value(learn_model(self._best_data), self._best_gait, cfg.objective)
+            self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
+                                                                 self._best_pred, None)
+        pred = self._best_pred
+        out = with_predicted(self._best_gait, cfg.objective, {cfg.objective: pred})
+        return LoopResult(gait=out, measured=self._best_meas, predicted=pred, index=self._best_index,
+                          iterations=tuple(self.iterations), cycles_used=self.cycles_used,
+                          stopped=self.stopped or "stopped by the caller", limits=self.limits, seconds=seconds)
+
+
 def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
                   limits: GaitLimits | None = None,
                   log: Callable[[LoopIteration], None] | None = None) -> LoopResult:
@@ -404,118 +632,12 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
     cfg = config
     gait = nominal_gait(system) if start is None else check_gait(start, system, "start")
     limits = gait_limits(system) if limits is None else limits
-    check_constraints(gait, limits)
+    search = GaitSearch(gait, limits, cfg, log=log)
     robot = _Robot(system, gait, cfg)
-    spc = robot.spc
-    n0 = cfg.settle_cycles + cfg.first_cycles
-    rec, _ = robot.run(gait, n0)
-    data = _trim(rec, cfg.settle_cycles, spc)
-    meas = measure_cycles(data.pose, spc, gait.gait_hz)
-    speed_floor = meas.speed  # turn: no slower than the start gait (measured)
-    first = LoopIteration(index=0, gait=gait, cycles=n0, cycles_used=robot.cycles_run, predicted=None,
-                          predicted_std=None, predicted_incumbent=None, measured=meas, accepted=True, trust=None,
-                          trust_used=None, note="start gait")
-    iterations = [first]
-    if log is not None:
-        log(first)
-    best_gait, best_meas, best_data, best_index = gait, meas, [data], 0
-    best_pred: float | None = None
-    kappa = cfg.trust
-    model = None
-    rejected: list[Gait] = []
-    stopped = "budget spent"
-    while True:
-        n = cfg.settle_cycles + cfg.step_cycles
-        if robot.cycles_run + n > cfg.budget_cycles:
-            stopped = f"budget spent: a candidate needs {n} more cycles, {cfg.budget_cycles - robot.cycles_run} left"
-            break
-        if model is None:
-            model = learn_model(best_data)
-        dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
-                                  min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(iterations),
-                                  max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre)
-        step = optimize_from_data(model, dcfg, limits=limits, start=best_gait)
-        if best_pred is None:
-            best_pred = step.recorded_value
-            iterations[best_index] = _with_prediction(iterations[best_index], step.recorded_value, step.recorded_std)
-        if not step.step_taken:
-            if kappa >= cfg.trust:
-                stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
-                break
-            # a shrunken region with no predicted gain: more data on the incumbent instead (below)
-            rerun = f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}"
-            if robot.cycles_run + n > cfg.budget_cycles:
-                stopped = f"{rerun}; no budget to re-run the incumbent"
-                break
-        else:
-            cand = step.gait
-            x = cand.to_vector(cfg.order)
-            if any(np.allclose(x, g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in rejected):
-                stopped = ("no new step: the trust region cannot shrink further around the incumbent (it must hold "
-                           "the incumbent's own offset from the template) and this gait was rejected before")
-                break
-            check_constraints(cand, limits)  # never run a gait outside the bounds
-            rec, _ = robot.run(cand, n)
-            data = _trim(rec, cfg.settle_cycles, spc)
-            meas = measure_cycles(data.pose, spc, cand.gait_hz)
-            old = best_meas
-            accepted = is_better(meas, old, cfg, speed_floor)
-            pred_gain = step.value - step.recorded_value
-            meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
-            kappa_used = step.trust_radius
-            if accepted:
-                ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
-                grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
-                note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
-                if grew:
-                    kappa = min(kappa * cfg.grow, cfg.trust_max)
-                    note += f"; trust grows to {kappa:.3g}"
-                best_gait, best_meas, best_data, best_index, best_pred = cand, meas, [data], len(iterations), step.value
-                model, rejected = None, []
-            else:
-                kappa *= cfg.shrink
-                rejected.append(cand)
-                why = ("measured objective not higher" if _feasible(meas, cfg, speed_floor)[0]
-                       else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
-                             if cfg.objective != "turn" else "measured speed under the start gait's"))
-                note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
-                        f"trust → {kappa:.3g}")
-            it = LoopIteration(index=len(iterations), gait=cand, cycles=n, cycles_used=robot.cycles_run,
-                               predicted=step.value, predicted_std=step.value_std,
-                               predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
-                               trust=kappa_used, trust_used=step.trust_used, note=note)
-            iterations.append(it)
-            if log is not None:
-                log(it)
-            if accepted or kappa >= cfg.trust_min:
-                continue
-            rerun = f"trust region below {cfg.trust_min:g} σ after rejected steps"
-            if robot.cycles_run + n > cfg.budget_cycles:
-                stopped = f"{rerun}; no budget to re-run the incumbent"
-                break
-        # more data instead: the incumbent again, pooled with its earlier cycles; the radius starts afresh
-        rec, _ = robot.run(best_gait, n)
-        best_data.append(_trim(rec, cfg.settle_cycles, spc))
-        best_meas = measure_cycles([d.pose for d in best_data], spc, best_gait.gait_hz)
-        model, kappa, rejected = None, cfg.trust, []
-        it = LoopIteration(index=len(iterations), gait=best_gait, cycles=n, cycles_used=robot.cycles_run,
-                           predicted=best_pred, predicted_std=None, predicted_incumbent=None, measured=best_meas,
-                           accepted=True, trust=None, trust_used=None,
-                           note=f"incumbent re-run ({rerun}): its {len(best_data)} stretches pooled, measured "
-                                f"again, model refitted, trust → {kappa:.3g}")
-        iterations.append(it)
-        best_index = it.index
-        if log is not None:
-            log(it)
-    if best_pred is None:  # no step was taken (the budget held only the start): the model's view of it anyway
-        best_pred = predict_value(learn_model(best_data), best_gait, cfg.objective)
-        iterations[best_index] = _with_prediction(iterations[best_index], best_pred, None)
-    pred = best_pred
-    out = with_predicted(best_gait, cfg.objective, {cfg.objective: pred}) if pred is not None else best_gait
-    return LoopResult(gait=out, measured=best_meas, predicted=pred, index=best_index,
-                      iterations=tuple(iterations),
-                      cycles_used=robot.cycles_run, stopped=stopped, limits=limits,
-                      seconds=time.perf_counter() - t0)
+    while (req := search.request()) is not None:
+        rec, _ = robot.run(req.gait, req.cycles)
+        search.observe(_trim(rec, cfg.settle_cycles, robot.spc))
+    return search.result(seconds=time.perf_counter() - t0)
 
 
 def predict_value(model: LearnedModel, gait: Gait, objective: str) -> float:

@@ -226,6 +226,14 @@ def gait_from_dict(doc: Any, source: str = "<gait>") -> Gait:
                 sin=tuple(sin), objective=objective, predicted=predicted)
 
 
+def same_gait(a: Gait, b: Gait) -> bool:
+    """Whether two gaits are the same drive (joints, frequency and coefficients to 1e-12)."""
+    if a.joints != b.joints or a.gait_hz != b.gait_hz:
+        return False
+    k = max(a.order, b.order)
+    return bool(np.allclose(a.to_vector(k), b.to_vector(k), rtol=0, atol=1e-12))
+
+
 def gait_to_dict(gait: Gait) -> dict[str, Any]:
     """The ``suds-gait/1`` document of ``gait`` (optional keys only when set)."""
     doc: dict[str, Any] = {"format": FORMAT, "system": gait.system, "gait_hz": gait.gait_hz, "joints": {

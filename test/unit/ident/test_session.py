@@ -221,3 +221,24 @@ def test_cadence(rec) -> None:
     s.on_pose(pose(rec, 700), now=3.0)
     assert s.tick(now=3.6)[0] is not None
     assert s.close() is None
+
+
+def test_a_new_gait_starts_the_estimator_afresh_from_a_cycle_after_the_switch(purcell3_run) -> None:
+    """The template and model are local to a gait: after a switch the estimator sees only the new gait's samples
+    from one cycle (the fade) after the switch stamp, and fits exactly what a fresh one fits on them."""
+    long = purcell3_run  # 20 cycles: 6 of the old gait, then the new one
+    n, half = long.n_samples, 600
+    s = run(long, [(c, k) for k in range(half) for c in "sp"])
+    old = s.est
+    switched = float(long.t[half])
+    assert not EstimatorSession(SessionConfig(actuated=tuple(long.actuated))).new_gait(1.0, switched)  # no roles
+    assert s.new_gait(1.0, switched) and s.est is not old and s.est.n_shape == 0
+    run(long, [(c, k) for k in range(half, n) for c in "sp"], session=s)
+    skipped = int(np.sum(long.t[half:n] < switched + 1.0)) + int(np.sum(long.pose_t[half:n] < switched + 1.0))
+    assert s.gait_settling == skipped and s.gaits == 2
+    after = long.slice(half + 100, n)
+    fresh = run(after, [(c, k) for k in range(after.n_samples) for c in "sp"])
+    np.testing.assert_allclose(s.est.model().coef, fresh.est.model().coef, rtol=0, atol=1e-12)
+    # a switch before the first sample taken is the gait the stream began with: nothing to forget
+    again = run(long, [("s", 0), ("p", 0)])
+    assert not again.new_gait(1.0, float(long.t[0]) - 0.5)

@@ -1,0 +1,183 @@
+"""The search as ask/tell, and on a live stream: windows placed by the robot's switch stamps,
+samples in any order and at any pose rate, the protocol's refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.optimize.live import LiveGaitSearch, decide
+from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, measure_cycles, measure_recording, optimize_loop
+from suds_ros.core.physics.gait import gait_limits, nominal_gait, same_gait
+from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.stream import StreamingSimulator
+from suds_ros.core.physics.systems import make_system
+from suds_ros.core.recording import Recording
+
+SPC = 100
+
+
+@pytest.fixture(scope="module")
+def purcell3():  # type: ignore[no-untyped-def]
+    return make_system("purcell3")
+
+
+def _stream(system, seed: int = 3) -> StreamingSimulator:  # type: ignore[no-untyped-def]
+    gait = nominal_gait(system)
+    cfg = SimConfig(cycles=1, samples_per_cycle=SPC, gait_hz=gait.gait_hz, kappa=8.0, ou_std=0.175,
+                    noise_std=1e-3, warmup=0.0, seed=seed, gait=gait, t0=100.0)
+    return StreamingSimulator(system, cfg)
+
+
+def test_the_search_asks_until_told_and_refuses_out_of_turn(purcell3) -> None:  # type: ignore[no-untyped-def]
+    cfg = LoopConfig(budget_cycles=6)
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
+    with pytest.raises(SudsConfigError, match="expected at least the start gait's cycles observed") as exc:
+        search.result()
+    assert exc.value.code == "no_request"
+    first = search.request()
+    assert first is not None and first.kind == "start" and first.cycles == 6
+    assert search.request() is first  # the same run until it is observed
+    sim = _stream(purcell3)
+    c = sim.step(6 * SPC)
+    names = purcell3.joint_names
+    rec = Recording(t=c.t, r=c.r, joint_names=names, actuated=(names[0],), passive=(names[1],), pose_t=c.t,
+                    pose=c.pose, system="purcell3", gait_hz=1.0).slice(SPC - 1, 6 * SPC)
+    it = search.observe(rec)
+    assert it.index == 0 and it.accepted and search.cycles_used == 6
+    assert search.request() is None and search.stopped.startswith("budget spent")
+    with pytest.raises(SudsConfigError, match="no run is requested") as exc:
+        search.observe(rec)
+    assert exc.value.code == "no_request"
+    res = search.result()
+    assert res.cycles_used == 6 and res.predicted is not None and same_gait(res.gait, first.gait)
+
+
+def test_measure_recording_takes_any_pose_rate() -> None:
+    hz, w, v = 1.0, 0.1, 0.3
+    t = np.arange(4 * SPC + 1) / (SPC * hz)
+    yaw = w * t + 0.2 * np.sin(2 * np.pi * hz * t)
+    pose = np.stack([v / w * np.sin(w * t), v / w * (1 - np.cos(w * t)), yaw], axis=1)
+    rec = Recording(t=t, r=np.zeros((t.size, 2)), joint_names=("a", "b"), actuated=("a",), passive=("b",),
+                    pose_t=t, pose=pose, system="x", gait_hz=hz)
+    exact = measure_cycles(pose, SPC, hz)
+    assert measure_recording(rec, SPC, hz) == exact  # the simulator's rate: measured as it is
+    # motion capture at 120 Hz from another start, with jitter, yaw wrapped to (-π, π]
+    rng = np.random.default_rng(0)
+    pt = np.sort(0.004 + np.arange(0, 4.0, 1 / 120) + rng.uniform(-4e-4, 4e-4, 480))
+    pt = pt[pt < 4.0]
+    yaw_t = w * pt + 0.2 * np.sin(2 * np.pi * hz * pt) + 2 * np.pi * 3  # far from zero: wrapping matters
+    mocap = np.stack([v / w * np.sin(w * pt), v / w * (1 - np.cos(w * pt)), np.angle(np.exp(1j * yaw_t))], axis=1)
+    m = measure_recording(Recording(t=t, r=np.zeros((t.size, 2)), joint_names=("a", "b"), actuated=("a",),
+                                    passive=("b",), pose_t=pt, pose=mocap, system="x", gait_hz=hz), SPC, hz)
+    assert m.cycles == 3  # 3.99 s of pose from its first stamp
+    assert m.speed == pytest.approx(exact.speed, rel=1e-3)
+    assert m.rotation == pytest.approx(exact.rotation, rel=1e-2)
+
+
+class _Robot:
+    """A simulated robot in the live protocol: a command takes effect at its next cycle boundary, and
+    the switch is reported with the stamp of the new gait's first sample."""
+
+    def __init__(self, system, seed: int = 5) -> None:  # type: ignore[no-untyped-def]
+        self.sim = _stream(system, seed)
+        self.pending = None
+        self.switches: list[tuple[float, object]] = []
+
+    def cycle(self):  # type: ignore[no-untyped-def]
+        if self.pending is not None:
+            self.sim.set_gait(self.pending)
+        c = self.sim.step(SPC)
+        if self.pending is not None:
+            self.switches.append((float(c.t[0]), self.pending))
+            self.pending = None
+        return c
+
+
+def _feed(live: LiveGaitSearch, c, rng) -> None:  # type: ignore[no-untyped-def]
+    """One cycle's samples in a shuffled arrival order, the pose at every other sample."""
+    for i in rng.permutation(c.t.size):
+        live.on_shape(float(c.t[i]), c.r[i])
+        if i % 2 == 0:
+            live.on_pose(float(c.t[i]), *c.pose[i])
+
+
+def test_live_windows_are_placed_by_the_switch_stamp(purcell3) -> None:  # type: ignore[no-untyped-def]
+    names = tuple(purcell3.joint_names)
+    cfg = LoopConfig(budget_cycles=16, seed=0)
+    live = LiveGaitSearch(GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg), names, (names[0],),
+                          (names[1],), "purcell3")
+    robot = _Robot(purcell3)
+    rng = np.random.default_rng(1)
+    _feed(live, robot.cycle(), rng)  # the stream runs before the first command
+    runs = []
+    while (req := live.search.request()) is not None and len(runs) < 3:
+        live.command(req)
+        robot.pending = req.gait
+        late = 2  # the switch report arrives two cycles after the new gait's first samples
+        while not live.complete():
+            _feed(live, robot.cycle(), rng)
+            late -= 1
+            if late <= 0:
+                for t, g in robot.switches:  # every switch so far: only the one after the command counts
+                    live.on_switch(t, g)
+        w = live.window
+        switched = robot.switches[-1][0]
+        assert w.switched == switched and w.start == pytest.approx(switched + 1.0)  # the settling cycle skipped
+        data = live.take()
+        assert data.t[0] >= w.start and data.t[-1] <= w.end and np.all(np.diff(data.t) > 0)
+        assert data.n_samples == (req.cycles - 1) * SPC + 1 and data.pose_t.size == data.n_samples // 2 + 1
+        live.search, it, _ = decide(live.search, data)
+        runs.append((req, it))
+    assert [r.kind for r, _ in runs][:2] == ["start", "candidate"]
+    assert all(np.isfinite(it.measured.speed) for _, it in runs)
+    assert live.cycles_elapsed > live.search.cycles_used  # the robot ran more than the search asked for
+
+
+def test_a_switch_that_is_not_the_commanded_gait_opens_nothing(purcell3) -> None:  # type: ignore[no-untyped-def]
+    names = tuple(purcell3.joint_names)
+    nominal = nominal_gait(purcell3)
+    live = LiveGaitSearch(GaitSearch(nominal, gait_limits(purcell3), LoopConfig(budget_cycles=20)), names,
+                          (names[0],), (names[1],), "purcell3")
+    live.on_shape(10.0, np.zeros(2))
+    req = live.search.request()
+    live.command(req)
+    other = nominal.from_vector(0.5 * nominal.to_vector(3), 3)
+    assert live.on_switch(11.0, other) is None  # another gait
+    assert live.on_switch(9.0, nominal) is None  # a switch before the command: an older one
+    w = live.on_switch(11.0, nominal)
+    assert w is not None and (w.start, w.end) == (12.0, 17.0)
+    for k in range(3):  # a stalled pose stream
+        live.on_shape(12.0 + k, np.zeros(2))
+    live.on_shape(17.5, np.zeros(2))
+    live.on_pose(17.5, 0.0, 0.0, 0.0)
+    assert live.complete()
+    with pytest.raises(SudsDataError, match="expected at least 8 shape and pose samples, got 3 and 0") as exc:
+        live.take()
+    assert exc.value.code == "too_few_samples"
+    live.command(req)
+    assert live.assume_switch().switched == pytest.approx(18.5)  # the newest stamp + one cycle
+
+
+def test_the_offline_loop_is_the_same_search(purcell3) -> None:  # type: ignore[no-untyped-def]
+    """optimize_loop drives GaitSearch; driving it by hand with the same robot gives the same runs."""
+    cfg = LoopConfig(budget_cycles=16, seed=0)
+    res = optimize_loop(purcell3, cfg)
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
+    sim = StreamingSimulator(purcell3, SimConfig(cycles=1, samples_per_cycle=cfg.samples_per_cycle, gait_hz=1.0,
+                                                 kappa=cfg.kappa, ou_std=cfg.ou_std, noise_std=cfg.noise_std,
+                                                 warmup=0.0, seed=cfg.seed, gait=nominal_gait(purcell3)))
+    names = purcell3.joint_names
+    current = None
+    while (req := search.request()) is not None:
+        if current is not None and req.gait is not current:
+            sim.set_gait(req.gait)
+        current = req.gait
+        c = sim.step(req.cycles * cfg.samples_per_cycle)
+        rec = Recording(t=c.t, r=c.r, joint_names=names, actuated=(names[0],), passive=(names[1],), pose_t=c.t,
+                        pose=c.pose, system="purcell3", gait_hz=1.0)
+        search.observe(rec.slice(cfg.samples_per_cycle - 1, rec.n_samples))
+    mine = search.result()
+    assert [i.measured for i in mine.iterations] == [i.measured for i in res.iterations]
+    assert mine.stopped == res.stopped and same_gait(mine.gait, res.gait)
