@@ -25,6 +25,12 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   and the best gait when the budget is spent or the search converged.  The best gait is then
   commanded and left running.
 
+A changed robot: with ``watch`` (default) the node keeps re-measuring its incumbent after it
+converged, and a re-measurement ``change_sigmas`` standard errors off its standing value drops
+the old data and starts the search afresh on the robot as it is now (see
+:class:`~suds_ros.core.optimize.loop.GaitSearch`); with ``listen_monitor`` a ``suds/mismatch``
+channel of the monitor node entering ERROR says so directly.
+
 The model is local to a gait, so the node fits its own from each run's window (it does not use
 the estimator's model, which spans the switches). The fit and the step run in one spawned worker
 process, so the node keeps taking samples meanwhile. The start gait is ``start_gait`` (a gait
@@ -58,6 +64,7 @@ from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, R
 from suds_ros.core.physics.gait import Gait, check_gait, dump_gait, gait_limits, load_gait, nominal_gait
 from suds_ros.core.physics.systems import load_system
 from suds_ros.ros.conversions import (
+    diagnostics_from_msg,
     gait_switch_from_msg,
     gait_to_msg,
     gait_trajectory_msg,
@@ -68,7 +75,7 @@ from suds_ros.ros.conversions import (
 from suds_ros.ros.params import config_from_parameters
 from suds_ros.ros.qos import GAIT_QOS, STATUS_QOS, SWITCH_QOS
 from suds_ros.ros.runner import run_node
-from suds_ros.ros.topics import GAIT_COMMAND, GAIT_SWITCH, GAIT_TRAJECTORY, OPTIMIZER, POSE, SHAPE
+from suds_ros.ros.topics import GAIT_COMMAND, GAIT_SWITCH, GAIT_TRAJECTORY, MISMATCH, OPTIMIZER, POSE, SHAPE
 
 
 @dataclass(frozen=True)
@@ -86,6 +93,12 @@ class OptimizerNodeConfig:
     settle_cycles: int = setting(1, "cycles discarded after each switch (the fade and the transient)", ge=1)
     samples_per_cycle: int = setting(100, "pose samples per cycle the measurement interpolates onto", ge=8)
     seed: int = setting(0, "seed of the model's predictive draws", ge=0)
+    watch: bool = setting(True, "at convergence keep re-measuring the incumbent (until the budget is spent), so a "
+                                "changed robot is noticed")
+    change_sigmas: float = setting(2.5, "a re-measured incumbent this many standard errors off its standing value "
+                                        "means the robot changed", gt=0.0)
+    listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
+                                         "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
                                           "the switch one cycle after the command, for a robot that does not "
                                           "publish it)")
@@ -108,7 +121,8 @@ class OptimizerNodeConfig:
         return LoopConfig(budget_cycles=self.budget_cycles, seed=self.seed, objective=self.objective,
                           first_cycles=self.first_cycles, step_cycles=self.step_cycles,
                           settle_cycles=self.settle_cycles, order=self.order,
-                          samples_per_cycle=self.samples_per_cycle)
+                          samples_per_cycle=self.samples_per_cycle, watch=self.watch,
+                          change_sigmas=self.change_sigmas)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,
@@ -151,6 +165,9 @@ class OptimizerNode(Node):
         self._running: tuple[RunRequest, tuple[float, float, float]] | None = None
         self.done = False
         self.skipped = 0
+        self._changed: str | None = None  # a change said while the worker held the search
+        self._in_error = False
+        from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import JointState
         from std_msgs.msg import String
@@ -165,6 +182,8 @@ class OptimizerNode(Node):
         self.create_subscription(JointState, SHAPE, self._on_shape, qos)
         self.create_subscription(PoseStamped, POSE, self._on_pose, qos)
         self.create_subscription(String, GAIT_SWITCH, self._on_switch, SWITCH_QOS)
+        if params.listen_monitor:
+            self.create_subscription(DiagnosticArray, MISMATCH, self._on_mismatch, STATUS_QOS)
         self.create_timer(0.05, self._tick)
         self.get_logger().info(
             f"optimising {params.objective} of {s.name}: budget {params.budget_cycles} cycles, order {params.order}, "
@@ -200,6 +219,25 @@ class OptimizerNode(Node):
         w = self.live.on_switch(stamp, gait)
         if w is not None:
             self.get_logger().info(f"gait in force from stamp {stamp:.3f}: measuring [{w.start:.3f}, {w.end:.3f}] s")
+
+    def _on_mismatch(self, msg: Any) -> None:
+        try:
+            reports = diagnostics_from_msg(msg)
+        except SudsError:
+            self.skipped += 1
+            return
+        bad = [r.name.split("/")[-1] for r in reports if r.level >= 2]
+        if bad and not self._in_error:
+            self.robot_changed(f"the monitor's {', '.join(bad)} in ERROR")
+        self._in_error = bool(bad)
+
+    def robot_changed(self, reason: str) -> None:
+        """The robot changed: the search re-measures its incumbent afresh (after the running step, if any)."""
+        self.get_logger().warning(f"robot changed ({reason}): the incumbent gait is measured afresh")
+        if self._future is not None:
+            self._changed = reason
+        else:
+            self.live.search.robot_changed(reason)
 
     # ------------------------------------------------------------ the search
     def _tick(self) -> None:
@@ -248,6 +286,10 @@ class OptimizerNode(Node):
             self.get_logger().error(f"optimizer stopped: {exc}")
             self._finish(f"error: {exc}")
             return
+        if self._changed is not None:
+            live.search.robot_changed(self._changed)
+            self._changed = None
+            nxt = live.search.request()
         obj = self.params.objective
         self._status_pub.publish(self._string(data=iteration_json(it, req, live, window, obj)))
         self.get_logger().info(f"run {it.index} ({req.kind}): measured {obj} {it.measured.value(obj):.4g}, "

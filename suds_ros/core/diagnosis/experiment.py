@@ -136,9 +136,14 @@ def _as_effect(name: str, target: str | None, params: Mapping[str, float]) -> Ef
     return e
 
 
+def reported_effects(effects: Sequence[FittedEffect]) -> list[Effect]:
+    """The reported effects with their fitted parameters, as effect dicts for ``apply_effects``."""
+    return [_as_effect(e.name, e.target, e.parameters) for e in effects]
+
+
 def effect_sets(effects: Sequence[FittedEffect], alt: Alternative) -> tuple[list[Effect], list[Effect]]:
     """The reported set and the alternative set, as effect dicts for ``apply_effects``."""
-    reported = [_as_effect(e.name, e.target, e.parameters) for e in effects]
+    reported = reported_effects(effects)
     dropped = set(alt.instead_of)
     keep = [e for e in effects if _label([(e.name, e.target)]) not in dropped]
     other = [_as_effect(e.name, e.target, e.parameters) for e in keep]

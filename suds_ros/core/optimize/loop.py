@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -131,6 +131,15 @@ class LoopConfig:
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
         (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
         step planned at the bound often breaks it on the robot.
+    watch : bool
+        When the model predicts no gain (converged), run the incumbent again (its stretches pooled,
+        the change test above applied) instead of stopping, until the budget is spent: a deployed
+        robot keeps checking that its gait still is what it measured.
+    change_sigmas : float
+        The robot is taken to have changed when the incumbent, run again, measures more than this
+        many standard errors of the difference away from its standing measurement; and the
+        incumbent is run again at once after two rejected candidates in a row that each measured
+        more than this many standard errors below it (see :class:`GaitSearch`).  ``inf``: never.
     samples_per_cycle : int
         Samples per gait cycle of the simulated robot's recording.
     ou_std, kappa, noise_std : float
@@ -155,6 +164,8 @@ class LoopConfig:
     max_rotation: float = 0.05
     rotation_margin: float = 0.5
     accept_sigmas: float = 0.0
+    watch: bool = False
+    change_sigmas: float = 2.5
     samples_per_cycle: int = 100
     ou_std: float = 0.175
     kappa: float = 8.0
@@ -181,6 +192,7 @@ class LoopConfig:
                   ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("rotation_margin", 0 < self.rotation_margin <= 1, "in (0, 1]"),
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
+                  ("change_sigmas", self.change_sigmas > 0, "> 0"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
                   ("noise_std", self.noise_std >= 0, "≥ 0")]
@@ -226,7 +238,9 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     rotation is the same in any frame, so every start counts; this averages out the
     within-cycle yaw wiggle of the perturbations: on snake5 and purcell3 at the default OU
     drive its spread over 4-cycle windows was 0.6× and 0.3× that of cycle-start windows).
-    The standard errors are those of the consecutive cycles' values.
+    The standard errors are those of the consecutive cycles' values; the speed's is that of the
+    cycles' translations along their mean direction (|μ| changes to first order only with μ's
+    component along μ: a sideways sway per cycle, large in undulators, does not blur the speed).
 
     Parameters
     ----------
@@ -255,7 +269,13 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     rotation = float(np.mean(np.concatenate(turns)))
     if m > 1:
         sd = g.std(axis=0, ddof=1) / math.sqrt(m)
-        speed_se, rot_se = float(np.hypot(sd[0], sd[1]) * gait_hz), float(sd[2])
+        norm = math.hypot(mean[0], mean[1])
+        if norm > 0:  # |μ| moves with μ's component along itself (first order): the sideways sway does not count
+            along = g[:, :2] @ (mean[:2] / norm)
+            speed_se = float(along.std(ddof=1) / math.sqrt(m) * gait_hz)
+        else:
+            speed_se = float(np.hypot(sd[0], sd[1]) * gait_hz)
+        rot_se = float(sd[2])
     else:
         speed_se = rot_se = float("nan")
     return Measurement(speed=speed, rotation=rotation, turn=rotation * gait_hz, speed_se=speed_se,
@@ -342,9 +362,14 @@ class LoopResult:
 
 
 class _Robot:
-    """The simulated robot as the loop sees it: run a gait for whole cycles, get a recording."""
+    """The simulated robot as the loop sees it: run a gait for whole cycles, get a recording.
 
-    def __init__(self, system: SudsSystem, gait: Gait, cfg: LoopConfig) -> None:
+    ``changes``: (cycle, effects) pairs: from that many cycles run on, the robot is the nominal
+    system with those catalogue effects (:meth:`StreamingSimulator.set_effects`); the loop is not told.
+    """
+
+    def __init__(self, system: SudsSystem, gait: Gait, cfg: LoopConfig,
+                 changes: Sequence[tuple[int, Sequence[Mapping[str, object]]]] = ()) -> None:
         self.system, self.cfg = system, cfg
         self.spc = cfg.samples_per_cycle
         sim_cfg = SimConfig(cycles=1, samples_per_cycle=self.spc, gait_hz=gait.gait_hz, kappa=cfg.kappa,
@@ -355,6 +380,11 @@ class _Robot:
         self.passive = tuple(names[i] for i in system.passive)
         self.current: Gait | None = gait
         self.cycles_run = 0
+        self.changes = sorted((int(c), list(e)) for c, e in changes)
+        for c, e in self.changes:
+            if c < 0:
+                raise SudsConfigError(f"`changes`: expected cycles ≥ 0, got {c}")
+            StreamingSimulator(system, sim_cfg).set_effects(e)  # a bad effect is refused before the run
 
     def run(self, gait: Gait, cycles: int) -> tuple[Recording, bool]:
         """``cycles`` cycles of ``gait`` (switched in at this cycle boundary); True if it was already running."""
@@ -362,11 +392,20 @@ class _Robot:
         if not same:
             self.sim.set_gait(gait)
             self.current = gait
-        chunk = self.sim.step(cycles * self.spc)
-        self.cycles_run += cycles
-        rec = Recording(t=chunk.t, r=chunk.r, joint_names=self.system.joint_names, actuated=self.actuated,
-                        passive=self.passive, pose_t=chunk.t, pose=chunk.pose, system=self.system.name,
-                        gait_hz=gait.gait_hz)
+        chunks = []
+        left = cycles
+        while left:
+            while self.changes and self.changes[0][0] <= self.cycles_run:
+                self.sim.set_effects(self.changes.pop(0)[1])
+            k = left if not self.changes else min(left, self.changes[0][0] - self.cycles_run)
+            chunks.append(self.sim.step(k * self.spc))
+            self.cycles_run += k
+            left -= k
+        t = np.concatenate([c.t for c in chunks])
+        pose = np.concatenate([c.pose for c in chunks])
+        rec = Recording(t=t, r=np.concatenate([c.r for c in chunks]), joint_names=self.system.joint_names,
+                        actuated=self.actuated, passive=self.passive, pose_t=t, pose=pose,
+                        system=self.system.name, gait_hz=gait.gait_hz)
         return rec, same
 
 
@@ -386,6 +425,41 @@ def _feasible(m: Measurement, cfg: LoopConfig, speed_floor: float) -> tuple[bool
 def _value_se(m: Measurement, objective: str) -> float:
     """Standard error of the measured objective (turn: of the rotation, · f)."""
     return m.rotation_se * abs(m.turn / m.rotation) if objective == "turn" and m.rotation else m.speed_se
+
+
+def _sigmas(new: float, old: float, se_new: float, se_old: float) -> float:
+    """|new − old| in standard errors of the difference (0 when they are not known)."""
+    se = math.hypot(se_new, se_old)
+    return abs(new - old) / se if math.isfinite(se) and se > 0 else 0.0
+
+
+def _moved(new: Measurement, old: Measurement, cfg: LoopConfig) -> str:
+    """How the same gait's new measurement left its standing one (speed or rotation), or '' if it did not."""
+    ds = _sigmas(new.speed, old.speed, new.speed_se, old.speed_se)
+    dr = _sigmas(new.rotation, old.rotation, new.rotation_se, old.rotation_se)
+    if max(ds, dr) <= cfg.change_sigmas:
+        return ""
+    if ds >= dr:
+        return f"speed {new.speed - old.speed:+.4g} m/s ({ds:.1f} se)"
+    return f"rotation {new.rotation - old.rotation:+.4g} rad/cycle ({dr:.1f} se)"
+
+
+def _surprise(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: float) -> bool:
+    """Whether a rejected candidate is far worse than the incumbent (a sign the robot changed).
+
+    Far worse: its objective more than ``change_sigmas`` se lower, or outside the side bound by
+    that much while the incumbent is within it.
+    """
+    obj = cfg.objective
+    if _sigmas(new.value(obj), old.value(obj), _value_se(new, obj), _value_se(old, obj)) > cfg.change_sigmas \
+            and new.value(obj) < old.value(obj):
+        return True
+    if not _feasible(old, cfg, speed_floor)[0] or _feasible(new, cfg, speed_floor)[0]:
+        return False
+    if obj == "turn":
+        return _sigmas(new.speed, speed_floor, new.speed_se, 0.0) > cfg.change_sigmas
+    bound = math.copysign(cfg.max_rotation, new.rotation)
+    return _sigmas(new.rotation, bound, new.rotation_se, 0.0) > cfg.change_sigmas
 
 
 def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: float = 0.0) -> bool:
@@ -430,6 +504,16 @@ class GaitSearch:
     cycles of the requested run, its settling cycles already cut).  Every requested run's cycles
     count against ``budget_cycles``.
 
+    A robot that changes (damage, a new medium) makes the incumbent's measurement stale: every
+    candidate is then judged against a value the robot no longer reaches.  So the incumbent is
+    run again (a ``rerun``) when the trust region collapses, when the model predicts no gain, after
+    two rejected candidates in a row that each measured more than ``change_sigmas`` standard errors
+    below it, and when :meth:`robot_changed` is called (the live monitor's alarm).  A rerun that
+    measures more than ``change_sigmas`` standard errors away from the standing measurement (or
+    any rerun after :meth:`robot_changed`) *replaces* the incumbent's data: the old stretches are
+    dropped, and the model and the search start afresh on the changed robot.  Otherwise the
+    stretches are pooled.
+
     Parameters
     ----------
     start : Gait
@@ -455,6 +539,10 @@ class GaitSearch:
         self._kappa = config.trust
         self._model: LearnedModel | None = None
         self._rejected: list[Gait] = []
+        self._low_streak = 0  # rejected candidates in a row that measured far below the incumbent
+        self._fresh = False  # the next rerun replaces the incumbent's data (robot_changed)
+        self._change_reason = ""
+        self.changes: list[int] = []  # iterations at which a changed robot was taken
         self._pending: RunRequest | None = RunRequest(start, config.settle_cycles + config.first_cycles, "start",
                                                       "start gait")
 
@@ -462,6 +550,27 @@ class GaitSearch:
     def best(self) -> Gait:
         """The incumbent: the best gait measured so far (the start gait before any measurement)."""
         return self._best_gait
+
+    def robot_changed(self, reason: str) -> None:
+        """Say the robot has changed: the incumbent is measured afresh next (its old data dropped).
+
+        A run already requested stays requested (it may be running); the re-measurement follows it.
+        Ignored before the start gait is measured and after the search stopped.
+        """
+        if self._best_meas is None or self.stopped is not None:
+            return
+        self._fresh = True
+        self._change_reason = reason
+        if self._pending is None:
+            self._pending = self._rerun(f"robot changed: {reason}")
+
+    def _rerun(self, note: str) -> RunRequest | None:
+        """The incumbent again, if the budget holds it (else the search stops)."""
+        n = self.config.settle_cycles + self.config.step_cycles
+        if self.cycles_used + n > self.config.budget_cycles:
+            self.stopped = f"{note}; no budget to re-run the incumbent"
+            return None
+        return RunRequest(self._best_gait, n, "rerun", note)
 
     def request(self) -> RunRequest | None:
         """The run wanted next (the same one until it is observed); None once the search has stopped."""
@@ -490,11 +599,13 @@ class GaitSearch:
                                                                  step.recorded_value, step.recorded_std)
         if not step.step_taken:
             if kappa >= cfg.trust:
-                self.stopped = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
+                converged = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
+                if cfg.watch:
+                    return self._rerun(f"{converged}; watching the incumbent")
+                self.stopped = converged
                 return None
             # a shrunken region with no predicted gain: more data on the incumbent instead
-            return RunRequest(self._best_gait, n, "rerun",
-                              f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}")
+            return self._rerun(f"no gain predicted inside the shrunken trust region κ = {step.trust_radius:.3g}")
         cand = step.gait
         x = cand.to_vector(cfg.order)
         if any(np.allclose(x, g.to_vector(cfg.order), rtol=0, atol=1e-9) for g in self._rejected):
@@ -517,8 +628,7 @@ class GaitSearch:
             raise SudsConfigError("`data`: expected the cycles of a requested run, but no run is requested "
                                   f"({self.stopped or 'call request() first'})", code=NO_REQUEST)
         cfg = self.config
-        meas = measure_recording([*self._best_data, data] if req.kind == "rerun" else data,
-                                 cfg.samples_per_cycle, req.gait.gait_hz)
+        meas = measure_recording(data, cfg.samples_per_cycle, req.gait.gait_hz)
         self._pending = None
         self.cycles_used += req.cycles
         if req.kind == "start":
@@ -528,20 +638,35 @@ class GaitSearch:
                                predicted=None, predicted_std=None, predicted_incumbent=None, measured=meas,
                                accepted=True, trust=None, trust_used=None, note=req.note)
         elif req.kind == "rerun":
-            self._best_data.append(data)
-            self._best_meas = meas
-            self._model, self._kappa, self._rejected = None, cfg.trust, []
-            it = LoopIteration(index=len(self.iterations), gait=self._best_gait, cycles=req.cycles,
-                               cycles_used=self.cycles_used, predicted=self._best_pred, predicted_std=None,
-                               predicted_incumbent=None, measured=meas, accepted=True, trust=None, trust_used=None,
-                               note=f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, "
-                                    f"measured again, model refitted, trust → {self._kappa:.3g}")
-            self._best_index = it.index
+            it = self._rerun_done(req, meas, data)
         else:
             it = self._judge(req, meas, data)
         self.iterations.append(it)
         if self._log is not None:
             self._log(it)
+        return it
+
+    def _rerun_done(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
+        """Pool the incumbent's new stretch with its old ones, or replace them when the robot changed."""
+        cfg, old = self.config, self._best_meas
+        assert old is not None
+        moved = _moved(meas, old, cfg)
+        if self._fresh or moved:
+            why = f"said changed: {self._change_reason}" if self._fresh else f"measured {moved} from its standing value"
+            self._best_data, self._best_meas, self._best_pred = [data], meas, None
+            self.changes.append(len(self.iterations))
+            note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
+        else:
+            self._best_data.append(data)
+            self._best_meas = measure_recording(self._best_data, cfg.samples_per_cycle, req.gait.gait_hz)
+            note = f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, measured again"
+        self._fresh, self._low_streak = False, 0
+        self._model, self._kappa, self._rejected = None, cfg.trust, []
+        it = LoopIteration(index=len(self.iterations), gait=self._best_gait, cycles=req.cycles,
+                           cycles_used=self.cycles_used, predicted=self._best_pred, predicted_std=None,
+                           predicted_incumbent=None, measured=self._best_meas, accepted=True, trust=None,
+                           trust_used=None, note=f"{note}, model refitted, trust → {self._kappa:.3g}")
+        self._best_index = it.index
         return it
 
     def _judge(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
@@ -561,8 +686,9 @@ class GaitSearch:
                 self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {self._kappa:.3g}"
             self._best_gait, self._best_meas, self._best_data = cand, meas, [data]
+            self._fresh = False  # measured on the robot as it is now
             self._best_index, self._best_pred = len(self.iterations), step.value
-            self._model, self._rejected = None, []
+            self._model, self._rejected, self._low_streak = None, [], 0
         else:
             self._kappa *= cfg.shrink
             self._rejected.append(cand)
@@ -571,13 +697,18 @@ class GaitSearch:
                          if cfg.objective != "turn" else "measured speed under the start gait's"))
             note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
                     f"trust → {self._kappa:.3g}")
-            if self._kappa < cfg.trust_min:
+            low = _surprise(meas, old, cfg, self._speed_floor)
+            self._low_streak = self._low_streak + 1 if low else 0
+            rerun = None
+            if self._fresh:
+                rerun = f"robot changed: {self._change_reason}"
+            elif self._low_streak >= 2:
+                rerun = (f"two candidates in a row measured over {cfg.change_sigmas:g} se below the incumbent: "
+                         "is it still as good?")
+            elif self._kappa < cfg.trust_min:
                 rerun = f"trust region below {cfg.trust_min:g} σ after rejected steps"
-                n = cfg.settle_cycles + cfg.step_cycles
-                if self.cycles_used + n > cfg.budget_cycles:
-                    self.stopped = f"{rerun}; no budget to re-run the incumbent"
-                else:
-                    self._pending = RunRequest(self._best_gait, n, "rerun", rerun)
+            if rerun is not None:
+                self._pending = self._rerun(rerun)
         return LoopIteration(index=len(self.iterations), gait=cand, cycles=req.cycles, cycles_used=self.cycles_used,
                              predicted=step.value, predicted_std=step.value_std,
                              predicted_incumbent=step.recorded_value, measured=meas, accepted=accepted,
@@ -608,7 +739,8 @@ class GaitSearch:
 
 def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
                   limits: GaitLimits | None = None,
-                  log: Callable[[LoopIteration], None] | None = None) -> LoopResult:
+                  log: Callable[[LoopIteration], None] | None = None,
+                  changes: Sequence[tuple[int, Sequence[Mapping[str, object]]]] = ()) -> LoopResult:
     """Run → fit → step on the simulated ``system`` until ``config.budget_cycles`` are spent (module docstring).
 
     Parameters
@@ -622,18 +754,21 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
         Joint bounds (default :func:`~suds_ros.core.physics.gait.gait_limits` of the robot).
     log : callable, optional
         Called with each :class:`LoopIteration` as it ends.
+    changes : sequence of (cycle, effects)
+        The robot changes mid-run, unannounced: from ``cycle`` cycles run on it is the nominal
+        system with ``effects`` (catalogue effects, ``shared/spec/effects.md``; ``[]``: nominal again).
 
     Raises
     ------
     SudsConfigError
-        A start gait of other joints, or outside the bounds (code ``gait_constraint``).
+        A start gait of other joints, or outside the bounds (code ``gait_constraint``); a bad change.
     """
     t0 = time.perf_counter()
     cfg = config
     gait = nominal_gait(system) if start is None else check_gait(start, system, "start")
     limits = gait_limits(system) if limits is None else limits
     search = GaitSearch(gait, limits, cfg, log=log)
-    robot = _Robot(system, gait, cfg)
+    robot = _Robot(system, gait, cfg, changes)
     while (req := search.request()) is not None:
         rec, _ = robot.run(req.gait, req.cycles)
         search.observe(_trim(rec, cfg.settle_cycles, robot.spc))

@@ -181,3 +181,40 @@ def test_the_offline_loop_is_the_same_search(purcell3) -> None:  # type: ignore[
     mine = search.result()
     assert [i.measured for i in mine.iterations] == [i.measured for i in res.iterations]
     assert mine.stopped == res.stopped and same_gait(mine.gait, res.gait)
+
+
+def test_a_robot_that_changes_mid_run_is_noticed_and_measured_afresh(purcell3) -> None:  # type: ignore[no-untyped-def]
+    """The spring 3× stiffer against the drag after cycle 30 halves the speed, unannounced: a re-run of the incumbent
+    measures off its standing value, so its old data are dropped and the search goes on from the robot as it is."""
+    change = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
+    res = optimize_loop(purcell3, LoopConfig(budget_cycles=50, seed=0, watch=True), changes=[(30, change)])
+    taken = [it for it in res.iterations if "the robot changed" in it.note]
+    assert taken and taken[0].cycles_used - 30 <= 10, [it.note for it in res.iterations]
+    assert all(it.cycles_used - it.cycles >= 30 for it in taken)  # never before the change
+    assert taken[0].measured.speed < 0.06  # measured afresh on the changed robot (its limit is 0.043 m/s)
+    assert res.index >= taken[0].index  # the gait returned was measured on the changed robot
+    # the same run unchanged: nothing taken for a change
+    same = optimize_loop(purcell3, LoopConfig(budget_cycles=50, seed=0, watch=True))
+    assert not [it for it in same.iterations if "the robot changed" in it.note]
+
+
+def test_robot_changed_drops_the_incumbents_data_at_its_next_rerun(purcell3) -> None:  # type: ignore[no-untyped-def]
+    cfg = LoopConfig(budget_cycles=40, seed=0)
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
+    search.robot_changed("before anything was measured")  # nothing to make stale: ignored
+    sim = _stream(purcell3)
+    names = purcell3.joint_names
+
+    def run(req):  # type: ignore[no-untyped-def]
+        c = sim.step(req.cycles * SPC)
+        return Recording(t=c.t, r=c.r, joint_names=names, actuated=(names[0],), passive=(names[1],), pose_t=c.t,
+                         pose=c.pose, system="purcell3", gait_hz=1.0).slice(SPC - 1, req.cycles * SPC)
+
+    search.observe(run(search.request()))
+    search.robot_changed("the monitor's xi_x in ERROR")
+    req = search.request()
+    assert req.kind == "rerun" and "robot changed: the monitor's xi_x in ERROR" in req.note
+    it = search.observe(run(req))
+    assert "said changed" in it.note and search.changes == [1] and it.measured.cycles == 4  # old cycles dropped
+    with pytest.raises(SudsConfigError, match="`joint`"):
+        optimize_loop(purcell3, cfg, changes=[(5, [{"name": "joint_viscous_damping", "joint": "nope", "d": 1.0}])])

@@ -1,0 +1,159 @@
+"""Adaptation measured: the run → fit → step loop on a robot that changes mid-run, unannounced.
+
+The simulated robot (default OU perturbation, 100 Hz, 1 mm / 1 mrad noise, seeded) starts from
+its nominal gait; after ``change`` cycles it becomes the nominal system with catalogue effects
+(``optimize_loop(..., changes=...)``: the loop is not told).  The loop runs with ``watch`` on
+(at convergence it keeps re-measuring its incumbent, as a deployed robot would) and its default
+change test (``change_sigmas`` = 2.5).  After the run every incumbent is evaluated on the physics
+in force at that cycle (before the change the nominal, after it the changed one) at its passive
+periodic steady state; the limits are the physics optimiser's best gaits (order 3, 4 starts) on
+the nominal and the changed physics.
+
+    python benchmarks/optimize_adapt.py run purcell3 snake5     # → docs/results/optimize_adapt_<case>.json
+    python benchmarks/optimize_adapt.py report                  # → docs/results/optimize_adapt.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from _common import RESULTS, machine, stamp, write
+
+from suds_ros.core.json_text import dumps
+from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
+from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
+from suds_ros.core.physics.effects import apply_effects
+from suds_ros.core.physics.gait import gait_limits, nominal_gait
+from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.systems import load_system
+
+#: case: (robot spec, cycle of the change, effects, budget, what the change stands for)
+CASES = {
+    "purcell3": ("purcell3", 30, [{"name": "stiffness_to_drag_error", "scale": 3.0}], 70,
+                 "the passive spring 3× stiffer against the drag (a colder, stiffer material): about half as fast"),
+    "snake5": ("/work/shared/robots/snake5.yaml", 40, [{"name": "spring_rest_offset", "joint": "joint_3",
+                                                        "offset": 0.7}], 80,
+               "joint_3's spring rest bent by 0.7 rad (damage): the old gait curves off the straight course"),
+}
+AFTER = (5, 10, 15, 20, 30, 40)  # cycles after the change at which the incumbent is read
+
+
+def _true(system, gait):  # type: ignore[no-untyped-def]
+    e = evaluate_gait(system, gait)
+    return {"speed": e["speed"], "rotation": e["rotation"]}
+
+
+def run(name: str, seeds: list[int]) -> None:
+    spec, change, effects, budget, _ = CASES[name]
+    nominal = load_system(spec)
+    changed = RFTChain(apply_effects(nominal.model, effects)[0])  # type: ignore[attr-defined]
+    t0 = time.perf_counter()
+    limit_old = optimize_gait(nominal, OptimizeConfig(order=3, starts=4))
+    limit_new = optimize_gait(changed, OptimizeConfig(order=3, starts=4))
+    doc = {"case": name, "robot": spec, "change": change, "effects": effects, "budget": budget,
+           "limit_old": limit_old.value, "limit_new": limit_new.value,
+           "old_best_on_new": _true(changed, limit_old.gait), "limit_seconds": time.perf_counter() - t0,
+           "runs": []}
+    print(f"{name}: limits {limit_old.value:.5f} → {limit_new.value:.5f}; the old best gait on the changed robot "
+          f"{doc['old_best_on_new']['speed']:.5f} (rotation {doc['old_best_on_new']['rotation']:+.3f})", flush=True)
+    limits = gait_limits(nominal)
+    for seed in seeds:
+        t1 = time.perf_counter()
+        res = optimize_loop(nominal, LoopConfig(budget_cycles=budget, seed=seed, watch=True),
+                            start=nominal_gait(nominal), limits=limits, changes=[(change, effects)])
+        rows, incumbent = [], None
+        for it in res.iterations:
+            before = it.cycles_used - it.cycles  # the run's first cycle
+            physics = nominal if it.cycles_used <= change else changed
+            if it.accepted:
+                incumbent = it.gait
+            rows.append({"index": it.index, "cycles_used": it.cycles_used, "first_cycle": before,
+                         "accepted": it.accepted, "note": it.note, "measured": it.measured.speed,
+                         "measured_rotation": it.measured.rotation,
+                         "incumbent_true_old": _true(nominal, incumbent),
+                         "incumbent_true_new": _true(changed, incumbent),
+                         "physics": "nominal" if physics is nominal else "changed"})
+        doc["runs"].append({"seed": seed, "rows": rows, "cycles_used": res.cycles_used, "stopped": res.stopped,
+                            "seconds": time.perf_counter() - t1,
+                            "returned_true_new": _true(changed, res.gait)})
+        print(f"  seed {seed}: {res.cycles_used} cycles, {time.perf_counter() - t1:.0f} s; {res.stopped}", flush=True)
+        (RESULTS / f"optimize_adapt_{name}.json").write_text(dumps(doc))
+
+
+def _incumbent_at(rows: list[dict], cycle: int) -> dict | None:
+    """The incumbent in force once ``cycle`` cycles were run (the last iteration ended by then)."""
+    done = [r for r in rows if r["cycles_used"] <= cycle]
+    return done[-1] if done else None
+
+
+def _pct(v: float, limit: float) -> str:
+    return f"{100 * v / limit:.1f}"
+
+
+def report() -> None:
+    lines = ["# Adaptation: the loop on a robot that changes mid-run", "",
+             f"Measured {stamp()} on {machine()} by `benchmarks/optimize_adapt.py`.", "",
+             "The robot changes unannounced after the given cycle; the loop (`optimize_loop`, defaults, `watch` on, "
+             "change test at 2.5 se) must notice from its own measurements.  Percentages are of the limit of the "
+             "physics in force: a gait's true speed at its passive periodic steady state over the physics "
+             "optimiser's best (order 3, 4 starts).  'rotation' is the true net rotation per cycle of the "
+             "incumbent on the changed robot (the speed objective's straight-course bound is 0.05 rad/cycle).", ""]
+    for name in CASES:
+        path = RESULTS / f"optimize_adapt_{name}.json"
+        if not path.exists():
+            continue
+        doc = json.loads(path.read_text())
+        lo, ln, c = doc["limit_old"], doc["limit_new"], doc["change"]
+        ob = doc["old_best_on_new"]
+        lines += [f"## {name}: {CASES[name][4]}", "",
+                  f"Effects {json.dumps(doc['effects'])} from cycle {c}; budget {doc['budget']} cycles.  Limits: "
+                  f"{lo:.5f} m/s before, {ln:.5f} m/s after; the old physics' best gait on the changed robot: "
+                  f"{_pct(ob['speed'], ln)} % of the new limit, rotation {ob['rotation']:+.3f} rad/cycle.", "",
+                  "| seed | before the change (% of old limit) | right after (same gait, % of new limit; rotation) | "
+                  + " | ".join(f"+{a} cycles" for a in AFTER) + " | change taken at (cycles after) | stopped |",
+                  "|---" * (5 + len(AFTER)) + "|"]
+        for r in doc["runs"]:
+            rows = r["rows"]
+            before = _incumbent_at(rows, c)
+            cells = [str(r["seed"]),
+                     _pct(before["incumbent_true_old"]["speed"], lo) if before else "—",
+                     (f"{_pct(before['incumbent_true_new']['speed'], ln)}; "
+                      f"{before['incumbent_true_new']['rotation']:+.3f}") if before else "—"]
+            for a in AFTER:
+                at = _incumbent_at(rows, c + a)
+                if at is None or at["cycles_used"] <= c:
+                    cells.append("(no run ended)")
+                else:
+                    new = at["incumbent_true_new"]
+                    cells.append(f"{_pct(new['speed'], ln)}; {new['rotation']:+.3f}")
+            taken = [row for row in rows if "robot changed" in row["note"] and row["cycles_used"] > c]
+            cells.append(str(taken[0]["cycles_used"] - c) if taken else "never")
+            cells.append(r["stopped"])
+            lines.append("| " + " | ".join(cells) + " |")
+        lines += ["", "Runs (seed 0):", "", "| run | cycles | accepted | measured speed | measured rotation | note |",
+                  "|---|---|---|---|---|---|"]
+        for row in doc["runs"][0]["rows"]:
+            lines.append(f"| {row['index']} | {row['cycles_used']} | {'yes' if row['accepted'] else 'no'} | "
+                         f"{row['measured']:.4f} | {row['measured_rotation']:+.3f} | {row['note']} |")
+        lines.append("")
+    write("optimize_adapt.md", "\n".join(lines) + "\n")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("cases", nargs="+", choices=sorted(CASES))
+    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    sub.add_parser("report")
+    args = p.parse_args()
+    if args.cmd == "run":
+        for name in args.cases:
+            run(name, args.seeds)
+    report()
+
+
+if __name__ == "__main__":
+    main()
