@@ -23,6 +23,8 @@ examples:
   suds optimize --physics --model robot.yaml --objective turn --order 2 -o turn.yaml --json
   suds simulate purcell3 --gait p3_fast.yaml -o fast.mcap                # run the gait it wrote
   suds optimize --simulate purcell3 --budget-cycles 30 --seed 0 -o p3_loop.yaml   # the offline loop
+  suds optimize --simulate purcell3 --budget-cycles 60 --watch -o p3.yaml \
+      --change '30:[{"name": "stiffness_to_drag_error", "scale": 3.0}]'           # a robot that changes
 
 The objective is read at the passive periodic steady state (shared/spec/gait.md): speed (m/s)
 at a net rotation ≤ 0.05 rad per cycle, turn (rad/s) at a speed ≥ the nominal gait's,
@@ -52,6 +54,10 @@ stops when the next candidate would overrun --budget-cycles (every cycle run cou
 model predicts no gain, or when the trust region has shrunk below its floor, and writes the
 best gait it measured.  The physics optimiser's limit is computed for comparison with
 --limit yes (default auto: only for robots of at most 5 joints, where it takes seconds).
+--change CYCLE:EFFECTS changes the simulated robot unannounced after CYCLE cycles (adaptation):
+the loop notices it from its own measurements (an incumbent re-measured off its standing value
+drops its old data); --watch keeps it re-measuring after convergence instead of stopping.  With
+changes, the returned gait and the limit are judged on the robot as it is at the end.
 """
 
 
@@ -68,6 +74,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="--simulate: gait cycles the robot may run in all (required with --simulate)")
     p.add_argument("--step-cycles", type=int, default=4, metavar="N",
                    help="--simulate: measured cycles of each candidate gait, ≥ 4 (default 4)")
+    p.add_argument("--watch", action="store_true",
+                   help="--simulate: at convergence keep re-measuring the incumbent until the budget is spent")
+    p.add_argument("--change", action="append", default=[], metavar="CYCLE:EFFECTS",
+                   help="--simulate: the robot changes unannounced after CYCLE cycles to the nominal model with "
+                        "EFFECTS (a JSON list of catalogue effects); repeatable")
     p.add_argument("--first-cycles", type=int, default=5, metavar="N",
                    help="--simulate: measured cycles of the start gait, ≥ 4 (default 5)")
     p.add_argument("--limit", choices=("auto", "yes", "no"), default="auto",
@@ -285,10 +296,11 @@ def _loop(args: argparse.Namespace) -> int:
         if not Path(args.start).is_file():
             raise SudsConfigError(f"--start: no such file {args.start!r}")
         start = load_gait(args.start, system)
+    changes = [_change(text) for text in args.change]
     try:
         cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
-                         first_cycles=args.first_cycles, step_cycles=args.step_cycles)
+                         first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None
@@ -298,19 +310,20 @@ def _loop(args: argparse.Namespace) -> int:
     def text_line(it: LoopIteration) -> None:
         print(_iteration_text(it, key), file=sys.stderr, flush=True)
 
-    res = optimize_loop(system, cfg, start=start, log=None if args.json else text_line)
+    judge = _changed_robot(system, changes)  # the robot as it is at the end
+    res = optimize_loop(system, cfg, start=start, log=None if args.json else text_line, changes=changes)
     save_gait(res.gait, out)
     load_gait(out, system)  # it loads back
 
     # judged afterwards on the physics (never seen by the loop)
     def true_value(g: object) -> float:
-        v = evaluate_gait(system, g)  # type: ignore[arg-type]
+        v = evaluate_gait(judge, g)  # type: ignore[arg-type]
         return abs(v["turn"]) if key == "turn" else v[key]
 
     true_final, true_start = true_value(res.gait), true_value(res.iterations[0].gait)
     limit, limit_note = None, "skipped: --limit no"
     if args.limit == "yes" or (args.limit == "auto" and len(system.joint_names) <= CHEAP_LIMIT_JOINTS):
-        limit = optimize_gait(system, OptimizeConfig(objective=key, order=args.order, seed=args.seed)).value
+        limit = optimize_gait(judge, OptimizeConfig(objective=key, order=args.order, seed=args.seed)).value
         limit_note = "the physics optimiser (order {}, 4 starts)".format(args.order)
     elif args.limit == "auto":
         limit_note = (f"skipped: {len(system.joint_names)} joints > {CHEAP_LIMIT_JOINTS} (minutes on 2 cores; "
@@ -320,6 +333,8 @@ def _loop(args: argparse.Namespace) -> int:
         print(dumps({
             "objective": key, "gait": str(out), "system": system.name, "order": args.order, "seed": args.seed,
             "budget_cycles": args.budget_cycles, "cycles_used": res.cycles_used, "stopped": res.stopped,
+            "changes": [{"cycle": c, "effects": e} for c, e in changes],
+            "changes_taken": [res.iterations[i].cycles_used for i in _taken(res)],
             "predicted": res.predicted, "measured": m.value(key),
             "measured_detail": _measurement(m), "simulated": {"returned": true_final, "start": true_start},
             "limit": limit, "limit_note": limit_note,
@@ -344,6 +359,47 @@ def _loop(args: argparse.Namespace) -> int:
     if not limit:
         print(f"  physics limit {limit_note}")
     return 0
+
+
+def _change(text: str) -> tuple[int, list[dict[str, object]]]:
+    """Parse ``--change CYCLE:EFFECTS`` (EFFECTS a JSON list of catalogue effects)."""
+    import json
+
+    cycle, sep, effects = text.partition(":")
+    try:
+        n = int(cycle)
+        doc = json.loads(effects)
+        if not sep or n < 0 or not isinstance(doc, list) or not all(isinstance(e, dict) for e in doc):
+            raise ValueError
+    except ValueError:
+        raise SudsConfigError(f"--change: expected CYCLE:[{{effect}}, ...] with CYCLE ≥ 0 and a JSON list of "
+                              f"effects, got {text!r}") from None
+    return n, doc
+
+
+def _changed_robot(system: object, changes: list[tuple[int, list[dict[str, object]]]]) -> object:
+    """The robot after the last change (each change checked against it first), or ``system`` without changes."""
+    from suds_ros.core.physics.effects import apply_effects
+    from suds_ros.core.physics.rft import ChainModel, RFTChain
+
+    if not changes:
+        return system
+    model = getattr(system, "model", None)
+    if not isinstance(model, ChainModel):
+        raise SudsConfigError(f"--change: only RFT chain robots take effects, got {getattr(system, 'name', system)!r}")
+    for _, effects in changes:
+        try:
+            changed, delay = apply_effects(model, effects)
+        except SudsConfigError as exc:
+            raise SudsConfigError(f"--change: {exc}", code=exc.code) from None
+        if delay:
+            raise SudsConfigError("--change: sensor_time_offset cannot change a running robot")
+    return RFTChain(changed) if changes[-1][1] else system
+
+
+def _taken(res: object) -> list[int]:
+    """Indices of the iterations at which the loop took the robot to have changed."""
+    return [it.index for it in res.iterations if "the robot changed" in it.note]  # type: ignore[attr-defined]
 
 
 def _measurement(m: Measurement) -> dict[str, object]:

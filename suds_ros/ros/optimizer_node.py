@@ -282,9 +282,10 @@ class OptimizerNode(Node):
         live = self.live
         try:
             live.search, it, nxt = fut.result()
-        except SudsError as exc:
-            self.get_logger().error(f"optimizer stopped: {exc}")
-            self._finish(f"error: {exc}")
+        except Exception as exc:  # noqa: BLE001 - a failed step ends the search, never the node
+            why = str(exc) if isinstance(exc, SudsError) else f"{type(exc).__name__}: {exc}"
+            self.get_logger().error(f"optimizer stopped: {why}")
+            self._finish(f"error: {why}")
             return
         if self._changed is not None:
             live.search.robot_changed(self._changed)

@@ -101,6 +101,17 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert "[0] cycles   6" in cap.err and "after 6 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
 
 
+def test_loop_on_a_robot_that_changes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    change = '30:[{"name": "stiffness_to_drag_error", "scale": 3.0}]'
+    assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "45", "--seed", "0", "--watch",
+                 "--change", change, "--limit", "no", "-o", str(tmp_path / "c.yaml"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["changes"] == [{"cycle": 30, "effects": [{"name": "stiffness_to_drag_error", "scale": 3.0}]}]
+    assert doc["changes_taken"] and all(30 < c <= 45 for c in doc["changes_taken"])
+    # judged on the robot as it is at the end: about half as fast as the nominal purcell3 (limit 0.043 m/s)
+    assert doc["simulated"]["returned"] < 0.05
+
+
 @pytest.mark.parametrize("argv, message", [
     (["optimize", "--simulate", "purcell3", "-o", "{tmp}/g.yaml"], "--budget-cycles: required with --simulate"),
     (["optimize", "--simulate", "purcell3", "--system", "purcell3", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
@@ -114,6 +125,12 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     (["optimize", "--physics", "--system", "purcell3", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
      "--budget-cycles: only with --simulate"),
     (["optimize", "--simulate", "nosuch", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"], "unknown system 'nosuch'"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--change", "x:[]", "-o", "{tmp}/g.yaml"],
+     "--change: expected CYCLE:[{effect}, ...]"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--change", '3:[{"name": "nope"}]',
+      "-o", "{tmp}/g.yaml"], "--change: "),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--change",
+      '3:[{"name": "joint_viscous_damping", "joint": "joint_1", "d": 1}]', "-o", "{tmp}/g.yaml"], "--change: "),
 ])
 def test_loop_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
                                   message: str) -> None:

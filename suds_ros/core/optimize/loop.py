@@ -88,6 +88,8 @@ from suds_ros.core.recording import Recording
 
 BUDGET_TOO_SMALL = "budget_too_small"
 NO_REQUEST = "no_request"
+#: stretches of the incumbent pooled at most (the newest)
+MAX_STRETCHES = 8
 
 
 @dataclass(frozen=True)
@@ -656,8 +658,8 @@ class GaitSearch:
             self._best_data, self._best_meas, self._best_pred = [data], meas, None
             self.changes.append(len(self.iterations))
             note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
-        else:
-            self._best_data.append(data)
+        else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
+            self._best_data = [*self._best_data, data][-MAX_STRETCHES:]
             self._best_meas = measure_recording(self._best_data, cfg.samples_per_cycle, req.gait.gait_hz)
             note = f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, measured again"
         self._fresh, self._low_streak = False, 0
