@@ -59,7 +59,7 @@ import numpy as np
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.optimize.data import (
     DataOptimizeConfig,
     LearnedCycle,
@@ -594,7 +594,12 @@ class GaitSearch:
         dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
                                   min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(self.iterations),
                                   max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre)
-        step = optimize_from_data(self._model, dcfg, limits=self.limits, start=self._best_gait)
+        try:
+            step = optimize_from_data(self._model, dcfg, limits=self.limits, start=self._best_gait)
+        except (SudsDataError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            # the model of so few cycles has no steady state even at the incumbent: more data on it
+            self._model = None
+            return self._rerun(f"the incumbent's model cannot be used ({exc})")
         if self._best_pred is None:
             self._best_pred = step.recorded_value
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],

@@ -47,7 +47,7 @@ from scipy.optimize import minimize
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.gait import (
     DEFAULT_MAX_ORDER,
     MAX_ORDER,
@@ -418,9 +418,10 @@ class SteadyStateProblem:
             try:
                 with np.errstate(all="ignore"):
                     self._evaluate(x)
-            except (FloatingPointError, np.linalg.LinAlgError):
+            except (FloatingPointError, np.linalg.LinAlgError, SudsDataError):
                 # a trial point without a steady state (far outside the bounds, or the integration
-                # broke down): much worse than anything seen and infeasible, so the line search backs off
+                # broke down; a learned model refuses the non-finite states it led to): much worse
+                # than anything seen and infeasible, so the line search backs off
                 self.failed += 1
                 self._val = np.array([10.0] + [-1.0] * self._nc)
                 self._grad = np.zeros((self.free.size, 1 + self._nc))

@@ -218,3 +218,33 @@ def test_robot_changed_drops_the_incumbents_data_at_its_next_rerun(purcell3) -> 
     assert "said changed" in it.note and search.changes == [1] and it.measured.cycles == 4  # old cycles dropped
     with pytest.raises(SudsConfigError, match="`joint`"):
         optimize_loop(purcell3, cfg, changes=[(5, [{"name": "joint_viscous_damping", "joint": "nope", "d": 1.0}])])
+
+
+def test_a_model_without_a_steady_state_asks_for_more_data(purcell3, monkeypatch) -> None:  # type: ignore
+    """The learned model of a few cycles on a changed robot can lead the step's trial points into non-finite
+    states (its input check refuses them): the trial point is then infeasible, and a model that cannot
+    evaluate the incumbent itself makes the search re-run the incumbent for more data."""
+    import suds_ros.core.optimize.loop as loop_mod
+    from suds_ros.core.optimize.physics import SteadyStateProblem
+
+    def broken(self, x):  # type: ignore[no-untyped-def]
+        raise SudsDataError("X contains NaN or Inf")
+
+    prob = SteadyStateProblem.__new__(SteadyStateProblem)
+    prob._key, prob.failed, prob._nc, prob.free = None, 0, 2, np.arange(3)
+    monkeypatch.setattr(SteadyStateProblem, "_evaluate", broken)
+    assert list(prob.values(np.zeros(3))) == [10.0, -1.0, -1.0] and prob.failed == 1
+
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), LoopConfig(budget_cycles=20))
+    sim = _stream(purcell3)
+    c = sim.step(6 * SPC)
+    names = purcell3.joint_names
+    search.observe(Recording(t=c.t, r=c.r, joint_names=names, actuated=(names[0],), passive=(names[1],),
+                             pose_t=c.t, pose=c.pose, system="purcell3", gait_hz=1.0).slice(SPC - 1, 6 * SPC))
+
+    def refuses(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise SudsDataError("X contains NaN or Inf")
+
+    monkeypatch.setattr(loop_mod, "optimize_from_data", refuses)
+    req = search.request()
+    assert req.kind == "rerun" and "the incumbent's model cannot be used" in req.note
