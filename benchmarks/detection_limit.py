@@ -41,6 +41,7 @@ from suds_ros.core.diagnosis import DiagnoseConfig, diagnose  # noqa: E402
 from suds_ros.core.diagnosis.data import prepare  # noqa: E402
 from suds_ros.core.diagnosis.naming import Candidate, Scorer  # noqa: E402
 from suds_ros.core.diagnosis.pipeline import replay_nominal  # noqa: E402
+from suds_ros.core.diagnosis.report import effect_label  # noqa: E402
 from suds_ros.core.physics.effects import EFFECTS, apply_effects  # noqa: E402
 from suds_ros.core.physics.rft import RFTChain  # noqa: E402
 from suds_ros.core.physics.sim import SimConfig, simulate  # noqa: E402
@@ -97,7 +98,7 @@ def _effect(name: str, target: str | None, m: float) -> dict[str, Any]:
 
 def _named(rep, name: str, target: str | None) -> bool:  # type: ignore[no-untyped-def]
     """Whether the report names the effect on its target (or confounded with the named one)."""
-    label = name if target is None else f"{name}:{target}"
+    label = effect_label(name, target)
     if any(e.name == name and e.target == target for e in rep.effects):
         return True
     return any(label in g for g in rep.confounded_with)

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.diagnosis import diagnose
+from suds_ros.core.diagnosis.report import effect_label
 from suds_ros.core.errors import SudsError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
@@ -174,7 +175,7 @@ def judge(effects: list[dict], rep) -> tuple[bool, bool, str]:  # type: ignore[n
     ok = rep.improvement >= 0.5 and not rep.discovered and not false
     for eff in effects:
         key = (eff["name"], _target(eff))
-        label = eff["name"] if key[1] is None else f"{eff['name']}:{key[1]}"
+        label = effect_label(eff["name"], key[1])
         if key in got:
             ok &= _close(dict(got[key].parameters), _params(eff))
         elif key in alt_params:
@@ -192,7 +193,7 @@ def _alternative_sets(rep) -> list[dict]:  # type: ignore[no-untyped-def]
     for e in rep.effects:
         for a in e.alternatives:
             s = {(f.name, f.target): dict(f.parameters) for f in rep.effects
-                 if (f.name if f.target is None else f"{f.name}:{f.target}") not in a.instead_of}
+                 if effect_label(f.name, f.target) not in a.instead_of}
             s[(a.name, a.target)] = dict(a.parameters)
             s.update({(n, t): dict(p) for n, t, p in a.with_effects})
             out.append(s)

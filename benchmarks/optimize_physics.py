@@ -5,8 +5,10 @@
 1. Accuracy of the cycle integration: the nominal gaits' speed at 64 … 512 RK4 steps per cycle.
 2. purcell3, orders 1–3, 4 starts (seed 0): value, nominal value, wall time, candidate cycles.
 3. swimmer9, order 3, 4 starts (seed 0) and again with seed 1 (a second multi-start).
-4. A second method on purcell3 order 3: COBYLA (derivative free, same constraints, its own
-   steady state per point) from the nominal gait; the SLSQP optimum should be within 1 %.
+4. A generic optimiser as the check (the issue's "within 1 % of a multi-start generic optimiser"):
+   scipy's COBYLA (derivative free, same constraints, its own steady state per point) from the
+   nominal gait and two random feasible starts (seeded), the best kept; on purcell3, snake5
+   (shared/robots) and two model-file robots of ours (eel4, tail6 in test/data/robots), order 3.
 5. Every gait written meets its bounds (constraint_violations) and its value re-evaluated from
    scratch (evaluate_gait, 512 steps) agrees.
 """
@@ -22,12 +24,13 @@ from scipy.optimize import minimize
 from suds_ros.core.optimize.physics import (
     CycleEvaluator,
     OptimizeConfig,
-    linear_bounds,
     evaluate_gait,
+    feasible_scale,
+    linear_bounds,
     optimize_gait,
 )
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
-from suds_ros.core.physics.systems import make_system
+from suds_ros.core.physics.systems import load_system, make_system
 
 
 def accuracy() -> list[str]:
@@ -53,29 +56,71 @@ def run(name: str, order: int, starts: int, seed: int) -> tuple[list[str], objec
     return [row], res
 
 
-def cobyla(name: str, order: int) -> tuple[float, float, int]:
-    """COBYLA from the nominal gait with the same bounds; returns (speed, seconds, evaluations)."""
-    system = make_system(name)
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+#: robots of the generic check: name → spec for load_system
+GENERIC = {"purcell3": "purcell3", "snake5": "/work/shared/robots/snake5.yaml",
+           "eel4": str(ROOT / "test" / "data" / "robots" / "eel4.yaml"),
+           "tail6": str(ROOT / "test" / "data" / "robots" / "tail6.yaml")}
+
+
+def cobyla(spec: str, order: int, starts: int = 3, seed: int = 0) -> tuple[float, float, int, list[float]]:
+    """COBYLA from the nominal gait and ``starts`` − 1 random feasible ones, same bounds and rotation bound.
+
+    Returns (best speed, seconds, steady-state evaluations, speed per start).
+    """
+    system = load_system(spec)
     nominal = nominal_gait(system)
     limits = gait_limits(system, nominal)
     M, b = linear_bounds(nominal, order, limits, 64)
     ev = CycleEvaluator(system, nominal.gait_hz, order, 64)
-    free = np.flatnonzero(np.arange(M.shape[1]) != 1)
+    free = np.flatnonzero(np.arange(M.shape[1]) != 1)  # joint 1's cos_1 pinned at 0: a time shift is free
     state = {"rp": np.zeros((1, len(system.passive))), "n": 0}
 
     def out(z: np.ndarray) -> np.ndarray:
         x = np.zeros(M.shape[1])
         x[free] = z
-        res, _, _ = ev.steady(x[None], state["rp"])
+        try:
+            res, _, _ = ev.steady(x[None], state["rp"])
+        except (FloatingPointError, np.linalg.LinAlgError):
+            return np.array([0.0, 0.0, 1.0])  # no steady state: no speed, off course
         state["rp"], state["n"] = res.r_p, state["n"] + 1
         return res.g_c[0]
 
+    rng = np.random.default_rng(seed)
+    x_nom = nominal.to_vector(order)
+    inits = [x_nom]
+    while len(inits) < starts:
+        g = nominal.from_vector(rng.normal(scale=float(np.mean(limits.limit)), size=x_nom.size), order)
+        x = g.to_vector(order) * feasible_scale(g, limits) * 0.999
+        x[1] = 0.0
+        inits.append(x)
     t = time.perf_counter()
     cons = [{"type": "ineq", "fun": lambda z: b - M[:, free] @ z},
             {"type": "ineq", "fun": lambda z: 0.05 - np.abs(out(z)[2])}]
-    sol = minimize(lambda z: -np.hypot(*out(z)[:2]) * nominal.gait_hz, nominal.to_vector(order)[free],
-                   method="COBYLA", constraints=cons, options={"maxiter": 3000, "rhobeg": 0.2, "tol": 1e-9})
-    return -float(sol.fun), time.perf_counter() - t, state["n"]
+    values = []
+    for x0 in inits:
+        state["rp"] = np.zeros((1, len(system.passive)))
+        sol = minimize(lambda z: -np.hypot(*out(z)[:2]) * nominal.gait_hz, x0[free],
+                       method="COBYLA", constraints=cons, options={"maxiter": 3000, "rhobeg": 0.2, "tol": 1e-9})
+        ok = np.all(b - M[:, free] @ sol.x >= -1e-6) and abs(out(sol.x)[2]) <= 0.05 + 1e-6
+        values.append(-float(sol.fun) if ok else float("nan"))
+    return float(np.nanmax(values)), time.perf_counter() - t, state["n"], values
+
+
+def generic_check() -> list[str]:
+    rows = ["| robot | SLSQP multi-start (ours, 4 starts) | COBYLA best of 3 starts | per COBYLA start | "
+            "ours − COBYLA | time ours / COBYLA s |", "|---|---|---|---|---|---|"]
+    for name, spec in GENERIC.items():
+        system = load_system(spec)
+        t = time.perf_counter()
+        ours = optimize_gait(system, OptimizeConfig(order=3, starts=4, seed=0))
+        t_ours = time.perf_counter() - t
+        speed, secs, n, per = cobyla(spec, 3)
+        rows.append(f"| {name} | {ours.value:.5f} | {speed:.5f} | "
+                    + ", ".join("infeasible" if not np.isfinite(v) else f"{v:.5f}" for v in per)
+                    + f" | {100 * (ours.value / speed - 1):+.2f} % | {t_ours:.0f} / {secs:.0f} ({n} evaluations) |")
+        print(rows[-1], flush=True)
+    return rows
 
 
 def main() -> None:
@@ -95,10 +140,11 @@ def main() -> None:
         print(rows[0], flush=True)
         if (name, order, seed) == ("purcell3", 3, 0):
             slsqp_p3 = res.value  # type: ignore[attr-defined]
-    speed, secs, n = cobyla("purcell3", 3)
-    lines += ["", "## Second method: COBYLA (derivative free) on purcell3, K = 3, from the nominal gait", "",
-              f"COBYLA: {speed:.6f} m/s in {secs:.1f} s ({n} steady-state evaluations); "
-              f"SLSQP multi-start: {slsqp_p3:.6f} m/s; difference {100 * (slsqp_p3 / speed - 1):+.3f} %.", ""]
+    lines += ["", "## A generic optimiser as the check: COBYLA, order 3, speed at ≤ 0.05 rad/cycle", "",
+              "Derivative free, the same joint range and speed bounds (on the same 64-point grid) and rotation "
+              "bound, its own steady state per point, from the nominal gait and two random feasible starts "
+              f"(seed 0).  The target: ours within 1 % of it (purcell3's K = 3 optimum above: {slsqp_p3:.5f}).", "",
+              *generic_check(), ""]
     text = "\n".join(lines) + "\n"
     write("optimize.md", text)
 

@@ -40,7 +40,14 @@ import scipy.optimize
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import measure
-from suds_ros.core.diagnosis.report import Alternative, DiagnoseConfig, DiagnosisReport, FittedEffect
+from suds_ros.core.diagnosis.report import (
+    Alternative,
+    DiagnoseConfig,
+    DiagnosisReport,
+    FittedEffect,
+    effect_label,
+    set_label,
+)
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.gait import Gait, GaitLimits, checked_extremes, constraint_violations, gait_limits
@@ -125,10 +132,6 @@ class ProposedExperiment:
         }
 
 
-def _label(parts: Sequence[tuple[str, str | None]]) -> str:
-    return " + ".join(n if t is None else f"{n}:{t}" for n, t in parts)
-
-
 def _as_effect(name: str, target: str | None, params: Mapping[str, float]) -> Effect:
     e: Effect = {"name": name, **{k: float(v) for k, v in params.items()}}
     if target is not None:
@@ -145,7 +148,7 @@ def effect_sets(effects: Sequence[FittedEffect], alt: Alternative) -> tuple[list
     """The reported set and the alternative set, as effect dicts for ``apply_effects``."""
     reported = reported_effects(effects)
     dropped = set(alt.instead_of)
-    keep = [e for e in effects if _label([(e.name, e.target)]) not in dropped]
+    keep = [e for e in effects if effect_label(e.name, e.target) not in dropped]
     other = [_as_effect(e.name, e.target, e.parameters) for e in keep]
     other.append(_as_effect(alt.name, alt.target, alt.parameters))
     other.extend(_as_effect(n, t, p) for n, t, p in alt.with_effects)
@@ -287,10 +290,10 @@ def propose_for_report(
         return ()
     w = max(1, int(round(config.window / dt)))
     out = []
-    label = _label([(e.name, e.target) for e in rep.effects])
+    label = set_label([(e.name, e.target) for e in rep.effects])
     for alt in rep.effects[0].alternatives:
         a, b = effect_sets(rep.effects, alt)
-        alt_label = _label([(str(e["name"]), e.get("joint") or e.get("link")) for e in b])  # type: ignore[misc]
+        alt_label = set_label([(str(e["name"]), e.get("joint") or e.get("link")) for e in b])  # type: ignore[misc]
         out.append(propose(base, a, b, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
                            (label, alt_label)))
     return tuple(out)

@@ -17,6 +17,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.replay import window_xi
+from suds_ros.core.diagnosis.report import set_label
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -210,7 +211,7 @@ class Candidate:
 
     @property
     def label(self) -> str:
-        return " + ".join(_label(n, t) for n, t in self.parts)
+        return set_label(self.parts)
 
     def bounds(self) -> tuple[list[float], list[float]]:
         lo, hi = [], []
@@ -237,10 +238,6 @@ class Candidate:
                 i += 1
             out.append(e)
         return out
-
-
-def _label(name: str, target: str | None) -> str:
-    return name if target is None else f"{name}:{target}"
 
 
 def equation_terms(cand: Candidate, x: FloatArray, data: Data, model: ChainModel) -> EquationTerms:

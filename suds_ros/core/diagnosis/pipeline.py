@@ -126,7 +126,7 @@ from suds_ros.core.diagnosis.refine import extension_gains, fitted_effects, refi
 from suds_ros.core.diagnosis.null import null_recording
 from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay, replay_recording
 from suds_ros.core.diagnosis.report import (
-    Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
+    Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located, effect_label,
 )
 from suds_ros.core.diagnosis.selection import Naming, _compatible, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
@@ -403,12 +403,12 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     located = locate_channels(F0, nom.E0, table, nom.cycle, config)
     new = [loc.channel for loc in located if loc.channel not in conditions]
     conditions.update(channel_conditions(new, nom.E0, table, model))
-    evidence = {Candidate((p,)).label: e for p, e in zip(ranked.cand.parts, member_ev)}
-    kept = {Candidate((p,)).label for p in cand.parts}
+    evidence = {effect_label(*p): e for p, e in zip(ranked.cand.parts, member_ev)}
+    kept = {effect_label(*p) for p in cand.parts}
     # a confounded member whose swap the replay tells apart (outside the band) is not confounded
     told_apart = {lab for t in tried if t.option.swap and t is not win
                   and win.evidence - t.evidence > config.ambiguity_band
-                  for lab in ({Candidate((q,)).label for q in t.cand.parts} - kept)}
+                  for lab in ({effect_label(*q) for q in t.cand.parts} - kept)}
     confounded = tuple(kept_g for g in groups if g[0] not in dropped and g[0] in kept
                        for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
                        if len(kept_g) > 1)
@@ -460,7 +460,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
     slices, i = {}, 0
     for part in chosen.cand.parts:
         n = len(EFFECTS[part[0]].params)
-        slices[Candidate((part,)).label] = (part, chosen.x[i:i + n])
+        slices[effect_label(*part)] = (part, chosen.x[i:i + n])
         i += n
     swaps: list[_Option] = []
     for group in naming.confounded:
@@ -480,7 +480,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
             seen.add(frozenset(parts))
             whole = naming.fits.get(cand.label)
             # the confounded groups as seen from the swapped set: the swapped-in member leads its group
-            mine = {Candidate((q,)).label for q in parts}
+            mine = {effect_label(*q) for q in parts}
             led = [(label, g) if g is group else (g[0], g[1:]) for g in naming.confounded]
             groups = tuple(g for lead, rest in led if lead in mine
                            for g in [(lead,) + tuple(lab for lab in rest if lab not in mine)] if len(g) > 1)
@@ -521,7 +521,7 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
         return None, ""
     gains = extension_gains(win.cand, win.x, parts, nom.model, nom.data, config, nom.w, nom.substeps, nom.floors)
     k = int(np.argmax(gains))
-    label = Candidate((parts[k],)).label
+    label = effect_label(*parts[k])
     if not gains[k] > config.evidence_threshold:
         return None, ""
     cand = Candidate(win.cand.parts + (parts[k],))
@@ -537,8 +537,8 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
 
 def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternative, ...]:
     """The refined sets other than ``win`` within ``band`` nats of its held-out evidence (closest first)."""
-    mine = {Candidate((p,)).label for p in win.cand.parts}
-    reported = {Candidate(((e.name, e.target),)).label: e for e in fitted_effects(win.cand, win.x, win.se)}
+    mine = {effect_label(*p) for p in win.cand.parts}
+    reported = {effect_label(e.name, e.target): e for e in fitted_effects(win.cand, win.x, win.se)}
     out: list[tuple[float, Alternative]] = []
     seen = {frozenset(win.cand.parts)}
     for t in tried:
@@ -548,18 +548,18 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
             continue
         seen.add(key)
         fits = fitted_effects(t.cand, t.x, t.se)
-        new = [(e.name, e.target, e.parameters) for e in fits if Candidate(((e.name, e.target),)).label not in mine]
+        new = [(e.name, e.target, e.parameters) for e in fits if effect_label(e.name, e.target) not in mine]
         if not new:
             continue
         # a member both sets share but the alternative needs at other values (a reparameterisation:
         # stiffness_to_drag_error 1.37 + joint_4 × 0.79 for joint_3 × 1.37 + joint_4 × 1.08) is
         # listed with its values, and the reported one it replaces in ``instead_of``
-        refitted = [e for e in fits if Candidate(((e.name, e.target),)).label in mine
-                    and _moved(e, reported[Candidate(((e.name, e.target),)).label])]
-        theirs = {Candidate((p,)).label for p in t.cand.parts}
+        refitted = [e for e in fits if effect_label(e.name, e.target) in mine
+                    and _moved(e, reported[effect_label(e.name, e.target)])]
+        theirs = {effect_label(*p) for p in t.cand.parts}
         (name, target, params), rest = new[0], tuple(new[1:])
         rest += tuple((e.name, e.target, e.parameters) for e in refitted)
-        instead = (mine - theirs) | {Candidate(((e.name, e.target),)).label for e in refitted}
+        instead = (mine - theirs) | {effect_label(e.name, e.target) for e in refitted}
         out.append((gap, Alternative(name, target, params, float(gap), rest, tuple(sorted(instead)))))
     return tuple(a for _, a in sorted(out, key=lambda ga: ga[0]))
 

@@ -14,7 +14,7 @@ from suds_ros.core.diagnosis.floor import Floors
 from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
-from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect
+from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect, effect_label
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel
@@ -41,7 +41,7 @@ def refine_choice(
         if np.nanmax(z) >= config.member_z:
             keep.append((k, i, npar))
         else:
-            drop.append(Candidate(((nme, tgt),)).label)
+            drop.append(effect_label(nme, tgt))
         i += npar
     if not keep or not drop:
         return cand, x, se, ()
@@ -67,7 +67,7 @@ def fitted_effects(
             nme, tgt,
             {p: float(x[i + k]) for k, p in enumerate(pn)},
             {p: float(se[i + k]) for k, p in enumerate(pn)},
-            ev.get(Candidate(((nme, tgt),)).label),
+            ev.get(effect_label(nme, tgt)),
         ))
         i += len(pn)
     return out

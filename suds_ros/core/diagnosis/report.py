@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from suds_ros.core._typing import FloatArray
@@ -10,6 +10,16 @@ from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.json_text import dumps
 
 BODY = ("xi_x", "xi_y", "xi_theta")
+
+
+def effect_label(name: str, target: str | None) -> str:
+    """The label of one effect: ``name:target`` (``name`` alone for a robot-wide effect); the one place it is built."""
+    return name if target is None else f"{name}:{target}"
+
+
+def set_label(parts: Sequence[tuple[str, str | None]]) -> str:
+    """The label of a set of effects: their labels joined by `` + ``."""
+    return " + ".join(effect_label(n, t) for n, t in parts)
 
 
 @dataclass(frozen=True)
@@ -204,8 +214,7 @@ class Alternative:
     @property
     def label(self) -> str:
         """``name:target + …`` of the effects the alternative adds."""
-        parts = [(self.name, self.target)] + [(n, t) for n, t, _ in self.with_effects]
-        return " + ".join(n if t is None else f"{n}:{t}" for n, t in parts)
+        return set_label([(self.name, self.target)] + [(n, t) for n, t, _ in self.with_effects])
 
     def as_dict(self) -> dict[str, object]:
         return {

@@ -25,7 +25,7 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.naming import Candidate, Scorer, catalogue_candidates
-from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig
+from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig, effect_label
 from suds_ros.core.physics.effects import EFFECTS
 from suds_ros.core.physics.rft import ChainModel
 
@@ -298,7 +298,7 @@ def _forward(sel: _Selector, singles: Sequence[Ranked], first: Ranked | None) ->
         log.extend(dropped)
     if not evidence and cur.cand.parts:
         evidence = [ev for ev, _ in sel.member_evidence(cur)]
-    kept = {lab for n, t in cur.cand.parts for lab in [_part_label(n, t)]}
+    kept = {lab for n, t in cur.cand.parts for lab in [effect_label(n, t)]}
     rejected = tuple(r for r in rejected if set(cur.cand.parts) < set(r.cand.parts))
     return _Path(cur, tuple(g for g in groups if g[0] in kept), tuple(float(e) for e in evidence), tuple(log),
                  tuple(gains), first_group, rejected)
@@ -346,7 +346,7 @@ def _with_equivalents(sel: _Selector, main: _Path, singles: Sequence[Ranked]) ->
             x0 = np.concatenate([cur.x[:a], s.x, cur.x[b:]])
             alt = sel.fit(swapped, x0)
             gap = cur.score.score - alt.score.score
-            m_label, c_label = _part_label(*m), _part_label(*part)
+            m_label, c_label = effect_label(*m), effect_label(*part)
             if abs(gap) <= sel.config.confound_margin:
                 group = groups.setdefault(m_label, [m_label])
                 if c_label not in group:
@@ -385,15 +385,15 @@ def _alternatives(sel: _Selector, singles: Sequence[Ranked], main: _Path) -> tup
         return ()
     top = singles[0].score.score
     margin = max(cfg.arbitrate_margin, cfg.arbitrate_rel * top)
-    seen = [{_part_label(n, t) for n, t in main.cur.cand.parts}]
+    seen = [{effect_label(n, t) for n, t in main.cur.cand.parts}]
     out: list[_Path] = []
     for s in singles[1:]:
         if len(out) >= cfg.arbitrate_max or top - s.score.score > margin:
             break
-        if s.score.score <= 0 or _part_label(*s.cand.parts[0]) in main.first_group:
+        if s.score.score <= 0 or effect_label(*s.cand.parts[0]) in main.first_group:
             continue
         path = _forward(sel, singles, s)
-        labels = {_part_label(n, t) for n, t in path.cur.cand.parts}
+        labels = {effect_label(n, t) for n, t in path.cur.cand.parts}
         if labels in seen:
             continue
         seen.append(labels)
@@ -411,17 +411,13 @@ def _backward(sel: _Selector, cur: Ranked, threshold: float) -> tuple[Ranked, li
         k = int(np.argmin([e for e, _ in ev[:-1]]))
         if ev[k][0] > threshold:
             return cur, [e for e, _ in ev], log
-        log.append(f"backward: {_part_label(*cur.cand.parts[k])} no longer earns its place ({ev[k][0]:.1f} nats)")
+        log.append(f"backward: {effect_label(*cur.cand.parts[k])} no longer earns its place ({ev[k][0]:.1f} nats)")
         cur = ev[k][1]
-
-
-def _part_label(name: str, target: str | None) -> str:
-    return Candidate(((name, target),)).label
 
 
 def _added(cand: Candidate, base: Candidate) -> str:
     """Label of the member of ``cand`` not in ``base``."""
-    return " + ".join(_part_label(n, t) for n, t in cand.parts if (n, t) not in base.parts)
+    return " + ".join(effect_label(n, t) for n, t in cand.parts if (n, t) not in base.parts)
 
 
 def _preference(s: Ranked) -> tuple[int, int]:
