@@ -76,3 +76,37 @@ def test_optimizer_node_runs_the_loop_on_the_simulator(start_process, node_comma
     assert stop(opt) == 0, opt.output()
     assert "Traceback" not in opt.output(), opt.output()
     assert stop(sim) == 0, sim.output()
+
+
+# ------------------------------------------------------------------ in process
+def test_the_monitors_alarm_says_the_robot_changed_once_per_episode(ros_context):
+    from concurrent.futures import Future
+
+    from suds_ros.ros.conversions import diagnostics_to_msg
+    from suds_ros.ros.optimizer_node import OptimizerNode
+
+    def array(*levels: str):  # type: ignore[no-untyped-def]
+        msgs = [diagnostics_to_msg(5.0, f"suds_monitor/{ch}", {}, level=lv)
+                for ch, lv in zip(("joint_2", "xi_x"), levels)]
+        out = msgs[0]
+        for m in msgs[1:]:
+            out.status.extend(m.status)
+        return out
+
+    node = OptimizerNode(context=ros_context)
+    try:
+        said: list[str] = []
+        node.live.search.robot_changed = said.append  # type: ignore[method-assign]
+        node._on_mismatch(array("OK", "WARN"))
+        assert said == []
+        node._on_mismatch(array("ERROR", "OK"))
+        node._on_mismatch(array("ERROR", "ERROR"))  # the same episode
+        assert said == ["the monitor's joint_2 in ERROR"]
+        node._on_mismatch(array("OK", "OK"))
+        node._future = Future()  # a step is running in the worker: the change waits for its answer
+        node._on_mismatch(array("OK", "ERROR"))
+        assert said == ["the monitor's joint_2 in ERROR"] and node._changed == "the monitor's xi_x in ERROR"
+    finally:
+        node._future = None
+        node.close()
+        node.destroy_node()
