@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Callable
+
 import platform
 import sys
 import time
@@ -40,3 +43,22 @@ def write(name: str, text: str) -> Path:
     path.write_text(text)
     print(text)
     return path
+
+
+def run_report_cli(doc: str, choices: list[str], run: Callable[[str, argparse.Namespace], None],
+                   report: Callable[[], None], *,
+                   extra: Callable[[argparse.ArgumentParser], None] | None = None) -> None:
+    """``SCRIPT run NAME… [--seeds S…]`` (then the report) or ``SCRIPT report``; ``extra`` adds run options."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("names", nargs="+", choices=choices)
+    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    if extra is not None:
+        extra(r)
+    sub.add_parser("report")
+    args = p.parse_args()
+    if args.cmd == "run":
+        for name in args.names:
+            run(name, args)
+    report()

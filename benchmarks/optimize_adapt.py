@@ -15,11 +15,10 @@ the nominal and the changed physics.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
-from _common import RESULTS, machine, stamp, write
+from _common import RESULTS, machine, run_report_cli, stamp, write
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
@@ -142,17 +141,7 @@ def report() -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run")
-    r.add_argument("cases", nargs="+", choices=sorted(CASES))
-    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    sub.add_parser("report")
-    args = p.parse_args()
-    if args.cmd == "run":
-        for name in args.cases:
-            run(name, args.seeds)
-    report()
+    run_report_cli(__doc__, sorted(CASES), lambda n, a: run(n, a.seeds), report)
 
 
 if __name__ == "__main__":

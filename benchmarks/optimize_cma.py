@@ -21,12 +21,11 @@ evaluated on the true physics against the limit stored there.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
 import numpy as np
-from _common import RESULTS, machine, stamp, write
+from _common import RESULTS, machine, run_report_cli, stamp, write
 from optimize_loop import ROBOTS
 
 from suds_ros.core.json_text import dumps
@@ -131,17 +130,7 @@ def report() -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run")
-    r.add_argument("robots", nargs="+", choices=sorted(CHECKPOINTS))
-    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    sub.add_parser("report")
-    args = p.parse_args()
-    if args.cmd == "run":
-        for name in args.robots:
-            run(name, args.seeds)
-    report()
+    run_report_cli(__doc__, sorted(CHECKPOINTS), lambda n, a: run(n, a.seeds), report)
 
 
 if __name__ == "__main__":

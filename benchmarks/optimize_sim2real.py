@@ -21,11 +21,10 @@ result: a gait that breaks it on the true robot does not meet the spec, whatever
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
-from _common import RESULTS, machine, stamp, write
+from _common import RESULTS, machine, run_report_cli, stamp, write
 
 from suds_ros.core.diagnosis.experiment import reported_effects
 from suds_ros.core.diagnosis.pipeline import diagnose
@@ -138,18 +137,9 @@ def report() -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run")
-    r.add_argument("cases", nargs="+", choices=sorted(CASES))
-    r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    r.add_argument("--cycles", type=int, default=40, help="cycles of the recording the diagnosis reads")
-    sub.add_parser("report")
-    args = p.parse_args()
-    if args.cmd == "run":
-        for name in args.cases:
-            run(name, args.seeds, args.cycles)
-    report()
+    run_report_cli(__doc__, sorted(CASES), lambda n, a: run(n, a.seeds, a.cycles), report,
+                   extra=lambda r: r.add_argument("--cycles", type=int, default=40,
+                                                  help="cycles of the recording the diagnosis reads"))
 
 
 if __name__ == "__main__":
