@@ -631,7 +631,17 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     vals = prob.values(x_end)
     start_vals = prob.values(x0)
     feasible = bool(np.all(vals[1:] >= -MARGIN))
-    step_taken = feasible and vals[0] < start_vals[0]
+    start_violation = float(np.sum(np.maximum(0.0, -MARGIN - start_vals[1:])))
+    if start_violation > 0:
+        # the recorded gait breaks the side bound (e.g. a robot that now curves): back within it first,
+        # whatever the objective costs; failing that, any step that breaks it less
+        violation = float(np.sum(np.maximum(0.0, -MARGIN - vals[1:])))
+        step_taken = feasible or violation < start_violation
+        if step_taken:
+            msg += (f"; the recorded gait breaks the side bound (violation {start_violation:.3g}): the step "
+                    + ("meets it" if feasible else f"breaks it less ({violation:.3g})"))
+    else:
+        step_taken = feasible and vals[0] < start_vals[0]
     if not step_taken:
         x_end, msg = x0, msg + "; no better gait predicted inside the trust region: the recorded gait is returned"
     res = ev.steady(x_end[None], base.r_p)[0]
