@@ -3,7 +3,8 @@
 Both see only what the robot's streams measure.  The robot is the loop's
 (`suds_ros.core.optimize.loop`: default OU perturbation, 100 Hz, 1 mm / 1 mrad noise, seeded alike),
 every candidate gait is switched in at a cycle boundary and run 1 settling + 4 measured cycles
-(the loop's own candidate cost; every cycle counted), starting from the robot's nominal gait.
+(the loop's own candidate cost; every cycle counted), after the robot's nominal gait (the start,
+1 + 5 cycles, as the loop measures it): the nominal gait, or half its amplitude (a poor start).
 
 CMA-ES (the `cma` package, a benchmark-only dependency) searches the order-3 gait vector from
 the nominal gait with σ0 = 0.25 × the mean joint range limit; a candidate outside the joint range
@@ -26,7 +27,7 @@ import time
 
 import numpy as np
 from _common import RESULTS, machine, run_report_cli, stamp, write
-from optimize_loop import ROBOTS
+from optimize_loop import ROBOTS, starts
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, _Robot, _trim, measure_cycles
@@ -35,8 +36,9 @@ from suds_ros.core.physics.gait import check_constraints, gait_limits, nominal_g
 from suds_ros.core.physics.systems import load_system
 
 ORDER = 3
-SETTLE, MEASURED = 1, 4
+SETTLE, MEASURED, FIRST = 1, 4, 5  # the loop's settling, candidate and start-gait cycles
 MAX_ROTATION = 0.05
+START_KINDS = ("nominal", "half amplitude")  # the loop benchmark's starts (optimize_loop.starts)
 CHECKPOINTS = {"purcell3": (15, 25, 40), "snake5": (25, 40, 60), "swimmer9": (45, 90)}
 
 
@@ -50,14 +52,30 @@ def run(name: str, seeds: list[int]) -> None:
     loop_doc = json.loads((RESULTS / f"optimize_loop_{name}.json").read_text())
     limit = loop_doc["limit"]
     doc = {"robot": name, "budget": budget, "limit": limit, "cma_version": cma.__version__, "runs": []}
-    x0 = nom.to_vector(ORDER)
     sigma0 = 0.25 * float(np.mean(limits.limit))
-    for seed in seeds:
+    for kind, seed in [(k, sd) for k in START_KINDS for sd in seeds]:
+        start = starts(nom)[kind]
+        x0 = start.to_vector(ORDER)
         t0 = time.perf_counter()
         cfg = LoopConfig(budget_cycles=budget, seed=seed, order=ORDER)
-        robot = _Robot(system, nom, cfg)
+        robot = _Robot(system, start, cfg)
         es = cma.CMAEvolutionStrategy(x0, sigma0, {"seed": seed + 1, "verbose": -9})
-        evals, best = [], None
+        evals: list[dict] = []
+        best: list = []  # [measured speed, gait] of the best feasible gait measured
+
+        def measure(g, cycles: int) -> float:  # type: ignore[no-untyped-def]
+            rec, _ = robot.run(g, cycles)
+            m = measure_cycles(_trim(rec, SETTLE, robot.spc).pose, robot.spc, g.gait_hz)
+            over = max(0.0, abs(m.rotation) - MAX_ROTATION)
+            if over == 0 and (not best or m.speed > best[0]):
+                best[:] = [m.speed, g]
+            true = evaluate_gait(system, best[1]) if best else None
+            evals.append({"cycles_used": robot.cycles_run, "measured": m.speed, "measured_rotation": m.rotation,
+                          "best_true": None if true is None else true["speed"],
+                          "best_true_rotation": None if true is None else true["rotation"]})
+            return -m.speed + 10.0 * over
+
+        measure(start, SETTLE + FIRST)  # the start gait first, measured as long as the loop measures it
         while robot.cycles_run + SETTLE + MEASURED <= budget:
             xs = es.ask()
             fits = []
@@ -68,21 +86,12 @@ def run(name: str, seeds: list[int]) -> None:
                 g = nom.from_vector(np.asarray(x), ORDER)
                 g = g.from_vector(feasible_scale(g, limits) * g.to_vector(ORDER), ORDER)
                 check_constraints(g, limits)
-                rec, _ = robot.run(g, SETTLE + MEASURED)
-                m = measure_cycles(_trim(rec, SETTLE, robot.spc).pose, robot.spc, g.gait_hz)
-                over = max(0.0, abs(m.rotation) - MAX_ROTATION)
-                fits.append(-m.speed + 10.0 * over)
-                if over == 0 and (best is None or m.speed > best[0]):
-                    best = (m.speed, g)
-                true = evaluate_gait(system, best[1]) if best is not None else None
-                evals.append({"cycles_used": robot.cycles_run, "measured": m.speed, "measured_rotation": m.rotation,
-                              "best_true": None if true is None else true["speed"],
-                              "best_true_rotation": None if true is None else true["rotation"]})
+                fits.append(measure(g, SETTLE + MEASURED))
             if all(np.isfinite(fits)):
                 es.tell(xs, fits)
-        doc["runs"].append({"seed": seed, "evals": evals, "seconds": time.perf_counter() - t0})
+        doc["runs"].append({"start": kind, "seed": seed, "evals": evals, "seconds": time.perf_counter() - t0})
         last = evals[-1]
-        print(f"{name} seed {seed}: {len(evals)} gaits, {last['cycles_used']} cycles, best measured gait "
+        print(f"{name} {kind} seed {seed}: {len(evals)} gaits, {last['cycles_used']} cycles, best measured gait "
               f"{100 * (last['best_true'] or 0) / limit:.1f} % of the limit", flush=True)
         (RESULTS / f"optimize_cma_{name}.json").write_text(dumps(doc))
 
@@ -96,7 +105,7 @@ def report() -> None:
     lines = ["# CMA-ES against the loop at the same cycle budget", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_cma.py`.", "",
              "Each cell: the true speed (on the physics, at its passive periodic steady state) of the gait each "
-             "method would return after that many robot cycles, as a % of the limit, from the nominal gait.  CMA-ES "
+             "method would return after that many robot cycles, as a % of the limit, from the same start.  CMA-ES "
              "returns its best measured gait within the rotation bound; the loop its incumbent "
              "(`optimize_loop_<robot>.json`).  A '—': nothing measured yet within the bound.", ""]
     for name in CHECKPOINTS:
@@ -108,15 +117,16 @@ def report() -> None:
         lim = doc["limit"]
         cps = CHECKPOINTS[name]
         lines += [f"## {name} (limit {lim:.5f} m/s; cma {doc['cma_version']})", "",
-                  "| seed | " + " | ".join(f"{c} cycles: loop / CMA-ES" for c in cps) + " |",
-                  "|---" * (1 + len(cps)) + "|"]
+                  "| start | seed | " + " | ".join(f"{c} cycles: loop / CMA-ES" for c in cps) + " |",
+                  "|---" * (2 + len(cps)) + "|"]
         ahead = 0
         total = 0
         for r in doc["runs"]:
-            lr = [x for x in loop["runs"] if x["start"] == "nominal" and x["seed"] == r["seed"]]
+            kind = r.get("start", "nominal")
+            lr = [x for x in loop["runs"] if x["start"] == kind and x["seed"] == r["seed"]]
             if not lr:
                 continue
-            cells = [str(r["seed"])]
+            cells = [kind, str(r["seed"])]
             for c in cps:
                 ours = _at(lr[0]["rows"], c, "incumbent_true")
                 theirs = _at(r["evals"], c, "best_true")
