@@ -45,7 +45,6 @@ gait.  The robot never sees more of it than the gait commands.
 
 from __future__ import annotations
 
-import json
 import math
 import multiprocessing
 import sys
@@ -59,6 +58,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.live import LiveGaitSearch, decide
 from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, RunRequest
 from suds_ros.core.physics.gait import Gait, check_gait, dump_gait, gait_limits, load_gait, nominal_gait
@@ -129,7 +129,7 @@ def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,
                    window: tuple[float, float, float], objective: str) -> str:
     """The ``suds/optimizer`` JSON of one measured run (``window``: switch stamp, window start and end)."""
     m = it.measured
-    return json.dumps({
+    return dumps({
         "index": it.index, "kind": request.kind, "accepted": it.accepted, "objective": objective,
         "measured": m.value(objective), "measured_se": None if math.isnan(m.speed_se) else m.speed_se,
         "measured_rotation": m.rotation, "predicted": it.predicted, "predicted_std": it.predicted_std,
@@ -322,7 +322,7 @@ class OptimizerNode(Node):
         except SudsError:
             return
         self._publish_gait(res.gait, live.newest_shape)
-        self._status_pub.publish(self._string(data=json.dumps({
+        self._status_pub.publish(self._string(data=dumps({
             "done": True, "stopped": why, "objective": self.params.objective, "index": res.index,
             "measured": res.measured.value(self.params.objective), "predicted": res.predicted,
             "cycles_requested": res.cycles_used, "cycles_elapsed": round(live.cycles_elapsed, 3),
