@@ -11,6 +11,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the shared folder beside the checkout (spec, bags, robots)
+SHARED = ROOT.parent / "shared"
+#: the shared snake5 robot model file
+SNAKE5 = str(SHARED / "robots" / "snake5.yaml")
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from _common import ROOT, machine, stamp, write
+from _common import ROOT, SHARED, SNAKE5, machine, stamp, write
 
 from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
 from suds_ros.core.ident.online import OnlineConfig, fit_streaming
@@ -35,7 +35,7 @@ from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import make_system
 
 SYSTEMS = ("purcell3", "swimmer9")
-BAGS = (("purcell3_lab_nominal.mcap", []), ("snake5_lab_damping.mcap", ["--model", "/work/shared/robots/snake5.yaml"]))
+BAGS = (("purcell3_lab_nominal.mcap", []), ("snake5_lab_damping.mcap", ["--model", SNAKE5]))
 
 
 EXPLAIN = [
@@ -171,7 +171,7 @@ def main() -> None:
               "## Public lab bags (`suds identify BAG [--model FILE]`, 30/30 cycles)", "",
               "| bag | Γ body | Γ passive | note |", "|---|---|---|---|"]
     for bag, extra in BAGS:
-        out = subprocess.run([sys.executable, "-m", "suds_ros.cli", "identify", f"/work/shared/bags/{bag}", "--json",
+        out = subprocess.run([sys.executable, "-m", "suds_ros.cli", "identify", str(SHARED / "bags" / bag), "--json",
                               *extra], check=True, capture_output=True, text=True, cwd=ROOT).stdout
         res = json.loads(out)
         note = ("twin-like reference `purcell3_nominal.mcap`: 0.881 / 0.961" if bag.startswith("purcell3")

@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import time
 
-from _common import RESULTS, machine, run_report_cli, stamp, write
+from _common import RESULTS, SNAKE5, machine, run_report_cli, stamp, write
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
@@ -32,8 +32,7 @@ from suds_ros.core.physics.systems import load_system
 CASES = {
     "purcell3": ("purcell3", 30, [{"name": "stiffness_to_drag_error", "scale": 3.0}], 70,
                  "the passive spring 3× stiffer against the drag (a colder, stiffer material): about half as fast"),
-    "snake5": ("/work/shared/robots/snake5.yaml", 40, [{"name": "spring_rest_offset", "joint": "joint_3",
-                                                        "offset": 0.7}], 80,
+    "snake5": (SNAKE5, 40, [{"name": "spring_rest_offset", "joint": "joint_3", "offset": 0.7}], 80,
                "joint_3's spring rest bent by 0.7 rad (damage): the old gait curves off the straight course"),
 }
 AFTER = (5, 10, 15, 20, 30, 40)  # cycles after the change at which the incumbent is read

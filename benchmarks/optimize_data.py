@@ -14,7 +14,7 @@ from __future__ import annotations
 import sys
 import time
 
-from _common import machine, stamp, write
+from _common import SNAKE5, machine, stamp, write
 
 from suds_ros.core.optimize.data import DataOptimizeConfig, learn_model, optimize_from_data
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
@@ -22,7 +22,7 @@ from suds_ros.core.physics.gait import constraint_violations, gait_limits, nomin
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import load_system
 
-ROBOTS = (("purcell3", 15), ("/work/shared/robots/snake5.yaml", 25), ("swimmer9", 45))
+ROBOTS = (("purcell3", 15), (SNAKE5, 25), ("swimmer9", 45))
 
 
 def main(seeds: tuple[int, ...] = (0, 1, 2)) -> None:

@@ -19,7 +19,7 @@ import argparse
 import json
 import time
 
-from _common import RESULTS, machine, stamp, write
+from _common import RESULTS, SNAKE5, machine, stamp, write
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
@@ -27,7 +27,7 @@ from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimi
 from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits, nominal_gait
 from suds_ros.core.physics.systems import load_system
 
-ROBOTS = {"purcell3": ("purcell3", 40, 15), "snake5": ("/work/shared/robots/snake5.yaml", 60, 25),
+ROBOTS = {"purcell3": ("purcell3", 40, 15), "snake5": (SNAKE5, 60, 25),
           "swimmer9": ("swimmer9", 90, 45)}  # name: (spec, budget, the target cycles: 5 per link)
 PEERS = {"purcell3": "Deng et al. ≈ 30 (10 per link)", "snake5": "Deng et al. ≈ 50 (10 per link)",
          "swimmer9": "Deng et al. ≈ 90; Bittner et al. 900"}

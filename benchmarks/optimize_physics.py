@@ -18,7 +18,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from _common import machine, stamp, write
+from _common import SNAKE5, machine, stamp, write
 from scipy.optimize import minimize
 
 from suds_ros.core.optimize.physics import (
@@ -58,7 +58,7 @@ def run(name: str, order: int, starts: int, seed: int) -> tuple[list[str], objec
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 #: robots of the generic check: name → spec for load_system
-GENERIC = {"purcell3": "purcell3", "snake5": "/work/shared/robots/snake5.yaml",
+GENERIC = {"purcell3": "purcell3", "snake5": SNAKE5,
            "eel4": str(ROOT / "test" / "data" / "robots" / "eel4.yaml"),
            "tail6": str(ROOT / "test" / "data" / "robots" / "tail6.yaml")}
 

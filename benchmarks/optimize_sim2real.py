@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import time
 
-from _common import RESULTS, machine, run_report_cli, stamp, write
+from _common import RESULTS, SNAKE5, machine, run_report_cli, stamp, write
 
 from suds_ros.core.diagnosis.experiment import reported_effects
 from suds_ros.core.diagnosis.pipeline import diagnose
@@ -40,7 +40,7 @@ from suds_ros.core.physics.systems import load_system
 MAX_ROTATION = 0.05
 #: case: (robot spec, concealed effects, loop budget in cycles, what they stand for)
 CASES = {
-    "snake5_bent": ("/work/shared/robots/snake5.yaml",
+    "snake5_bent": (SNAKE5,
                     [{"name": "spring_rest_offset", "joint": "joint_3", "offset": 0.6},
                      {"name": "joint_viscous_damping", "joint": "joint_4", "d": 0.5}], 60,
                     "joint_3's spring rest bent by 0.6 rad and a damper on joint_4"),

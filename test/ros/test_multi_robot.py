@@ -30,7 +30,7 @@ except ImportError:
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-SNAKE5 = Path("/work/shared/robots/snake5.yaml")
+SNAKE5 = Path(__file__).resolve().parents[2].parent / "shared" / "robots" / "snake5.yaml"
 if not SNAKE5.exists():
     SNAKE5 = Path(__file__).resolve().parents[1] / "data" / "robots" / "eel4.yaml"
 TRAIN_CYCLES, TEST_CYCLES = 30, 10
