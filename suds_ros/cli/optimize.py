@@ -334,7 +334,7 @@ def _loop(args: argparse.Namespace) -> int:
             "objective": key, "gait": str(out), "system": system.name, "order": args.order, "seed": args.seed,
             "budget_cycles": args.budget_cycles, "cycles_used": res.cycles_used, "stopped": res.stopped,
             "changes": [{"cycle": c, "effects": e} for c, e in changes],
-            "changes_taken": [res.iterations[i].cycles_used for i in _taken(res)],
+            "changes_taken": [res.iterations[i].cycles_used for i in res.changes],
             "predicted": res.predicted, "measured": m.value(key),
             "measured_detail": _measurement(m), "simulated": {"returned": true_final, "start": true_start},
             "limit": limit, "limit_note": limit_note,
@@ -395,11 +395,6 @@ def _changed_robot(system: object, changes: list[tuple[int, list[dict[str, objec
         if delay:
             raise SudsConfigError("--change: sensor_time_offset cannot change a running robot")
     return RFTChain(changed) if changes[-1][1] else system
-
-
-def _taken(res: object) -> list[int]:
-    """Indices of the iterations at which the loop took the robot to have changed."""
-    return [it.index for it in res.iterations if "the robot changed" in it.note]  # type: ignore[attr-defined]
 
 
 def _measurement(m: Measurement) -> dict[str, object]:

@@ -52,12 +52,11 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from suds_ros.core.config import check_settings, setting
-from suds_ros.core.errors import SudsConfigError, SudsError
+from suds_ros.core.errors import SudsError
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.live import LiveGaitSearch, decide
 from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, RunRequest
@@ -131,7 +130,7 @@ def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,
     m = it.measured
     return dumps({
         "index": it.index, "kind": request.kind, "accepted": it.accepted, "objective": objective,
-        "measured": m.value(objective), "measured_se": None if math.isnan(m.speed_se) else m.speed_se,
+        "measured": m.value(objective), "measured_se": m.value_se(objective),
         "measured_rotation": m.rotation, "predicted": it.predicted, "predicted_std": it.predicted_std,
         "cycles_requested": live.search.cycles_used, "cycles_elapsed": round(live.cycles_elapsed, 3),
         "switched": window[0], "window": list(window[1:]), "note": it.note, "gait": dump_gait(it.gait),
@@ -144,7 +143,7 @@ def warm_up() -> None:
 
 
 class OptimizerNode(Node):
-    """Command gaits, collect their cycles by stamps, fit and step in a worker thread."""
+    """Command gaits, collect their cycles by stamps, fit and step in a worker process."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("suds_optimizer", **kwargs)
@@ -193,9 +192,7 @@ class OptimizerNode(Node):
     # ------------------------------------------------------------ traffic
     def _on_shape(self, msg: Any) -> None:
         try:
-            sample = select_joints(joint_state_from_msg(msg), self.live.joint_names)
-            if not np.all(np.isfinite(sample.position)):
-                raise SudsConfigError("`position`: expected finite joint values, got a non-finite one")
+            sample = select_joints(joint_state_from_msg(msg), self.live.joint_names)  # finite: checked there
         except SudsError:
             self.skipped += 1
             return

@@ -52,7 +52,7 @@ reliable, transient local, depth 1) at start and at every switch.  A gait's text
 ``suds/gait_command`` (std_msgs/String, e.g. from the ``optimizer`` node) is switched to the same
 way; one for another robot, other joints or another frequency is logged and ignored.  Every
 switch is also published on ``suds/gait_switch`` (std_msgs/String JSON: ``stamp_ns``, ``stamp``
-and ``gait``; reliable, depth 10) with the stamp of the first sample of the new gait, before that
+and ``gait``; reliable, transient local, depth 10) with the stamp of the first sample of the new gait, before that
 sample, so listeners place the switch by stamps.
 
 Effects at run time

@@ -231,6 +231,11 @@ class Measurement:
         """Return the objective: the speed, or for turn the |turn rate|."""
         return abs(self.turn) if objective == "turn" else self.speed
 
+    def value_se(self, objective: str) -> float:
+        """Standard error of :meth:`value` (turn: of the rotation, · f)."""
+        return self.rotation_se * abs(self.turn / self.rotation) if objective == "turn" and self.rotation \
+            else self.speed_se
+
 
 def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: int, gait_hz: float) -> Measurement:
     """Per-cycle net motion g_c = g(t)⁻¹ g(t + 1/f) of a pose series, averaged over its whole cycles.
@@ -350,6 +355,7 @@ class LoopResult:
     index : int, the iteration that ran it.
     iterations : tuple of LoopIteration; cycles_used : int; stopped : str, why the loop ended.
     limits : GaitLimits; seconds : float.
+    changes : tuple of int, the iterations at which the search took the robot to have changed.
     """
 
     gait: Gait
@@ -361,6 +367,7 @@ class LoopResult:
     stopped: str
     limits: GaitLimits
     seconds: float
+    changes: tuple[int, ...] = ()
 
 
 class _Robot:
@@ -424,11 +431,6 @@ def _feasible(m: Measurement, cfg: LoopConfig, speed_floor: float) -> tuple[bool
     return abs(m.rotation) <= cfg.max_rotation, max(0.0, abs(m.rotation) - cfg.max_rotation)
 
 
-def _value_se(m: Measurement, objective: str) -> float:
-    """Standard error of the measured objective (turn: of the rotation, · f)."""
-    return m.rotation_se * abs(m.turn / m.rotation) if objective == "turn" and m.rotation else m.speed_se
-
-
 def _sigmas(new: float, old: float, se_new: float, se_old: float) -> float:
     """|new − old| in standard errors of the difference (0 when they are not known)."""
     se = math.hypot(se_new, se_old)
@@ -453,7 +455,7 @@ def _surprise(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: 
     that much while the incumbent is within it.
     """
     obj = cfg.objective
-    if _sigmas(new.value(obj), old.value(obj), _value_se(new, obj), _value_se(old, obj)) > cfg.change_sigmas \
+    if _sigmas(new.value(obj), old.value(obj), new.value_se(obj), old.value_se(obj)) > cfg.change_sigmas \
             and new.value(obj) < old.value(obj):
         return True
     if not _feasible(old, cfg, speed_floor)[0] or _feasible(new, cfg, speed_floor)[0]:
@@ -474,7 +476,7 @@ def is_better(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: 
         return viol_new < viol_old
     gain = new.value(cfg.objective) - old.value(cfg.objective)
     if cfg.accept_sigmas > 0:
-        se = math.hypot(_value_se(new, cfg.objective), _value_se(old, cfg.objective))
+        se = math.hypot(new.value_se(cfg.objective), old.value_se(cfg.objective))
         if math.isfinite(se):
             return gain > cfg.accept_sigmas * se
     return gain > 0
@@ -566,9 +568,14 @@ class GaitSearch:
         if self._pending is None:
             self._pending = self._rerun(f"robot changed: {reason}")
 
+    @property
+    def _step_cycles(self) -> int:
+        """Cycles of every run after the start's: settling, then the measured ones."""
+        return self.config.settle_cycles + self.config.step_cycles
+
     def _rerun(self, note: str) -> RunRequest | None:
         """The incumbent again, if the budget holds it (else the search stops)."""
-        n = self.config.settle_cycles + self.config.step_cycles
+        n = self._step_cycles
         if self.cycles_used + n > self.config.budget_cycles:
             self.stopped = f"{note}; no budget to re-run the incumbent"
             return None
@@ -583,7 +590,7 @@ class GaitSearch:
     def _next(self) -> RunRequest | None:
         """Fit the incumbent's model if needed and take one trust-region step (module docstring)."""
         cfg = self.config
-        n = cfg.settle_cycles + cfg.step_cycles
+        n = self._step_cycles
         if self.cycles_used + n > cfg.budget_cycles:
             self.stopped = (f"budget spent: a candidate needs {n} more cycles, "
                             f"{cfg.budget_cycles - self.cycles_used} left")
@@ -741,7 +748,8 @@ class GaitSearch:
         out = with_predicted(self._best_gait, cfg.objective, {cfg.objective: pred})
         return LoopResult(gait=out, measured=self._best_meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,
-                          stopped=self.stopped or "stopped by the caller", limits=self.limits, seconds=seconds)
+                          stopped=self.stopped or "stopped by the caller", limits=self.limits, seconds=seconds,
+                          changes=tuple(self.changes))
 
 
 def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
