@@ -54,6 +54,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--propose-experiment", metavar="DIR", default=None,
                    help="for an ambiguous finding, write to DIR the gait (suds-gait/1) that best tells the "
                         "explanations apart, and say how many cycles of it would")
+    p.add_argument("--ambiguity-band", type=float, default=None, metavar="NATS",
+                   help="explanations whose held-out evidence after replay is within this many nats of the "
+                        "reported one are listed with it as alternatives (default 10)")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="worker processes for the naming stage's fits (default: the CPUs this process may "
+                        "use); the report does not depend on it")
     p.add_argument("-o", "--output", metavar="REPORT_DIR",
                    help="write figures, report.json and summary.txt here")
     add_recording_options(p)
@@ -68,12 +74,15 @@ def run(args: argparse.Namespace) -> int:
     for flag, value in (("-o", args.output), ("--propose-experiment", args.propose_experiment)):
         if value and Path(value).exists() and not Path(value).is_dir():
             raise SudsConfigError(f"{flag} {value!r}: exists and is not a directory")
+    if args.jobs is not None and args.jobs < 1:
+        raise SudsConfigError(f"--jobs: expected a positive number of processes, got {args.jobs}")
     rec, model = load_recording_and_model(args.bag, args)
     ref = load_recording(args.sim, args) if args.sim else None
     quiet = args.json or not sys.stderr.isatty()
     progress = None if quiet else (lambda s: print(f"  … {s}", file=sys.stderr, flush=True))
     system = None if model is not None else args.system
-    config = DiagnoseConfig(model_suspects=not args.catalogue_only)
+    band = {} if args.ambiguity_band is None else {"ambiguity_band": args.ambiguity_band}
+    config = DiagnoseConfig(model_suspects=not args.catalogue_only, jobs=args.jobs or _cpus(), **band)
     rep = diagnose_recording(rec, system=system, config=config, reference=ref, progress=progress, model=model)
     paths = write_figures(rep, args.output) if args.output else []
     experiments: list[dict[str, object]] = []
@@ -94,6 +103,16 @@ def run(args: argparse.Namespace) -> int:
     for p in paths:
         print(f"  wrote {p}")
     return 0
+
+
+def _cpus() -> int:
+    """The CPUs this process may run on (its affinity), at least 1."""
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def]
@@ -128,8 +147,13 @@ def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def
                 raise SudsConfigError(f"--propose-experiment: {str(path)!r} exists; nothing overwritten")
             path.write_text(dump_gait(p.gait))
             entry["gait_file"] = str(path)
-            lines.append(f"    {p.reported} OR {p.alternative}: run {path} for {p.cycles} cycles "
-                         f"({p.nats_per_cycle:.3g} nats per cycle between them, against "
-                         f"{p.nominal_nats_per_cycle:.3g} under the nominal gait; {p.threshold:g} nats settle it)")
+            if p.is_nominal:
+                lines.append(f"    {p.reported} OR {p.alternative}: no drive tried within the joint range and speed "
+                             f"separates them better than the nominal gait ({path}): run {p.cycles} cycles of it "
+                             f"({p.nats_per_cycle:.3g} nats per cycle between them; {p.threshold:g} nats settle it)")
+            else:
+                lines.append(f"    {p.reported} OR {p.alternative}: run {path} for {p.cycles} cycles "
+                             f"({p.nats_per_cycle:.3g} nats per cycle between them, against "
+                             f"{p.nominal_nats_per_cycle:.3g} under the nominal gait; {p.threshold:g} nats settle it)")
         entries.append(entry)
     return entries, lines

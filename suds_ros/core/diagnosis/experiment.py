@@ -23,7 +23,10 @@ them is proposed (so never a drive that separates less than the one already run)
 
 Cycles needed: the diagnosis scores held-out evidence on half of the cycles, so a recording of
 N cycles gives about ½·N·(nats per cycle) between the explanations; N is the smallest count (at
-least 8) for which that reaches ``evidence_threshold``.  Explanations that no admissible drive
+least 8) for which that reaches ``evidence_threshold``, and for which the reported set's own
+mismatch with the nominal model reaches it too under that drive.  With several alternatives one
+run can be proposed against all of them (:func:`propose_all`: the smallest separation over them
+is maximised).  Explanations that no admissible drive
 separates (the same physics, e.g. one passive joint's stiffness and the global stiffness-to-drag
 scale) are reported as such, with no gait.
 """
@@ -105,7 +108,8 @@ class ProposedExperiment:
     ``gait`` is None when no admissible drive separates them (``separable`` False).
     ``nats_per_cycle``: expected evidence between them per cycle under ``gait`` (after refitting);
     ``nominal_nats_per_cycle`` the same under the nominal gait; ``cycles`` the cycles of ``gait``
-    that give ``threshold`` nats of held-out evidence.
+    that give ``threshold`` nats of held-out evidence; ``is_nominal``: no admissible drive tried
+    separates them better than the nominal gait, which is then the proposal (more cycles of it).
     """
 
     reported: str
@@ -115,6 +119,7 @@ class ProposedExperiment:
     nominal_nats_per_cycle: float
     cycles: int | None
     threshold: float
+    is_nominal: bool = False
 
     @property
     def separable(self) -> bool:
@@ -129,6 +134,7 @@ class ProposedExperiment:
             "nominal_nats_per_cycle": float(self.nominal_nats_per_cycle),
             "cycles": self.cycles,
             "threshold": float(self.threshold),
+            "nominal_gait": self.is_nominal,
         }
 
 
@@ -242,6 +248,24 @@ def propose(
     ``floors`` are the recording's noise floors by channel (passive joint names, ``xi_x``,
     ``xi_y``, ``xi_theta``), ``dt`` its sample period (s) and ``w`` the body-velocity window.
     """
+    return propose_all(base, reported, [alternative], floors, dt, w, threshold, config, labels)
+
+
+def propose_all(
+    base: ChainModel, reported: Sequence[Effect], alternatives: Sequence[Sequence[Effect]],
+    floors: Mapping[str, float], dt: float, w: int, threshold: float, config: ExperimentConfig = ExperimentConfig(),
+    labels: tuple[str, str] = ("reported", "alternatives"),
+) -> ProposedExperiment:
+    """The admissible gait that best separates ``reported`` from every one of ``alternatives`` at once.
+
+    A gait's separation is the smallest over the alternatives (the run settles the finding only
+    when it tells the reported set from each of them); otherwise as :func:`propose`.  The cycles
+    asked for also make the reported set's own mismatch with the nominal model reach
+    ``threshold`` under the gait (a drive that separates the explanations but hides the mismatch
+    would not be diagnosed at all).
+    """
+    if not alternatives:
+        raise SudsConfigError("`alternatives`: expected at least one alternative set, got none")
     system = RFTChain(base)
     nominal = nominal_gait(system)
     limits = gait_limits(system, nominal)
@@ -253,7 +277,11 @@ def propose(
     span = np.repeat(np.asarray(limits.limit), 2 * order + 1)
 
     def score(gaits: list[Gait]) -> FloatArray:
-        return sim.nats(sim.outputs(reported, gaits), sim.outputs(alternative, gaits))
+        ours = sim.outputs(reported, gaits)
+        return np.min([sim.nats(ours, sim.outputs(alt, gaits)) for alt in alternatives], axis=0)
+
+    def refitted(g: Gait) -> float:
+        return min(min(_refit(sim, reported, alt, g), _refit(sim, alt, reported, g)) for alt in alternatives)
 
     nominal_adm = _admissible(x_nom, nominal, order, limits)
     pool = [nominal_adm] + [_admissible(x_nom + rng.normal(0.0, 0.6, x_nom.size) * span, nominal, order, limits)
@@ -267,33 +295,48 @@ def propose(
     allg, alls = pool + pool2, np.concatenate([s, s2])
     # the nominal gait first: the proposal is never worse than the drive already run
     top = [nominal_adm] + [allg[i] for i in np.argsort(-np.nan_to_num(alls, nan=-np.inf))[: config.refit] if i]
-    refitted = [min(_refit(sim, reported, alternative, g), _refit(sim, alternative, reported, g)) for g in top]
-    nom_nats = refitted[0]
-    k = int(np.argmax(refitted))
-    nats = refitted[k]
+    seps = [refitted(g) for g in top]
+    nom_nats = seps[0]
+    k = int(np.argmax(seps))
+    nats = seps[k]
     if not nats > INSEPARABLE_NATS:
         return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold)
     gait = top[k]
     bad = constraint_violations(gait, limits)
     if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
         raise SudsConfigError(f"proposed gait violates its limits: {bad}")
-    cycles = max(config.min_cycles, int(math.ceil(2.0 * threshold / nats)))
-    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold)
+    visible = float(sim.nats(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
+    cycles = max(config.min_cycles, int(math.ceil(2.0 * threshold / nats)),
+                 int(math.ceil(2.0 * threshold / visible)) if visible > 0 else 0)
+    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0)
 
 
 def propose_for_report(
     rep: DiagnosisReport, base: ChainModel, dt: float, config: DiagnoseConfig = DiagnoseConfig(),
     experiment: ExperimentConfig = ExperimentConfig(),
 ) -> tuple[ProposedExperiment, ...]:
-    """One proposal per alternative of the report's first effect (none without alternatives)."""
+    """One proposal per alternative of the report's first effect (none without alternatives).
+
+    With two or more alternatives that a drive separates, a proposal that separates the reported
+    set from all of them at once (:func:`propose_all`, alternative labels joined by `` | ``) comes
+    first: the one run that settles the whole finding.
+    """
     if not rep.effects or not rep.effects[0].alternatives:
         return ()
     w = max(1, int(round(config.window / dt)))
     out = []
     label = set_label([(e.name, e.target) for e in rep.effects])
+    sets = []
     for alt in rep.effects[0].alternatives:
         a, b = effect_sets(rep.effects, alt)
         alt_label = set_label([(str(e["name"]), e.get("joint") or e.get("link")) for e in b])  # type: ignore[misc]
         out.append(propose(base, a, b, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
                            (label, alt_label)))
+        sets.append((a, b))
+    apart = [(ab, p) for ab, p in zip(sets, out) if p.separable]
+    if len(apart) >= 2:
+        joint = propose_all(base, apart[0][0][0], [ab[1] for ab, _ in apart], rep.noise_floor, dt, w,
+                            config.evidence_threshold, experiment,
+                            (label, " | ".join(p.alternative for _, p in apart)))
+        out.insert(0, joint)
     return tuple(out)

@@ -130,6 +130,7 @@ from suds_ros.core.diagnosis.report import (
 )
 from suds_ros.core.diagnosis.selection import Naming, _compatible, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.parallel import fork_map, workers
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import auto_substeps
@@ -198,6 +199,15 @@ def diagnose(
     -------
     DiagnosisReport
     """
+    with workers(config.jobs):
+        return _diagnose(rec, model, config, reference, progress)
+
+
+def _diagnose(
+    rec: Recording, model: ChainModel, config: DiagnoseConfig, reference: Recording | None,
+    progress: Callable[[str], None] | None,
+) -> DiagnosisReport:
+    """:func:`diagnose` within its worker budget."""
     say = progress or (lambda s: None)
     clock = _Clock()
     data = prepare(rec, model)
@@ -371,7 +381,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         return _Fit([], nom.replay, nom.E0, nom.floor, nom.F0, located, conditions, naming.confounded, True)
     # the selection, those started from the first step's runners-up, and swaps of confounded
     # members: each is refined in the simulator, which arbitrates
-    tried = [_try(nom, opt) for opt in _options(naming, config)]
+    tried = fork_map(lambda opt: _try(nom, opt), _options(naming, config))  # each its own refinement
     # the output error arbitrates: replay evidence on the training half
     best = max(range(len(tried)), key=lambda i: tried[i].train_evidence)
     win = tried[best]
@@ -405,10 +415,12 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     conditions.update(channel_conditions(new, nom.E0, table, model))
     evidence = {effect_label(*p): e for p, e in zip(ranked.cand.parts, member_ev)}
     kept = {effect_label(*p) for p in cand.parts}
-    # a confounded member whose swap the replay tells apart (outside the band) is not confounded
-    told_apart = {lab for t in tried if t.option.swap and t is not win
+    # a confounded member that the replay tells apart (a refined set with it in place of one of
+    # the reported members, outside the band) is not confounded
+    told_apart = {lab for t in tried if t is not win
                   and win.evidence - t.evidence > config.ambiguity_band
-                  for lab in ({effect_label(*q) for q in t.cand.parts} - kept)}
+                  for new_labels in [{effect_label(*q) for q in t.cand.parts} - kept] if len(new_labels) == 1
+                  for lab in new_labels}
     confounded = tuple(kept_g for g in groups if g[0] not in dropped and g[0] in kept
                        for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
                        if len(kept_g) > 1)
@@ -486,7 +498,27 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
                            for g in [(lead,) + tuple(lab for lab in rest if lab not in mine)] if len(g) > 1)
             swaps.append(_Option(cand, np.concatenate(xs), (), groups,
                                  whole.score.score if whole is not None else float("nan"), swap=True))
-    return out + swaps
+    return out + swaps + _weak_rivals(naming, config, seen)
+
+
+def _weak_rivals(naming: Naming, config: DiagnoseConfig, seen: set[frozenset]) -> list[_Option]:
+    """Single effects to refine beside a weakly named one (``config.weak_max``; none otherwise).
+
+    A lone effect whose equation-error evidence is below the threshold is named only because the
+    replay located a mismatch; the equation error's ranking is then too weak to exclude the
+    others (its noise blurs sign(ṙ), so a weak friction can score below a damping).  The
+    simulator judges: the other effects on the same target first, then the best of the rest.
+    """
+    chosen = naming.chosen
+    if (not config.weak_max or len(chosen.cand.parts) != 1
+            or chosen.score.score >= config.evidence_threshold):
+        return []
+    target = chosen.cand.parts[0][1]
+    singles = sorted((r for r in naming.fits.values() if len(r.cand.parts) == 1
+                      and frozenset(r.cand.parts) not in seen), key=lambda r: -r.score.score)
+    same = [r for r in singles if target is not None and r.cand.parts[0][1] == target]
+    rest = [r for r in singles if r not in same and r.score.score > 0]
+    return [_Option(r.cand, r.x, (), (), r.score.score, swap=True) for r in (same + rest)[:config.weak_max]]
 
 
 def _try(nom: _Nominal, opt: _Option) -> _Tried:

@@ -16,6 +16,7 @@ from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
 from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect, effect_label
 from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.parallel import fork_map
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel
 
@@ -146,16 +147,21 @@ def extension_gains(
 
     r0 = residuals(cand, x[:0])(x)
     own = fd_jacobian(residuals(cand, x[:0]), x, r0, np.maximum(1e-3 * np.abs(x), 1e-2 * cand.scales()),
-                      np.asarray(cand.bounds()[1], dtype=float))
+                      np.asarray(cand.bounds()[1], dtype=float), parallel=True)
     Q = np.linalg.qr(own)[0]
-    out = []
-    for part in parts:
+
+    def columns(part: tuple[str, str | None]) -> FloatArray | None:
+        """The part's columns, forward differences from its neutral value (None: it cannot be replayed)."""
         c = Candidate(cand.parts + (part,))
-        z = c.neutral()[x.size:]
-        try:  # the part's columns, forward differences from its neutral value
-            J = fd_jacobian(residuals(c, x), z, r0, 1e-2 * c.scales()[x.size:],
-                            np.asarray(c.bounds()[1][x.size:], dtype=float))
+        try:
+            return fd_jacobian(residuals(c, x), c.neutral()[x.size:], r0, 1e-2 * c.scales()[x.size:],
+                               np.asarray(c.bounds()[1][x.size:], dtype=float))
         except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+            return None
+
+    out = []
+    for J in fork_map(columns, parts):
+        if J is None:
             out.append(-np.inf)
             continue
         J = J - Q @ (Q.T @ J)
@@ -193,7 +199,7 @@ def _refine(
     r0 = sim(x0)
     n_res = r0.size
     c0 = float(np.sum(r0**2))
-    value, jac = with_jacobian(fun, 1e-3, 1e-2 * scales, hi)
+    value, jac = with_jacobian(fun, 1e-3, 1e-2 * scales, hi, parallel=True)
     sol = scipy.optimize.least_squares(
         value, x0, jac=jac, bounds=(lo, hi), x_scale=scales,
         max_nfev=cfg.refine_nfev * (x0.size + 1), method="trf",
@@ -203,7 +209,7 @@ def _refine(
         x, R, J = sol.x, np.asarray(sol.fun).reshape(r0.shape), np.asarray(sol.jac)
     else:
         x, R = x0, r0
-        J = fd_jacobian(fun, x, R, np.maximum(1e-3 * np.abs(x), 1e-2 * scales), hi)
+        J = fd_jacobian(fun, x, R, np.maximum(1e-3 * np.abs(x), 1e-2 * scales), hi, parallel=True)
     return x, _sandwich_stderr(J, R, x.size)
 
 

@@ -73,6 +73,12 @@ class DiagnoseConfig:
     swap_max : int
         Most sets refined in the simulator that swap a member of the chosen set for one it was
         confounded with in the equation error (0: none).
+    weak_max : int
+        When the reported explanation is one effect whose equation-error evidence is below
+        ``evidence_threshold`` (named only because a channel is located), this many rival single
+        effects are refined in the simulator too: the other effects on the same passive joint,
+        then the best of the rest by equation-error evidence (0: none).  A rival within
+        ``ambiguity_band`` of the reported effect's replay evidence is one of its alternatives.
     extend_max : int
         At the forward step that failed the threshold, the effects of its leading candidate sets
         (at most this many) are scored on top of the reported set in output error (0: none); the
@@ -113,6 +119,9 @@ class DiagnoseConfig:
     replay_warm : float
         Seconds of warm-up simulated before each piece (from the recorded state) and discarded;
         the passive joints forget their initial state well within it.
+    jobs : int
+        Worker processes for the independent fits of the naming stage (forked, sharing the
+        recording; :mod:`suds_ros.core.parallel`).  The report does not depend on it.
     """
 
     window: float = 0.1
@@ -130,6 +139,7 @@ class DiagnoseConfig:
     arbitrate_margin: float = 20.0
     arbitrate_max: int = 2
     swap_max: int = 3
+    weak_max: int = 6
     extend_max: int = 6
     ambiguity_band: float = 10.0
     calibrate: bool = True
@@ -143,6 +153,7 @@ class DiagnoseConfig:
     substeps: int | None = None
     replay_chunk: float = 3.0
     replay_warm: float = 3.0
+    jobs: int = 1
 
     def __post_init__(self) -> None:
         checks = [
@@ -160,6 +171,8 @@ class DiagnoseConfig:
             ("arbitrate_margin", self.arbitrate_margin >= 0),
             ("arbitrate_max", self.arbitrate_max >= 0),
             ("swap_max", self.swap_max >= 0),
+            ("weak_max", self.weak_max >= 0),
+            ("jobs", self.jobs >= 1),
             ("extend_max", self.extend_max >= 0),
             ("ambiguity_band", self.ambiguity_band >= 0),
             ("calibration_max", self.calibration_max >= 1),

@@ -26,6 +26,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.naming import Candidate, Scorer, catalogue_candidates
 from suds_ros.core.diagnosis.report import CandidateScore, DiagnoseConfig, effect_label
+from suds_ros.core.parallel import fork_map
 from suds_ros.core.physics.effects import EFFECTS
 from suds_ros.core.physics.rft import ChainModel
 
@@ -87,6 +88,23 @@ class _Selector:
         x, _, g_te = self.scorer.fit(cand, x0)
         return self.ranked(cand, x, g_te)
 
+    def _fits(self, jobs: Sequence[tuple[Candidate, FloatArray | None, bool]]) -> list[tuple[FloatArray, float]]:
+        """(parameters, held-out gain) of each (candidate, start, quick), in worker processes.
+
+        As many as :func:`suds_ros.core.parallel.workers` allows (``DiagnoseConfig.jobs`` within
+        :func:`~suds_ros.core.diagnosis.pipeline.diagnose`); the results do not depend on it.
+        """
+        def one(job: tuple[Candidate, FloatArray | None, bool]) -> tuple[FloatArray, float]:
+            x, _, g_te = self.scorer.fit(job[0], job[1], quick=job[2])
+            return x, g_te
+
+        return fork_map(one, jobs)
+
+    def fit_many(self, jobs: Sequence[tuple[Candidate, FloatArray | None]]) -> list[Ranked]:
+        """:meth:`fit` of each (candidate, start), in order (in worker processes, as :meth:`_fits`)."""
+        out = self._fits([(c, x0, False) for c, x0 in jobs])
+        return [self.ranked(c, x, g_te) for (c, _), (x, g_te) in zip(jobs, out)]
+
     def fit_quick(self, cand: Candidate, x0: FloatArray) -> Ranked:
         """One short least-squares run of ``cand`` from ``x0`` (no multi-start)."""
         x, _, g_te = self.scorer.fit(cand, x0, quick=True)
@@ -101,13 +119,10 @@ class _Selector:
         while a joint step from (0.77, the anisotropy's single fit) reached the true pair, 600
         nats above every other pair (``docs/results/diagnose_sweep_lab.md``, case 0).
         """
-        screened = []
-        for s in singles:
-            if not _compatible(cur.cand, s.cand.parts[0]):
-                continue
-            cand = Candidate(cur.cand.parts + s.cand.parts)
-            x, _, g_te = self.scorer.fit(cand, np.concatenate([cur.x, s.x]), quick=True)
-            screened.append((g_te - self.pen_unit * x.size, cand, x))
+        jobs = [(Candidate(cur.cand.parts + s.cand.parts), np.concatenate([cur.x, s.x]), True)
+                for s in singles if _compatible(cur.cand, s.cand.parts[0])]
+        screened = [(g_te - self.pen_unit * x.size, cand, x)
+                    for (cand, _, _), (x, g_te) in zip(jobs, self._fits(jobs))]
         screened.sort(key=lambda t: -t[0])
         # a joint effect on a joint the set already acts on is refitted fully whatever its screen:
         # a short screen may not get out of the member's share (a damping fitted alone absorbs a
@@ -115,7 +130,7 @@ class _Selector:
         joints = {_joint_of(p) for p in cur.cand.parts} - {None}
         keep = [t for k, t in enumerate(screened)
                 if k < self.config.step_candidates or _joint_of(t[1].parts[-1]) in joints]
-        out = [self.fit(cand, x) for _, cand, x in keep]
+        out = self.fit_many([(cand, x) for _, cand, x in keep])
         return sorted(out, key=lambda r: -r.score.score)
 
     def without(self, cur: Ranked, k: int) -> Ranked:
@@ -227,7 +242,7 @@ def name_mismatch(
     if null is not None:
         sel.calibration = _Calibration(null, model, config, sig_rp)
     pool = list(candidates) if candidates is not None else catalogue_candidates(model, config.model_suspects)
-    singles = sorted((sel.fit(c) for c in pool), key=lambda r: -r.score.score)
+    singles = sorted(sel.fit_many([(c, None) for c in pool]), key=lambda r: -r.score.score)
     main = _forward(sel, singles, None)
     if main.cur.score.score > 0:
         main = _with_equivalents(sel, main, singles)

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from suds_ros.core.diagnosis import DiagnoseConfig
+from suds_ros.core.diagnosis import DiagnoseConfig, diagnose
 from suds_ros.core.diagnosis.data import prepare
 from suds_ros.core.diagnosis.locate import locate_channels
 from suds_ros.core.diagnosis.naming import Candidate, Scorer
-from suds_ros.core.diagnosis.pipeline import _Clock, _refine, replay_nominal
-from suds_ros.core.diagnosis.selection import Naming, _Path, _Selector
+from suds_ros.core.diagnosis.pipeline import _Clock, _refine, _weak_rivals, replay_nominal
+from suds_ros.core.diagnosis.report import CandidateScore
+from suds_ros.core.diagnosis.selection import Naming, Ranked, _Path, _Selector
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
@@ -55,3 +58,72 @@ def test_the_simulator_arbitrates_between_selections_by_replay_evidence() -> Non
     again = _refine(nom, naming(right, wrong), list(located), _Clock())
     assert {(e.name, e.target) for e in again.effects} == set(got)
     assert not any(n.startswith("the simulator preferred") for n in again.notes), again.notes
+
+
+def _ranked(parts: tuple[tuple[str, str | None], ...], score: float) -> Ranked:
+    cand = Candidate(parts)
+    return Ranked(CandidateScore(cand.label, (), 1, score, 0.0), cand, np.zeros(len(parts)))
+
+
+def test_a_weakly_named_effect_gets_rivals_on_its_joint_first_then_the_best_of_the_rest() -> None:
+    """Below the evidence threshold the equation error's ranking does not exclude the others."""
+    chosen = _ranked((("joint_viscous_damping", "joint_2"),), 7.0)
+    fits = {r.cand.label: r for r in [
+        chosen,
+        _ranked((("sensor_time_offset", None),), 14.0),
+        _ranked((("joint_coulomb_friction", "joint_2"),), -3.0),  # below zero, but on the same joint
+        _ranked((("spring_rest_offset", "joint_2"),), 1.0),
+        _ranked((("background_flow", None),), -1.0),  # neither: not a rival
+        _ranked((("drag_anisotropy_error", None),), 2.0),
+        _ranked((("joint_viscous_damping", "joint_2"), ("sensor_time_offset", None)), 20.0),  # a pair: not one
+    ]}
+    naming = Naming((), chosen, (), (7.0,), fits=fits)
+    seen = {frozenset(chosen.cand.parts)}
+    got = [o.cand.label for o in _weak_rivals(naming, DiagnoseConfig(), seen)]
+    assert got == ["spring_rest_offset:joint_2", "joint_coulomb_friction:joint_2", "sensor_time_offset",
+                   "drag_anisotropy_error"]
+    assert [o.cand.label for o in _weak_rivals(naming, DiagnoseConfig(weak_max=2), seen)] == got[:2]
+    assert _weak_rivals(naming, DiagnoseConfig(weak_max=0), seen) == []
+    # named with evidence above the threshold, or as a set: the equation error's pick stands
+    strong = Naming((), _ranked(chosen.cand.parts, 80.0), (80.0,), fits=fits)
+    assert _weak_rivals(strong, DiagnoseConfig(), seen) == []
+    pair = Naming((), fits["joint_viscous_damping:joint_2 + sensor_time_offset"], (), fits=fits)
+    assert _weak_rivals(pair, DiagnoseConfig(), seen) == []
+
+
+def test_a_weak_friction_is_not_named_as_a_damping() -> None:
+    """purcell3, Coulomb friction 0.04 on joint_2, 16 cycles with angle noise 5e-3.
+
+    The noise blurs sign(ṙ), and the equation error ranks a viscous damping above the friction
+    (which it scores below zero).  Without the weak-evidence rivals (``weak_max=0``) the damping is
+    named, and the friction is nowhere in the report.  With them the simulator refines the friction
+    too and names it, by far more than the ambiguity band; nor is the damping then called confounded.
+    """
+    base = purcell3_model()
+    model, _ = apply_effects(base, [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.04)])
+    rec = simulate(RFTChain(model), SimConfig(cycles=16, seed=11, noise_std=5e-3))
+    rep = diagnose(rec, base)
+    assert [(e.name, e.target) for e in rep.effects] == [("joint_coulomb_friction", "joint_2")], rep.notes
+    assert rep.effects[0].parameters["mu"] == pytest.approx(0.04, rel=0.1)
+    assert not rep.effects[0].alternatives
+    assert not any("joint_viscous_damping:joint_2" in g for g in rep.confounded_with), rep.confounded_with
+    assert any(n.startswith("the simulator preferred joint_coulomb_friction") for n in rep.notes), rep.notes
+    before = diagnose(rec, base, DiagnoseConfig(weak_max=0))
+    assert [(e.name, e.target) for e in before.effects] == [("joint_viscous_damping", "joint_2")]
+
+
+def test_the_report_does_not_depend_on_the_worker_processes() -> None:
+    """DiagnoseConfig.jobs forks workers for the candidate fits, the refinements and the Jacobian
+    columns; the report (which holds no timings) is the serial one, to the last digit."""
+    from suds_ros.core.json_text import dumps
+
+    base = purcell3_model()
+    truth = [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.3),
+             dict(name="background_flow", vx=0.05, vy=0.02)]
+    model, _ = apply_effects(base, truth)
+    rec = simulate(RFTChain(model), SimConfig(cycles=12, seed=5))
+    docs = []
+    for jobs in (1, 2):
+        docs.append(dumps(diagnose(rec, base, DiagnoseConfig(jobs=jobs)).to_dict()))
+    assert docs[0] == docs[1]
+    assert {e["name"] for e in json.loads(docs[1])["effects"]} == {"joint_coulomb_friction", "background_flow"}

@@ -39,6 +39,8 @@ def test_a_cubic_spring_and_a_stiffer_spring_are_told_apart_by_a_drive_within_th
     assert constraint_violations(p.gait, gait_limits(system, nominal_gait(system))) == []
     assert p.gait.joints == tuple(system.joint_names[i] for i in system.actuated)
     assert p.as_dict()["separable"] is True
+    # it separates better than the nominal gait: the proposal says it is not that gait
+    assert p.nats_per_cycle > p.nominal_nats_per_cycle and p.as_dict()["nominal_gait"] is False
 
 
 def test_effect_sets_swap_the_alternative_for_what_it_replaces() -> None:
@@ -50,3 +52,24 @@ def test_effect_sets_swap_the_alternative_for_what_it_replaces() -> None:
     assert [e["name"] for e in a] == ["joint_viscous_damping", "background_flow"]
     assert [e["name"] for e in b] == ["background_flow", "joint_coulomb_friction"]
     assert b[1] == {"name": "joint_coulomb_friction", "joint": "joint_2", "mu": pytest.approx(0.1)}
+
+
+def test_one_run_can_be_proposed_against_several_alternatives() -> None:
+    """A cubic spring against a stiffer linear spring *and* a damping: the joint proposal's
+    separation is the smaller of the two at its gait, and its cycles reach the threshold for
+    both and make the mismatch itself visible."""
+    from suds_ros.core.diagnosis.experiment import propose_all
+
+    base = purcell3_model()
+    a = [dict(name="spring_nonlinearity", joint="joint_2", k3=3.0)]
+    b1 = [dict(name="joint_stiffness_error", joint="joint_2", scale=1.2)]
+    b2 = [dict(name="joint_viscous_damping", joint="joint_2", d=0.05)]
+    p = propose_all(base, a, [b1, b2], FLOORS, 0.01, 10, 60.0, FAST, ("cubic", "stiffer | damped"))
+    assert p.separable and p.alternative == "stiffer | damped"
+    only1 = propose(base, a, b1, FLOORS, 0.01, 10, 60.0, FAST)
+    assert p.nats_per_cycle <= only1.nats_per_cycle * (1 + 1e-9) + 1e-9  # no better than the easier pair alone
+    assert p.cycles >= max(8, int(np.ceil(2 * 60.0 / p.nats_per_cycle)))
+    system = RFTChain(base)
+    assert constraint_violations(p.gait, gait_limits(system, nominal_gait(system))) == []
+    with pytest.raises(Exception, match="alternatives"):
+        propose_all(base, a, [], FLOORS, 0.01, 10, 60.0, FAST)
