@@ -318,8 +318,8 @@ def propose_for_report(
     """One proposal per alternative of the report's first effect (none without alternatives).
 
     With two or more alternatives that a drive separates, a proposal that separates the reported
-    set from all of them at once (:func:`propose_all`, alternative labels joined by `` | ``) comes
-    first: the one run that settles the whole finding.
+    set from all of them at once (:func:`propose_all`, labelled ``all of: A; B; …``) comes first:
+    the one run that settles the whole finding.
     """
     if not rep.effects or not rep.effects[0].alternatives:
         return ()
@@ -337,6 +337,6 @@ def propose_for_report(
     if len(apart) >= 2:
         joint = propose_all(base, apart[0][0][0], [ab[1] for ab, _ in apart], rep.noise_floor, dt, w,
                             config.evidence_threshold, experiment,
-                            (label, " | ".join(p.alternative for _, p in apart)))
+                            (label, "all of: " + "; ".join(p.alternative for _, p in apart)))
         out.insert(0, joint)
     return tuple(out)
