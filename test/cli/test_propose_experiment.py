@@ -42,6 +42,7 @@ def test_the_same_physics_gets_no_gait(tmp_path: Path, capsys: pytest.CaptureFix
     assert "the same physics" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # three diagnoses and a proposal per rival: about 4 min alone, 9 under load
 def test_a_proposed_run_settles_friction_against_damping(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A weak Coulomb friction (0.04 on joint_2) in 16 noisy cycles: with a wide ambiguity band
     (200 nats) a viscous damping on the same joint is listed beside it.  The proposed gait stays
