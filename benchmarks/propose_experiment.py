@@ -114,6 +114,7 @@ def main() -> None:
     ap.add_argument("--max-effects", type=int, default=3)
     ap.add_argument("--band", type=float, default=DiagnoseConfig().ambiguity_band,
                     help="the diagnoses' ambiguity band, nats (wider: more findings listed as ambiguous)")
+    ap.add_argument("--only", type=int, nargs="+", default=None, help="run only these case indices of the draw")
     ap.add_argument("--out", default="propose_experiment.md")
     args = ap.parse_args()
     from concurrent.futures import ProcessPoolExecutor
@@ -130,8 +131,9 @@ def main() -> None:
                       args.band))
     t0 = time.perf_counter()
     rows: dict[int, tuple[str, str]] = {}
+    todo = cases if args.only is None else [c for c in cases if c[0] in set(args.only)]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for i, outcome, row in pool.map(run_case, cases):
+        for i, outcome, row in pool.map(run_case, todo):
             rows[i] = (outcome, row)
             print(row, flush=True)
     count = {k: sum(1 for o, _ in rows.values() if o == k)
@@ -142,10 +144,11 @@ def main() -> None:
         "",
         f"Measured {stamp()} on {machine()} with `python benchmarks/propose_experiment.py --cases {args.cases} "
         f"--seed {args.seed} --cycles {args.cycles} --max-cycles {args.max_cycles} --jobs {args.jobs} "
-        f"--noise {args.noise:g} --weaken {args.weaken:g} --max-effects {args.max_effects} --band {args.band:g}` "
+        f"--noise {args.noise:g} --weaken {args.weaken:g} --max-effects {args.max_effects} --band {args.band:g}"
+        + (f" --only {' '.join(map(str, args.only))}" if args.only else "") + "` "
         f"({time.perf_counter() - t0:.0f} s).",
         "",
-        f"{args.cases} cases drawn as in the diagnosis sweep (1–{args.max_effects} effects, aligned, "
+        f"{len(todo)} of {args.cases} cases drawn as in the diagnosis sweep (1–{args.max_effects} effects, aligned, "
         f"{args.cycles} cycles, angle noise {args.noise:g} rad, departures from nominal × {args.weaken:g}, ambiguity "
         f"band {args.band:g} nats). "
         f"{count['none'] + count['wrong']} had no ambiguous finding ({count['wrong']} of them not fully correct: "
