@@ -58,8 +58,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="explanations whose held-out evidence after replay is within this many nats of the "
                         "reported one are listed with it as alternatives (default 10)")
     p.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="worker processes for the naming stage's fits (default: the CPUs this process may "
-                        "use); the report does not depend on it")
+                   help="worker processes for the candidate fits and refinements (default: the CPUs this "
+                        "process may use); the report does not depend on it")
     p.add_argument("-o", "--output", metavar="REPORT_DIR",
                    help="write figures, report.json and summary.txt here")
     add_recording_options(p)

@@ -11,8 +11,8 @@ the ``fork`` start method does not exist or the pool breaks (a worker killed): n
 that the serial loop would not raise.
 
 How many workers: the ``jobs`` argument, or else the count set for a block of work with
-:func:`workers` (1, serial, outside any such block), so that deep helpers (a replay batch) take
-the caller's choice without passing it down every signature.
+:func:`workers` (1, serial, outside any such block), so that deep helpers (a refinement's
+Jacobian columns) take the caller's choice without passing it down every signature.
 """
 
 from __future__ import annotations
@@ -42,11 +42,6 @@ def workers(jobs: int) -> Iterator[None]:
         yield
     finally:
         _WORKERS = old
-
-
-def current_workers() -> int:
-    """The workers a map without ``jobs`` would use here (1 inside a worker)."""
-    return 1 if _CALL is not None else _WORKERS
 
 
 def _run(i: int) -> Any:

@@ -326,17 +326,17 @@ def propose_for_report(
     w = max(1, int(round(config.window / dt)))
     out = []
     label = set_label([(e.name, e.target) for e in rep.effects])
-    sets = []
+    reported = reported_effects(rep.effects)
+    others = []
     for alt in rep.effects[0].alternatives:
-        a, b = effect_sets(rep.effects, alt)
-        alt_label = set_label([(str(e["name"]), e.get("joint") or e.get("link")) for e in b])  # type: ignore[misc]
-        out.append(propose(base, a, b, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
+        _, other = effect_sets(rep.effects, alt)
+        alt_label = set_label([(str(e["name"]), e.get("joint") or e.get("link")) for e in other])  # type: ignore[misc]
+        out.append(propose(base, reported, other, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
                            (label, alt_label)))
-        sets.append((a, b))
-    apart = [(ab, p) for ab, p in zip(sets, out) if p.separable]
+        others.append(other)
+    apart = [(other, p) for other, p in zip(others, out) if p.separable]
     if len(apart) >= 2:
-        joint = propose_all(base, apart[0][0][0], [ab[1] for ab, _ in apart], rep.noise_floor, dt, w,
-                            config.evidence_threshold, experiment,
-                            (label, "all of: " + "; ".join(p.alternative for _, p in apart)))
-        out.insert(0, joint)
+        out.insert(0, propose_all(base, reported, [other for other, _ in apart], rep.noise_floor, dt, w,
+                                  config.evidence_threshold, experiment,
+                                  (label, "all of: " + "; ".join(p.alternative for _, p in apart))))
     return tuple(out)

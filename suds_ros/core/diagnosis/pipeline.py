@@ -440,7 +440,6 @@ class _Option:
     member_ev: tuple[float, ...]
     groups: tuple[tuple[str, ...], ...]
     eq_score: float  # equation-error evidence of the set (nats; NaN if never scored as a whole)
-    swap: bool = False  # a confounded member swapped in for one of the selection's
 
 
 @dataclass(frozen=True)
@@ -497,7 +496,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
             groups = tuple(g for lead, rest in led if lead in mine
                            for g in [(lead,) + tuple(lab for lab in rest if lab not in mine)] if len(g) > 1)
             swaps.append(_Option(cand, np.concatenate(xs), (), groups,
-                                 whole.score.score if whole is not None else float("nan"), swap=True))
+                                 whole.score.score if whole is not None else float("nan")))
     return out + swaps + _weak_rivals(naming, config, seen)
 
 
@@ -518,7 +517,7 @@ def _weak_rivals(naming: Naming, config: DiagnoseConfig, seen: set[frozenset]) -
                       and frozenset(r.cand.parts) not in seen), key=lambda r: -r.score.score)
     same = [r for r in singles if target is not None and r.cand.parts[0][1] == target]
     rest = [r for r in singles if r not in same and r.score.score > 0]
-    return [_Option(r.cand, r.x, (), (), r.score.score, swap=True) for r in (same + rest)[:config.weak_max]]
+    return [_Option(r.cand, r.x, (), (), r.score.score) for r in (same + rest)[:config.weak_max]]
 
 
 def _try(nom: _Nominal, opt: _Option) -> _Tried:

@@ -120,8 +120,9 @@ class DiagnoseConfig:
         Seconds of warm-up simulated before each piece (from the recorded state) and discarded;
         the passive joints forget their initial state well within it.
     jobs : int
-        Worker processes for the independent fits of the naming stage (forked, sharing the
-        recording; :mod:`suds_ros.core.parallel`).  The report does not depend on it.
+        Worker processes (forked, sharing the recording; :mod:`suds_ros.core.parallel`) for the
+        independent pieces of work: the naming stage's candidate fits, the refinements of
+        alternative sets and the refinement's Jacobian columns.  The report does not depend on it.
     """
 
     window: float = 0.1
