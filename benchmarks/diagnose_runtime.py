@@ -1,13 +1,16 @@
 """Wall time of a 60-cycle, 3-effect diagnosis: worker processes and what the calibration costs.
 
-Run: ``python benchmarks/diagnose_runtime.py`` (writes docs/results/diagnose_runtime.md).  Run it
-on an otherwise idle machine: the figures are wall times.
+Run: ``python benchmarks/diagnose_runtime.py [--pose-hz HZ]`` (writes
+docs/results/diagnose_runtime.md, or ``diagnose_runtime_lab.md`` with ``--pose-hz``).  Run it on
+an otherwise idle machine: the figures are wall times.
 
 The case is the slowest kind in the lab sweep (``docs/results/diagnose_sweep_lab.md`` case 1,
-swimmer9 with a link-length error, a Coulomb friction and a rest offset on joint_7; here recorded
-aligned, 60 cycles, seed 3067).  It is diagnosed four times: one process and ``--jobs`` worker
-processes (``DiagnoseConfig.jobs``), each with and without the per-recording calibration of the
-evidence (``calibrate``).  The stage times are the report's own (``DiagnosisReport.timings``).
+swimmer9 with a link-length error, a Coulomb friction and a rest offset on joint_7; 60 cycles,
+seed 3067), recorded aligned or, with ``--pose-hz``, the lab way (pose at that rate from its own
+start, 0.4 ms jitter, 1 % drops: the sweep's lab conditions).  It is diagnosed four times: one
+process and ``--jobs`` worker processes (``DiagnoseConfig.jobs``), each with and without the
+per-recording calibration of the evidence (``calibrate``).  The stage times are the report's own
+(``DiagnosisReport.timings``).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from _common import machine, stamp, write  # noqa: E402
 from suds_ros.core.blas import pin_blas_threads  # noqa: E402
 from suds_ros.core.diagnosis import DiagnoseConfig, diagnose  # noqa: E402
 from suds_ros.core.physics.effects import apply_effects  # noqa: E402
+from suds_ros.core.physics.lab import LabConditions, simulate_lab  # noqa: E402
 from suds_ros.core.physics.rft import RFTChain  # noqa: E402
 from suds_ros.core.physics.sim import SimConfig, simulate  # noqa: E402
 from suds_ros.core.physics.systems import swimmer9_model  # noqa: E402
@@ -35,12 +39,17 @@ EFFECTS = [dict(name="link_length_error", link="link_7", scale=1.255),
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of the parallel runs")
-    ap.add_argument("--out", default="diagnose_runtime.md")
+    ap.add_argument("--pose-hz", type=float, default=None, help="record the lab way with the pose at this rate")
+    ap.add_argument("--out", default=None, help="results file (default diagnose_runtime[_lab].md)")
     args = ap.parse_args()
+    out = args.out or ("diagnose_runtime.md" if args.pose_hz is None else "diagnose_runtime_lab.md")
     pin_blas_threads(1)
     base = swimmer9_model()
     model, delay = apply_effects(base, EFFECTS)
-    rec = simulate(RFTChain(model), SimConfig(cycles=60, seed=3067, pose_delay=delay))
+    cfg = SimConfig(cycles=60, seed=3067, pose_delay=delay)
+    rec = (simulate(RFTChain(model), cfg) if args.pose_hz is None
+           else simulate_lab(RFTChain(model), cfg, LabConditions(pose_hz=args.pose_hz)))
+    how = "aligned" if args.pose_hz is None else f"lab: pose at {args.pose_hz:g} Hz, 0.4 ms jitter, 1 % drops"
     rows, reports = [], []
     for jobs in (1, args.jobs):
         for calibrate in (True, False):
@@ -59,9 +68,10 @@ def main() -> None:
     text = "\n".join([
         "# Diagnosis wall time: worker processes and the calibration's cost",
         "",
-        f"Measured {stamp()} on {machine()} with `python benchmarks/diagnose_runtime.py --jobs {args.jobs}`.",
+        f"Measured {stamp()} on {machine()} with `python benchmarks/diagnose_runtime.py --jobs {args.jobs}"
+        + ("" if args.pose_hz is None else f" --pose-hz {args.pose_hz:g}") + "`.",
         "",
-        "swimmer9, 60 cycles (aligned, seed 3067), three effects: link_length_error link_7 × 1.255, "
+        f"swimmer9, 60 cycles ({how}, seed 3067), three effects: link_length_error link_7 × 1.255, "
         "joint_coulomb_friction joint_7 mu = 0.8179, spring_rest_offset joint_7 −0.1845 rad (the lab sweep's "
         "case 1).  Target (issue 21): at most 60 s on 2 cores, with the calibration.  Stages (s): the nominal "
         "replay / naming (equation error, with the calibration's null replays and fits) / refinement in the "
@@ -74,7 +84,7 @@ def main() -> None:
         f"Reports with and without workers identical (JSON, to the last digit): **{'yes' if same else 'NO'}**.",
         "",
     ])
-    write(args.out, text)
+    write(out, text)
 
 
 if __name__ == "__main__":

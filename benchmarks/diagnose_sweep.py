@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.diagnosis import diagnose
-from suds_ros.core.diagnosis.report import effect_label
+from suds_ros.core.diagnosis.report import NO_EFFECT, effect_label
 from suds_ros.core.errors import SudsError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
@@ -194,7 +194,8 @@ def _alternative_sets(rep) -> list[dict]:  # type: ignore[no-untyped-def]
         for a in e.alternatives:
             s = {(f.name, f.target): dict(f.parameters) for f in rep.effects
                  if effect_label(f.name, f.target) not in a.instead_of}
-            s[(a.name, a.target)] = dict(a.parameters)
+            if a.name != NO_EFFECT:
+                s[(a.name, a.target)] = dict(a.parameters)
             s.update({(n, t): dict(p) for n, t, p in a.with_effects})
             out.append(s)
     return out

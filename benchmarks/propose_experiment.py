@@ -38,7 +38,7 @@ from diagnose_sweep import SYSTEMS, chain, draw_effects, judge, short  # noqa: E
 
 from suds_ros.core.diagnosis import DiagnoseConfig, diagnose  # noqa: E402
 from suds_ros.core.diagnosis.experiment import propose_for_report  # noqa: E402
-from suds_ros.core.physics.effects import EFFECTS, apply_effects  # noqa: E402
+from suds_ros.core.physics.effects import apply_effects, neutral_params  # noqa: E402
 from suds_ros.core.physics.rft import RFTChain  # noqa: E402
 from suds_ros.core.physics.sim import SimConfig, simulate  # noqa: E402
 
@@ -47,11 +47,9 @@ def weakened(effects: list[dict], system: str, factor: float) -> list[dict]:
     """``effects`` with every parameter moved towards its neutral value: neutral + factor·(v − neutral)."""
     out = []
     for e in effects:
-        spec = EFFECTS[e["name"]]
         w = dict(e)
-        for ps in spec.params:
-            neutral = chain(system).drag_ratio if e["name"] == "drag_anisotropy_error" else ps.neutral
-            w[ps.name] = float(neutral + factor * (e[ps.name] - neutral))
+        for k, neutral in neutral_params(e["name"], chain(system)).items():
+            w[k] = float(neutral + factor * (e[k] - neutral))
         out.append(w)
     return out
 

@@ -88,7 +88,7 @@ def run_one(args: tuple[int, int, int]) -> tuple[int, dict[str, tuple[float, flo
     cand = Candidate(((effect["name"], target),))
     names = EFFECTS[effect["name"]].param_names
     truth = np.array([float(effect[p]) for p in names])
-    x0 = cand.neutral() + 0.5 * (truth - cand.neutral())
+    x0 = cand.neutral(base) + 0.5 * (truth - cand.neutral(base))
     _, x, se, _ = refine_choice(cand, x0, base, nom.data, dcfg, nom.w, nom.substeps, nom.floors)
     return case, {p: (float(truth[k]), float(x[k]), float(se[k])) for k, p in enumerate(names)}
 

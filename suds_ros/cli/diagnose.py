@@ -155,5 +155,9 @@ def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def
                 lines.append(f"    {p.reported} OR {p.alternative}: run {path} for {p.cycles} cycles "
                              f"({p.nats_per_cycle:.3g} nats per cycle between them, against "
                              f"{p.nominal_nats_per_cycle:.3g} under the nominal gait; {p.threshold:g} nats settle it)")
+            if p.mismatch_power < config.f_threshold - 1.0:
+                lines.append(f"      caution: under this drive the mismatch's power per sample is "
+                             f"{p.mismatch_power:.2g} of the noise floor's (F ≈ {1 + p.mismatch_power:.2f}, "
+                             f"threshold {config.f_threshold:g}): the new run may not locate it at all, however long")
         entries.append(entry)
     return entries, lines

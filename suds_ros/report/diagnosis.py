@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.diagnosis import DiagnosisReport
-from suds_ros.core.diagnosis.report import BODY
+from suds_ros.core.diagnosis.report import BODY, NO_EFFECT
 
 
 def _num(v: float, width: int, fmt: str) -> str:
@@ -70,6 +70,11 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
             tgt = f" on {e.target}" if e.target else ""
             lines.append(f"  effect: {e.name}{tgt}: {ps}")
             for a in e.alternatives:
+                if a.name == NO_EFFECT:
+                    lines.append(f"    OR (ambiguous: {a.evidence_gap:+.1f} nats of held-out evidence after replay): "
+                                 "no effect at all (the nominal model): the recording does not yet show the finding "
+                                 "beyond the band")
+                    continue
                 aps = ", ".join(f"{k} = {v:.4g}" for k, v in a.parameters.items())
                 more = "".join(f" + {n}{' on ' + t if t else ''} ({', '.join(f'{k} = {v:.4g}' for k, v in q.items())})"
                                for n, t, q in a.with_effects)

@@ -8,22 +8,32 @@ robot's gait frequency, K ≤ 3 harmonics) for the one that separates the two ex
 
 Separation of a gait, in nats per cycle: both explanations are simulated under the gait (two
 warm-up cycles, then one cycle at the passive periodic steady state, batched over candidate
-gaits), and the expected log-likelihood ratio of one cycle of recording between them is
+gaits), and the expected log-likelihood ratio of one cycle of recording between them, as the
+diagnosis' output-error evidence counts it, is
 
-    ½ Σ_samples Σ_j (Δr_p,j / σ_j)²  +  ½ Σ_windows Σ_c (Δξ_c / floor_c)²,
+    Σ_c (n_c / 2)·log(1 + P_c),   P_c = mean over the cycle of (Δ_c / σ_c)²
 
-with the recording's own noise floors (σ_j of each passive angle; the windowed body velocity's
-floors on non-overlapping windows, as the diagnosis' output error counts them).  Because a new
+over the channels c (each passive angle, its n_c samples; the body velocity on n_c
+non-overlapping windows), with the recording's own noise floors σ_c; for a small difference
+that is ½·Σ(Δ/σ)².  Because a new
 recording would refit each explanation's parameters, the final separation is measured after
 refitting the alternative's parameters to the reported set's predictions under the proposed gait
 (and vice versa; the smaller of the two counts): a difference that a parameter change absorbs is
-no separation.  The search: the nominal gait, seeded random admissible gaits around it, then
-random steps around the best; the best few and the nominal gait are refitted, and the best of
-them is proposed (so never a drive that separates less than the one already run).
+no separation.  When one set is nested in the other (the nominal model, or a set with one
+effect more), the smaller one is mimicked exactly by the larger at its neutral values, so only
+the larger set's departure counts.  The search: the nominal gait, seeded random admissible gaits
+around it, then random steps around the best; the best few and the nominal gait are refitted,
+and the best of them is proposed (so never a drive that separates less than the one already
+run, when that one shows the mismatch well enough).  A drive is admitted only if it shows the
+mismatch per sample (``ExperimentConfig.visible_power``; or as well as the best drive tried, when
+none does): the diagnosis locates a mismatch by its power over the noise floor, which more
+cycles of a drive that hides it do not raise.
 
 Cycles needed: the diagnosis scores held-out evidence on half of the cycles, so a recording of
 N cycles gives about ½·N·(nats per cycle) between the explanations; N is the smallest count (at
-least 8) for which that reaches ``evidence_threshold``, and for which the reported set's own
+least 8) for which that reaches the threshold (the larger of ``evidence_threshold`` and
+``ambiguity_band``) after the BIC penalty of the reported set's extra parameters, with a margin
+of ``z`` spreads, and for which the reported set's own
 mismatch with the nominal model reaches it too under that drive.  With several alternatives one
 run can be proposed against all of them (:func:`propose_all`: the smallest separation over them
 is maximised).  Explanations that no admissible drive
@@ -44,6 +54,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import measure
 from suds_ros.core.diagnosis.report import (
+    NO_EFFECT,
     Alternative,
     DiagnoseConfig,
     DiagnosisReport,
@@ -84,6 +95,15 @@ class ExperimentConfig:
         Seed of the random search.
     min_cycles : int
         Fewest cycles a proposal asks for (the diagnosis needs whole halves to train and test).
+    visible_power : float
+        The diagnosis locates a mismatch by a channel's residual power over its noise floor
+        (F = 1 + power > ``f_threshold``), which more cycles do not raise.  A drive is admitted
+        only if the reported set's largest per-channel power against the nominal model under it
+        (mean of (Δ/σ)²) is at least this much, or at least the largest of the first round of
+        drives (the nominal gait among them) when none reaches it.
+    z : float
+        Margin of the cycles asked for: held-out evidence E has a spread of about √(2E) nats, so
+        the proposal asks for E with E − z·√(2E) = the threshold.
     """
 
     order: int = 2
@@ -92,11 +112,14 @@ class ExperimentConfig:
     warm_cycles: int = 2
     seed: int = 0
     min_cycles: int = 8
+    visible_power: float = 2.0
+    z: float = 2.0
 
     def __post_init__(self) -> None:
         for name, ok in (("order", 1 <= self.order <= 3), ("candidates", self.candidates >= 1),
                          ("refit", self.refit >= 1), ("warm_cycles", self.warm_cycles >= 1),
-                         ("min_cycles", self.min_cycles >= 4)):
+                         ("min_cycles", self.min_cycles >= 4), ("visible_power", self.visible_power > 0),
+                         ("z", self.z >= 0)):
             if not ok:
                 raise SudsConfigError(f"`{name}`: value {getattr(self, name)!r} out of range")
 
@@ -110,6 +133,9 @@ class ProposedExperiment:
     ``nominal_nats_per_cycle`` the same under the nominal gait; ``cycles`` the cycles of ``gait``
     that give ``threshold`` nats of held-out evidence; ``is_nominal``: no admissible drive tried
     separates them better than the nominal gait, which is then the proposal (more cycles of it).
+    ``mismatch_power``: the reported set's largest per-channel mean (Δ/σ)² against the nominal
+    model under ``gait`` (the locator's F − 1 to expect; below ``f_threshold`` − 1 the new run's
+    mismatch may not be located however long it is).
     """
 
     reported: str
@@ -120,6 +146,7 @@ class ProposedExperiment:
     cycles: int | None
     threshold: float
     is_nominal: bool = False
+    mismatch_power: float = float("nan")
 
     @property
     def separable(self) -> bool:
@@ -135,6 +162,7 @@ class ProposedExperiment:
             "cycles": self.cycles,
             "threshold": float(self.threshold),
             "nominal_gait": self.is_nominal,
+            "mismatch_power": None if not math.isfinite(self.mismatch_power) else float(self.mismatch_power),
         }
 
 
@@ -156,7 +184,8 @@ def effect_sets(effects: Sequence[FittedEffect], alt: Alternative) -> tuple[list
     dropped = set(alt.instead_of)
     keep = [e for e in effects if effect_label(e.name, e.target) not in dropped]
     other = [_as_effect(e.name, e.target, e.parameters) for e in keep]
-    other.append(_as_effect(alt.name, alt.target, alt.parameters))
+    if alt.name != NO_EFFECT:
+        other.append(_as_effect(alt.name, alt.target, alt.parameters))
     other.extend(_as_effect(n, t, p) for n, t, p in alt.with_effects)
     return reported, other
 
@@ -196,12 +225,35 @@ class _Simulator:
         a, b = self.first, self.first + self.spc
         return RP[:, a:b], xi[:, a:b:self.w]
 
-    def nats(self, A: tuple[FloatArray, FloatArray], Bo: tuple[FloatArray, FloatArray]) -> FloatArray:
-        """Expected log-likelihood ratio of one cycle between two explanations' outputs, per gait."""
-        drp = (A[0] - Bo[0]) / self.sig_rp if self.pas.size else np.zeros(A[0].shape)
+    def _channels(self, A: tuple[FloatArray, FloatArray],
+                  Bo: tuple[FloatArray, FloatArray]) -> tuple[FloatArray, FloatArray]:
+        """Per gait and channel (passive angles, then ξ): mean (Δ/σ)² over a cycle and its sample count."""
+        B = A[1].shape[0]
+        P_rp = np.mean(((A[0] - Bo[0]) / self.sig_rp) ** 2, axis=1) if self.pas.size else np.zeros((B, 0))
         dxi = (A[1] - Bo[1]) / self.sig_xi
-        rp = np.nansum(drp**2, axis=(1, 2)) if drp.size else np.zeros(A[0].shape[0])
-        return 0.5 * (rp + np.nansum(dxi**2, axis=(1, 2)))
+        n_rp = np.full((B, self.pas.size), float(A[0].shape[1]))
+        return (np.concatenate([P_rp, np.nanmean(dxi**2, axis=1)], axis=1),
+                np.concatenate([n_rp, np.sum(np.isfinite(dxi), axis=1).astype(float)], axis=1))
+
+    def nats(self, A: tuple[FloatArray, FloatArray], Bo: tuple[FloatArray, FloatArray]) -> FloatArray:
+        """Expected log-likelihood ratio of one cycle between two explanations' outputs, per gait.
+
+        The diagnosis' output-error evidence, Σ_c (n_c/2)·log(1 + P_c) with P_c the channel's
+        mean (Δ/σ)² (½·Σ(Δ/σ)² while the difference is small beside the noise).
+        """
+        P, n = self._channels(A, Bo)
+        ok = np.isfinite(P)
+        return 0.5 * np.sum(np.where(ok, n * np.log1p(np.where(ok, P, 0.0)), 0.0), axis=1)
+
+    def power(self, A: tuple[FloatArray, FloatArray], Bo: tuple[FloatArray, FloatArray]) -> FloatArray:
+        """Largest per-channel mean of (Δ/σ)² between two explanations' outputs, per gait (the locator's F − 1)."""
+        P, _ = self._channels(A, Bo)
+        return np.nanmax(np.nan_to_num(P, nan=-np.inf), axis=1)
+
+    def samples(self, cycles: int) -> float:
+        """The median channel's sample count on the held-out half of ``cycles`` cycles (the BIC's n)."""
+        per = [self.spc] * self.pas.size + [self.spc / self.w] * 3
+        return max(float(np.median(per)) * cycles / 2.0, 2.0)
 
 
 def _admissible(x: FloatArray, template: Gait, order: int, limits: GaitLimits) -> Gait:
@@ -232,10 +284,16 @@ def _refit(sim: _Simulator, fixed: Sequence[Effect], free: Sequence[Effect], gai
         dxi = np.nan_to_num(((xi - target[1]) / sim.sig_xi).ravel())
         return np.concatenate([drp, dxi])
 
+    def nats(x: FloatArray) -> float:
+        try:
+            return float(sim.nats(target, sim.outputs(cand.effects(x), [gait]))[0])
+        except (SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+            return float("inf")
+
     if x0.size == 0:
-        return float(0.5 * np.sum(resid(x0) ** 2))
+        return nats(x0)
     sol = scipy.optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=scale, max_nfev=20 * (x0.size + 1))
-    return float(min(0.5 * np.sum(sol.fun**2), 0.5 * np.sum(resid(x0) ** 2)))
+    return min(nats(sol.x), nats(x0))
 
 
 def propose(
@@ -276,28 +334,58 @@ def propose_all(
     x_nom = nominal.to_vector(order)
     span = np.repeat(np.asarray(limits.limit), 2 * order + 1)
 
-    def score(gaits: list[Gait]) -> FloatArray:
-        ours = sim.outputs(reported, gaits)
-        return np.min([sim.nats(ours, sim.outputs(alt, gaits)) for alt in alternatives], axis=0)
+    mine = _targets(reported)
 
     def refitted(g: Gait) -> float:
-        return min(min(_refit(sim, reported, alt, g), _refit(sim, alt, reported, g)) for alt in alternatives)
+        seps = []
+        for alt in alternatives:
+            theirs = _targets(alt)
+            # a set nested in the other is mimicked exactly by the larger one at its neutral
+            # values: only the larger set's departure from the smaller one can be seen
+            one = [] if mine <= theirs else [_refit(sim, reported, alt, g)]
+            two = [] if theirs <= mine else [_refit(sim, alt, reported, g)]
+            seps.append(min(one + two) if one + two else 0.0)
+        return min(seps)
 
     nominal_adm = _admissible(x_nom, nominal, order, limits)
+
+    def measured(gaits: list[Gait]) -> tuple[FloatArray, FloatArray]:
+        """(separation before refitting, the mismatch's per-sample power) of each gait."""
+        ours = sim.outputs(reported, gaits)
+        sep = np.min([sim.nats(ours, sim.outputs(alt, gaits)) for alt in alternatives], axis=0)
+        return np.nan_to_num(sep, nan=-np.inf), sim.power(ours, sim.outputs([], gaits))
+
     pool = [nominal_adm] + [_admissible(x_nom + rng.normal(0.0, 0.6, x_nom.size) * span, nominal, order, limits)
                             for _ in range(config.candidates)]
-    s = score(pool)
-    best = pool[int(np.nanargmax(s))]
+    s, power = measured(pool)
+    first = np.zeros((len(nominal.joints), 2 * order + 1))
+    first[:, [1, order + 1]] = 1.0
+    first = first.ravel()
+    for step in (0.3, 0.15, 0.08):
+        if np.nanmax(power) >= config.visible_power:
+            break
+        # a weak mismatch: climb towards the drives that show it best too
+        # (half of the steps in the fundamental alone: a harmonic spends joint speed for little motion)
+        xv = pool[int(np.nanargmax(power))].to_vector(order)
+        pool_v = [_admissible(xv + rng.normal(0.0, step, xv.size) * span * (first if i % 2 else 1.0),
+                              nominal, order, limits) for i in range(config.candidates)]
+        sv, power_v = measured(pool_v)
+        pool, s, power = pool + pool_v, np.concatenate([s, sv]), np.concatenate([power, power_v])
+    # a drive under which the mismatch itself would not be located settles nothing: admitted are
+    # the drives that show it per sample at ``visible_power``, or as well as the best drive tried
+    need = min(config.visible_power, float(np.nanmax(power)))
+    s = np.where(power >= need, s, -np.inf)
+    best = pool[int(np.argmax(s))]
     xb = best.to_vector(order)
     pool2 = [_admissible(xb + rng.normal(0.0, 0.2, xb.size) * span, nominal, order, limits)
              for _ in range(config.candidates)]
-    s2 = score(pool2)
-    allg, alls = pool + pool2, np.concatenate([s, s2])
-    # the nominal gait first: the proposal is never worse than the drive already run
-    top = [nominal_adm] + [allg[i] for i in np.argsort(-np.nan_to_num(alls, nan=-np.inf))[: config.refit] if i]
+    s2, power2 = measured(pool2)
+    allg, alls = pool + pool2, np.concatenate([s, np.where(power2 >= need, s2, -np.inf)])
+    # the nominal gait first (when admitted): the proposal is never worse than the drive already run
+    top = [nominal_adm] + [allg[i] for i in np.argsort(-alls)[: config.refit] if i and np.isfinite(alls[i])]
     seps = [refitted(g) for g in top]
     nom_nats = seps[0]
-    k = int(np.argmax(seps))
+    k = int(np.argmax([sep if i or np.isfinite(alls[0]) else -np.inf for i, sep in enumerate(seps)]))
     nats = seps[k]
     if not nats > INSEPARABLE_NATS:
         return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold)
@@ -306,9 +394,37 @@ def propose_all(
     if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
         raise SudsConfigError(f"proposed gait violates its limits: {bad}")
     visible = float(sim.nats(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
-    cycles = max(config.min_cycles, int(math.ceil(2.0 * threshold / nats)),
-                 int(math.ceil(2.0 * threshold / visible)) if visible > 0 else 0)
-    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0)
+    k_rep = _n_params(reported)
+    extra = max(max(0, k_rep - _n_params(alt)) for alt in alternatives)
+    cycles = max(config.min_cycles, _cycles(sim, nats, threshold, extra, config.z),
+                 _cycles(sim, visible, threshold, k_rep, config.z) if visible > 0 else 0)
+    shown = float(sim.power(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
+    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0, shown)
+
+
+def _cycles(sim: _Simulator, nats: float, threshold: float, extra_params: int, z: float) -> int:
+    """Cycles whose held-out half beats ``threshold`` by ``z`` spreads after the BIC penalty of ``extra_params``.
+
+    The held-out half of N cycles gives E = ½·N·``nats`` of log-likelihood, spread about √(2E),
+    less the penalty ½·k·log n of the k parameters the reported set has beyond the other one (n the
+    median channel's held-out samples, which grows with N: three fixed-point steps).
+    """
+    n = 2.0 * threshold / nats
+    for _ in range(3):
+        need = threshold + 0.5 * extra_params * math.log(sim.samples(max(1, int(math.ceil(n)))))
+        target = (z / math.sqrt(2.0) + math.sqrt(z**2 / 2.0 + need)) ** 2
+        n = 2.0 * target / nats
+    return int(math.ceil(n))
+
+
+def _n_params(effects: Sequence[Effect]) -> int:
+    """The free parameters of a set of effects."""
+    return sum(len(EFFECTS[str(e["name"])].params) for e in effects)
+
+
+def _targets(effects: Sequence[Effect]) -> set[tuple[str, object]]:
+    """The (name, target) of each effect of a set."""
+    return {(str(e["name"]), e.get("joint") or e.get("link")) for e in effects}
 
 
 def propose_for_report(
@@ -324,19 +440,21 @@ def propose_for_report(
     if not rep.effects or not rep.effects[0].alternatives:
         return ()
     w = max(1, int(round(config.window / dt)))
+    # the new run must show the mismatch (evidence threshold) and leave the alternative outside the band
+    threshold = max(config.evidence_threshold, config.ambiguity_band)
     out = []
     label = set_label([(e.name, e.target) for e in rep.effects])
     reported = reported_effects(rep.effects)
     others = []
     for alt in rep.effects[0].alternatives:
         _, other = effect_sets(rep.effects, alt)
-        alt_label = set_label([(str(e["name"]), e.get("joint") or e.get("link")) for e in other])  # type: ignore[misc]
-        out.append(propose(base, reported, other, rep.noise_floor, dt, w, config.evidence_threshold, experiment,
-                           (label, alt_label)))
+        parts = [(str(e["name"]), e.get("joint") or e.get("link")) for e in other]
+        alt_label = set_label(parts) or NO_EFFECT  # type: ignore[arg-type]
+        out.append(propose(base, reported, other, rep.noise_floor, dt, w, threshold, experiment, (label, alt_label)))
         others.append(other)
     apart = [(other, p) for other, p in zip(others, out) if p.separable]
     if len(apart) >= 2:
         out.insert(0, propose_all(base, reported, [other for other, _ in apart], rep.noise_floor, dt, w,
-                                  config.evidence_threshold, experiment,
+                                  threshold, experiment,
                                   (label, "all of: " + "; ".join(p.alternative for _, p in apart))))
     return tuple(out)

@@ -19,7 +19,7 @@ from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.replay import window_xi
 from suds_ros.core.diagnosis.report import set_label
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.physics.effects import EFFECTS, EquationTerms
+from suds_ros.core.physics.effects import EFFECTS, EquationTerms, neutral_params
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.resample import knot_fit
 
@@ -221,8 +221,9 @@ class Candidate:
                 hi.append(p.upper)
         return lo, hi
 
-    def neutral(self) -> FloatArray:
-        return np.array([p.neutral for n, _ in self.parts for p in EFFECTS[n].params])
+    def neutral(self, model: ChainModel | None = None) -> FloatArray:
+        """The parameters that leave ``model``'s physics unchanged (:func:`~.effects.neutral_params`)."""
+        return np.array([v for n, _ in self.parts for v in neutral_params(n, model).values()], dtype=float)
 
     def scales(self) -> FloatArray:
         return np.array([p.scale for n, _ in self.parts for p in EFFECTS[n].params])
@@ -353,7 +354,7 @@ class Scorer:
         lo_all, hi_all = cand.bounds()
         lo, hi = np.asarray(lo_all, dtype=float), np.asarray(hi_all, dtype=float)
         scales = cand.scales()
-        base = cand.neutral()
+        base = cand.neutral(self.model)
         starts = [] if x0 is None else [np.asarray(x0, dtype=float)]
         quick = quick and x0 is not None
         if not quick:

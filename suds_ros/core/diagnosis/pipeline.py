@@ -70,8 +70,9 @@ number in the report is computed on the held-out half.
    held-out output-error evidence
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) lies within ``ambiguity_band``
    nats of the reported set's is reported with it, as ``alternatives`` of its first effect (the
-   finding is one, its explanation is not), and a confounded member whose swap the replay does
-   tell apart is no longer called confounded.
+   finding is one, its explanation is not); so is the nominal model when the reported set's own
+   evidence is within the band (a mismatch located, but not yet shown beyond the band).  A
+   confounded member whose swap the replay does tell apart is no longer called confounded.
    Standard errors come from the cluster-robust sandwich (clusters = segments) with CR1
    and t(B − p) small-sample factors, floored by the model-based error (calibrated against
    seed-to-seed spread in the tests).  The whole-recording replays run each half as 3-cycle pieces
@@ -126,12 +127,13 @@ from suds_ros.core.diagnosis.refine import extension_gains, fitted_effects, refi
 from suds_ros.core.diagnosis.null import null_recording
 from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay, replay_recording
 from suds_ros.core.diagnosis.report import (
-    Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located, effect_label,
+    NO_EFFECT, Alternative, Channels, DiagnoseConfig, DiagnosisReport, Discovered, FittedEffect, Located,
+    effect_label,
 )
 from suds_ros.core.diagnosis.selection import Naming, _compatible, name_mismatch
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.parallel import fork_map, workers
-from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.effects import EFFECTS, apply_effects, neutral_params
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import auto_substeps
 from suds_ros.core.recording import Recording
@@ -399,7 +401,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         tried.append(extended)
     if note:
         notes.append(note)
-    alternatives = _ambiguous(win, tried, config.ambiguity_band)
+    alternatives = _ambiguous(win, tried, config, model)
     if alternatives:
         notes.append(f"ambiguous: {len(alternatives)} other explanation(s) within {config.ambiguity_band:g} nats "
                      f"of held-out evidence after replay (see the first effect's alternatives)")
@@ -566,11 +568,21 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
                   f"nats) and not kept: {d_train:.0f} nats on the training half, {d_held:.0f} held out")
 
 
-def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternative, ...]:
-    """The refined sets other than ``win`` within ``band`` nats of its held-out evidence (closest first)."""
+def _ambiguous(win: _Tried, tried: list[_Tried], config: DiagnoseConfig,
+               model: ChainModel) -> tuple[Alternative, ...]:
+    """The refined sets other than ``win`` within the ambiguity band of its held-out evidence (closest first).
+
+    The nominal model is one (:data:`~.report.NO_EFFECT`) when ``win``'s own evidence is within
+    the band.  A set whose added effects are all within ``member_z`` stderr of neutral (a damping
+    of 0.0002 ± 0.0001 in place of a located pose offset) is the nominal model again, or the
+    reported set again, and is not listed.
+    """
+    band = config.ambiguity_band
     mine = {effect_label(*p) for p in win.cand.parts}
     reported = {effect_label(e.name, e.target): e for e in fitted_effects(win.cand, win.x, win.se)}
     out: list[tuple[float, Alternative]] = []
+    if win.evidence <= band:
+        out.append((win.evidence, Alternative(NO_EFFECT, None, {}, float(win.evidence), (), tuple(sorted(mine)))))
     seen = {frozenset(win.cand.parts)}
     for t in tried:
         key = frozenset(t.cand.parts)
@@ -580,7 +592,8 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
         seen.add(key)
         fits = fitted_effects(t.cand, t.x, t.se)
         new = [(e.name, e.target, e.parameters) for e in fits if effect_label(e.name, e.target) not in mine]
-        if not new:
+        if not new or all(_is_neutral(e, model, config.member_z) for e in fits
+                          if effect_label(e.name, e.target) not in mine):
             continue
         # a member both sets share but the alternative needs at other values (a reparameterisation:
         # stiffness_to_drag_error 1.37 + joint_4 × 0.79 for joint_3 × 1.37 + joint_4 × 1.08) is
@@ -593,6 +606,16 @@ def _ambiguous(win: _Tried, tried: list[_Tried], band: float) -> tuple[Alternati
         instead = (mine - theirs) | {effect_label(e.name, e.target) for e in refitted}
         out.append((gap, Alternative(name, target, params, float(gap), rest, tuple(sorted(instead)))))
     return tuple(a for _, a in sorted(out, key=lambda ga: ga[0]))
+
+
+def _is_neutral(e: FittedEffect, model: ChainModel, z: float) -> bool:
+    """Whether every parameter of ``e`` lies within ``z`` standard errors of its neutral value on ``model``."""
+    neutral = neutral_params(e.name, model)
+    for k, v in e.parameters.items():
+        se = e.stderr.get(k, float("nan"))
+        if not (np.isfinite(se) and abs(v - neutral[k]) < z * se):
+            return False
+    return True
 
 
 def _moved(alt: FittedEffect, mine: FittedEffect) -> bool:

@@ -35,7 +35,7 @@ def refine_choice(
     if len(cand.parts) < 2:
         return cand, x, se, ()
     keep, drop, i = [], [], 0
-    neutral = cand.neutral()
+    neutral = cand.neutral(model)
     for k, (nme, tgt) in enumerate(cand.parts):
         npar = len(EFFECTS[nme].params)
         z = np.abs(x[i:i + npar] - neutral[i:i + npar]) / np.maximum(se[i:i + npar], 1e-300)
@@ -154,7 +154,7 @@ def extension_gains(
         """The part's columns, forward differences from its neutral value (None: it cannot be replayed)."""
         c = Candidate(cand.parts + (part,))
         try:
-            return fd_jacobian(residuals(c, x), c.neutral()[x.size:], r0, 1e-2 * c.scales()[x.size:],
+            return fd_jacobian(residuals(c, x), c.neutral(model)[x.size:], r0, 1e-2 * c.scales()[x.size:],
                                np.asarray(c.bounds()[1][x.size:], dtype=float))
         except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
             return None

@@ -90,6 +90,9 @@ class DiagnoseConfig:
         Every set refined in the simulator whose held-out output-error evidence (replay log
         likelihood gain over the nominal model after the BIC penalty, nats) is within this band of
         the reported set's is reported with it as an alternative explanation of the same finding.
+        The nominal model is one too (:data:`NO_EFFECT`) when the reported set's own evidence is
+        within the band; a refined set whose added effects all sit within ``member_z`` standard
+        errors of their neutral values is that same explanation and is not listed again.
     calibrate : bool
         Calibrate every selection step's evidence on this recording (:mod:`.null`): a candidate's
         evidence is lowered by what it gains on a null recording simulated with the effects chosen
@@ -203,6 +206,10 @@ class Located:
     statistic: float
 
 
+#: the name of the alternative "no effect at all": the nominal model fits within the band
+NO_EFFECT = "none"
+
+
 @dataclass(frozen=True)
 class Alternative:
     """Another explanation that fits the recording about as well as the reported effects.
@@ -215,7 +222,9 @@ class Alternative:
     its alternative values in ``with_effects``, its label in ``instead_of``.  ``evidence_gap``: the
     reported set's held-out output-error evidence minus the alternative's, nats (within
     ± ``ambiguity_band``; negative: the alternative has a little more held-out evidence, the
-    reported set more on the training half, which arbitrates).
+    reported set more on the training half, which arbitrates).  ``name`` :data:`NO_EFFECT`
+    (target None, no parameters, every reported effect in ``instead_of``): the nominal model
+    itself, i.e. the recording does not yet show the finding beyond the band.
     """
 
     name: str
@@ -227,7 +236,9 @@ class Alternative:
 
     @property
     def label(self) -> str:
-        """``name:target + …`` of the effects the alternative adds."""
+        """``name:target + …`` of the effects the alternative adds (``none`` for the nominal model)."""
+        if self.name == NO_EFFECT:
+            return NO_EFFECT
         return set_label([(self.name, self.target)] + [(n, t) for n, t, _ in self.with_effects])
 
     def as_dict(self) -> dict[str, object]:

@@ -347,7 +347,7 @@ def _with_equivalents(sel: _Selector, main: _Path, singles: Sequence[Ranked]) ->
                                     for k in range(len(parts))):
             continue  # no member it could stand in for
         with_c = Candidate(parts + (part,))
-        J_c = sc.sensitivity(with_c, np.concatenate([cur.x, s.cand.neutral()]), first=cur.x.size)
+        J_c = sc.sensitivity(with_c, np.concatenate([cur.x, s.cand.neutral(sc.model)]), first=cur.x.size)
         if not _in_span(J_set, J_c):
             continue
         for k, (m, (a, b)) in enumerate(zip(parts, zip(starts[:-1], starts[1:]))):

@@ -523,6 +523,13 @@ def apply_effects(model: ChainModel, effects: Sequence[Mapping[str, object]]) ->
     return model, delay
 
 
-def neutral_params(name: str) -> dict[str, float]:
-    """The parameter values of ``name`` that leave the nominal physics unchanged."""
-    return {p.name: p.neutral for p in EFFECTS[name].params}
+def neutral_params(name: str, model: ChainModel | None = None) -> dict[str, float]:
+    """The parameter values of ``name`` that leave ``model``'s nominal physics unchanged.
+
+    The drag ratio is absolute, so its neutral value is the model's own c⊥/c∥ (a model-file robot
+    with c⊥ = 1.9, c∥ = 0.8 has 2.375); without a model, the catalogue's 2.
+    """
+    out = {p.name: p.neutral for p in EFFECTS[name].params}
+    if model is not None and name == "drag_anisotropy_error":
+        out["ratio"] = model.drag_ratio
+    return out

@@ -127,3 +127,52 @@ def test_the_report_does_not_depend_on_the_worker_processes() -> None:
         docs.append(dumps(diagnose(rec, base, DiagnoseConfig(jobs=jobs)).to_dict()))
     assert docs[0] == docs[1]
     assert {e["name"] for e in json.loads(docs[1])["effects"]} == {"joint_coulomb_friction", "background_flow"}
+
+
+def _tried(parts, x, se, evidence):  # type: ignore[no-untyped-def]
+    """A refined set as ``_ambiguous`` reads it (no replay)."""
+    from suds_ros.core.diagnosis.pipeline import _Option, _Tried
+
+    cand = Candidate(tuple(parts))
+    x, se = np.asarray(x, dtype=float), np.asarray(se, dtype=float)
+    opt = _Option(cand, x, (), (), 0.0)
+    return _Tried(opt, cand, x, se, (), None, None, evidence, evidence)  # type: ignore[arg-type]
+
+
+def test_the_nominal_model_is_an_alternative_when_the_finding_is_within_the_band() -> None:
+    """A located pose offset with 21 nats against a band of 60: the nominal model is listed
+    (``none``), and a refined damping of 0.00025 ± 0.0001 in its place, which is the nominal
+    model again, is not; a real friction within the band is."""
+    from suds_ros.core.diagnosis.pipeline import _ambiguous
+    from suds_ros.core.diagnosis.report import NO_EFFECT
+
+    base = purcell3_model()
+    config = DiagnoseConfig(ambiguity_band=60.0)
+    win = _tried([("pose_frame_offset", None)], [0.01, 0.01, 0.02], [1e-3, 1e-3, 1e-3], 21.0)
+    null_damping = _tried([("joint_viscous_damping", "joint_2")], [0.00025], [0.0001], 0.1)
+    friction = _tried([("joint_coulomb_friction", "joint_2")], [0.02], [0.001], 5.0)
+    alts = _ambiguous(win, [win, null_damping, friction], config, base)
+    assert [a.name for a in alts] == ["joint_coulomb_friction", NO_EFFECT]
+    assert alts[0].parameters == {"mu": pytest.approx(0.02)}
+    none = alts[1]
+    assert none.label == NO_EFFECT and none.evidence_gap == pytest.approx(21.0)
+    assert none.instead_of == ("pose_frame_offset",) and none.parameters == {}
+    assert json.loads(json.dumps(none.as_dict()))["target"] is None
+    # beyond the band the nominal model is not an alternative
+    strong = _tried([("pose_frame_offset", None)], [0.01, 0.01, 0.02], [1e-3, 1e-3, 1e-3], 400.0)
+    assert _ambiguous(strong, [strong, null_damping], config, base) == ()
+
+
+def test_a_drag_ratio_at_the_robots_own_value_is_no_alternative() -> None:
+    """On a robot whose c⊥/c∥ is 2.5, an anisotropy refined to 2.5 ± 0.01 is the nominal model."""
+    from suds_ros.core.diagnosis.pipeline import _ambiguous
+
+    base = purcell3_model()
+    base = base.with_(c_perp=tuple(2.5 * c for c in base.c_par))
+    win = _tried([("joint_viscous_damping", "joint_2")], [0.02], [0.001], 30.0)
+    ratio = _tried([("drag_anisotropy_error", None)], [2.5 + 1e-3], [0.01], 25.0)
+    alts = _ambiguous(win, [win, ratio], DiagnoseConfig(ambiguity_band=60.0), base)
+    assert [a.name for a in alts] == ["none"]
+    # the same value is a real alternative on a robot of ratio 2
+    assert [a.name for a in _ambiguous(win, [win, ratio], DiagnoseConfig(ambiguity_band=60.0),
+                                       purcell3_model())] == ["drag_anisotropy_error", "none"]

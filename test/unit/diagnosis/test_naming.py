@@ -134,3 +134,12 @@ def test_a_larger_drag_ratio_is_not_taken_for_a_weaker_spring() -> None:
     x_s, _, g_s = sc.fit(Candidate((("stiffness_to_drag_error", None),)))
     assert abs(x_a[0] - 3.6) < 0.05 * 3.6
     assert g_a > g_s + 20.0, (g_a, g_s)
+
+
+def test_a_candidates_neutral_drag_ratio_is_the_robots() -> None:
+    m = swimmer9_model()
+    m = m.with_(c_perp=tuple(2.5 * c for c in m.c_par))
+    cand = Candidate((("joint_viscous_damping", "joint_2"), ("drag_anisotropy_error", None)))
+    assert cand.neutral(m) == pytest.approx([0.0, 2.5])
+    # without a model, the catalogue's value
+    assert cand.neutral() == pytest.approx([0.0, 2.0])

@@ -90,6 +90,15 @@ def test_neutral_parameters_leave_the_model_unchanged() -> None:
         assert out == m.with_(c_perp=out.c_perp) and out.c_perp == pytest.approx(m.c_perp), name
 
 
+def test_the_neutral_drag_ratio_is_the_models_own() -> None:
+    m = swimmer9_model()
+    m = m.with_(c_par=tuple(0.8 for _ in m.c_par), c_perp=tuple(1.9 for _ in m.c_perp))
+    assert neutral_params("drag_anisotropy_error", m)["ratio"] == pytest.approx(1.9 / 0.8)
+    assert neutral_params("drag_anisotropy_error")["ratio"] == 2.0
+    out, _ = apply_effects(m, [{"name": "drag_anisotropy_error", **neutral_params("drag_anisotropy_error", m)}])
+    assert out.c_perp == pytest.approx(m.c_perp)
+
+
 def test_errors_name_the_problem() -> None:
     m = purcell3_model()
     with pytest.raises(SudsConfigError, match="unknown effect 'bogus'"):
