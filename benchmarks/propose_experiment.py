@@ -37,7 +37,7 @@ from _common import machine, stamp, write  # noqa: E402
 from diagnose_sweep import SYSTEMS, chain, draw_effects, judge, short  # noqa: E402
 
 from suds_ros.core.diagnosis import DiagnoseConfig, diagnose  # noqa: E402
-from suds_ros.core.diagnosis.experiment import propose_for_report  # noqa: E402
+from suds_ros.core.diagnosis.experiment import ExperimentConfig, propose_for_report, recorded_drive  # noqa: E402
 from suds_ros.core.physics.effects import apply_effects, neutral_params  # noqa: E402
 from suds_ros.core.physics.rft import RFTChain  # noqa: E402
 from suds_ros.core.physics.sim import SimConfig, simulate  # noqa: E402
@@ -73,15 +73,15 @@ def run_case(args: tuple[int, str, list[dict], int, int, int, float, float]) -> 
     ok, _, text = judge(effects, rep)
     if not rep.effects or not rep.effects[0].alternatives:
         return i, "none" if ok else "wrong", f"| {i} | {short(system)} | {injected} | {text} | – | – | – |"
-    props = propose_for_report(rep, base, rec.dt, cfg)
+    props = propose_for_report(rep, base, rec.dt, cfg, run=recorded_drive(rec, base, ExperimentConfig().order))
     sep = [p for p in props if p.gait is not None]
     if not sep:
         return i, "same", (f"| {i} | {short(system)} | {injected} | {text} | the same physics "
                            f"({max(p.nats_per_cycle for p in props):.3g} nats/cycle at best) | – | – |")
     # the run that settles them all when there are several (propose_for_report lists it first), else the best
     p = sep[0] if sep[0].alternative.startswith("all of: ") else max(sep, key=lambda q: q.nats_per_cycle)
-    proposal = (f"{p.alternative}: {p.nats_per_cycle:.3g} vs {p.nominal_nats_per_cycle:.3g} nats/cycle, "
-                f"{p.cycles} cycles{' of the nominal gait' if p.is_nominal else ''}")
+    proposal = (f"{p.alternative}: {p.nats_per_cycle:.3g} vs {p.baseline_nats_per_cycle:.3g} nats/cycle, "
+                f"{p.cycles} cycles{' of the drive already run' if p.is_baseline else ''}")
     if p.cycles is not None and p.cycles > max_cycles:  # counted as not settled
         return i, "long", (f"| {i} | {short(system)} | {injected} | {text} | {proposal} "
                            f"| not run (> {max_cycles}) | NO |")

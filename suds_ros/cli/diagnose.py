@@ -122,13 +122,15 @@ def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def
     Returns the JSON entries and the report lines.  Nothing is overwritten: an existing file of
     the same name is an error.
     """
-    from suds_ros.core.diagnosis.experiment import propose_for_report
+    from suds_ros.core.diagnosis.experiment import ExperimentConfig, propose_for_report, recorded_drive
     from suds_ros.core.physics.gait import dump_gait
     from suds_ros.core.physics.systems import load_system
 
     chain = model if model is not None else load_system(system or rec.system).model
     chain = chain.with_(gait_hz=rec.gait_hz or chain.gait_hz)
-    proposals = propose_for_report(rep, chain, rec.dt, config)
+    # the baseline: the drive this recording ran (the proposal is never worse than running it longer)
+    run = recorded_drive(rec, chain, ExperimentConfig().order)
+    proposals = propose_for_report(rep, chain, rec.dt, config, run=run)
     if not proposals:
         return [], ["  experiment: none proposed (the finding has no alternatives)"]
     out.mkdir(parents=True, exist_ok=True)
@@ -147,14 +149,15 @@ def _experiments(rep, rec, model, system, config,  # type: ignore[no-untyped-def
                 raise SudsConfigError(f"--propose-experiment: {str(path)!r} exists; nothing overwritten")
             path.write_text(dump_gait(p.gait))
             entry["gait_file"] = str(path)
-            if p.is_nominal:
+            already = "the drive this recording ran" if p.baseline == "recorded" else "the nominal gait"
+            if p.is_baseline:
                 lines.append(f"    {p.reported} OR {p.alternative}: no drive tried within the joint range and speed "
-                             f"separates them better than the nominal gait ({path}): run {p.cycles} cycles of it "
+                             f"separates them better than {already} ({path}): run {p.cycles} cycles of it "
                              f"({p.nats_per_cycle:.3g} nats per cycle between them; {p.threshold:g} nats settle it)")
             else:
                 lines.append(f"    {p.reported} OR {p.alternative}: run {path} for {p.cycles} cycles "
                              f"({p.nats_per_cycle:.3g} nats per cycle between them, against "
-                             f"{p.nominal_nats_per_cycle:.3g} under the nominal gait; {p.threshold:g} nats settle it)")
+                             f"{p.baseline_nats_per_cycle:.3g} under {already}; {p.threshold:g} nats settle it)")
             if p.mismatch_power < config.f_threshold - 1.0:
                 lines.append(f"      caution: under this drive the mismatch's power per sample is "
                              f"{p.mismatch_power:.2g} of the noise floor's (F ≈ {1 + p.mismatch_power:.2f}, "

@@ -61,8 +61,8 @@ def test_a_proposed_run_settles_friction_against_damping(tmp_path: Path, capsys:
     runs = [e for e in d["experiments"] if e["separable"]]
     assert runs, d["experiments"]
     best = max(runs, key=lambda e: e["nats_per_cycle"])
-    assert best["nats_per_cycle"] >= best["nominal_nats_per_cycle"] > 0
-    assert best["nominal_gait"] is (best["nats_per_cycle"] == best["nominal_nats_per_cycle"])
+    assert best["nats_per_cycle"] >= best["baseline_nats_per_cycle"] > 0
+    assert best["baseline_drive"] is (best["nats_per_cycle"] == best["baseline_nats_per_cycle"])
     gait = load_gait(best["gait_file"])
     system = make_system("purcell3")
     assert constraint_violations(gait, gait_limits(system, nominal_gait(system))) == []

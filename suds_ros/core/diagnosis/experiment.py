@@ -21,8 +21,9 @@ refitting the alternative's parameters to the reported set's predictions under t
 (and vice versa; the smaller of the two counts): a difference that a parameter change absorbs is
 no separation.  When one set is nested in the other (the nominal model, or a set with one
 effect more), the smaller one is mimicked exactly by the larger at its neutral values, so only
-the larger set's departure counts.  The search: the nominal gait, seeded random admissible gaits
-around it, then random steps around the best; the best few and the nominal gait are refitted,
+the larger set's departure counts.  The search: the baseline drive (the one the recording ran,
+fitted from it, else the nominal gait), seeded random admissible gaits around it, then random
+steps around the best; the best few and the baseline are refitted,
 and the best of them is proposed (so never a drive that separates less than the one already
 run, when that one shows the mismatch well enough).  A drive is admitted only if it shows the
 mismatch per sample (``ExperimentConfig.visible_power``; or as well as the best drive tried, when
@@ -43,6 +44,7 @@ scale) are reported as such, with no gait.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -62,13 +64,14 @@ from suds_ros.core.diagnosis.report import (
     effect_label,
     set_label,
 )
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.gait import Gait, GaitLimits, checked_extremes, constraint_violations, gait_limits
-from suds_ros.core.physics.gait import nominal_gait
+from suds_ros.core.physics.gait import fitted_gait, nominal_gait
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import auto_substeps
+from suds_ros.core.recording import Recording
 
 #: an effect as ``apply_effects`` takes it
 Effect = dict[str, object]
@@ -100,7 +103,7 @@ class ExperimentConfig:
         (F = 1 + power > ``f_threshold``), which more cycles do not raise.  A drive is admitted
         only if the reported set's largest per-channel power against the nominal model under it
         (mean of (Δ/σ)²) is at least this much, or at least the largest of the first round of
-        drives (the nominal gait among them) when none reaches it.
+        drives (the baseline among them) when none reaches it.
     z : float
         Margin of the cycles asked for: held-out evidence E has a spread of about √(2E) nats, so
         the proposal asks for E with E − z·√(2E) = the threshold.
@@ -130,9 +133,10 @@ class ProposedExperiment:
 
     ``gait`` is None when no admissible drive separates them (``separable`` False).
     ``nats_per_cycle``: expected evidence between them per cycle under ``gait`` (after refitting);
-    ``nominal_nats_per_cycle`` the same under the nominal gait; ``cycles`` the cycles of ``gait``
-    that give ``threshold`` nats of held-out evidence; ``is_nominal``: no admissible drive tried
-    separates them better than the nominal gait, which is then the proposal (more cycles of it).
+    ``baseline_nats_per_cycle`` the same under the baseline drive (the one the recording ran, as
+    fitted from it, or the nominal gait: ``baseline``); ``cycles`` the cycles of ``gait`` that
+    give ``threshold`` nats of held-out evidence; ``is_baseline``: no admissible drive tried
+    separates them better than the baseline, which is then the proposal (more cycles of it).
     ``mismatch_power``: the reported set's largest per-channel mean (Δ/σ)² against the nominal
     model under ``gait`` (the locator's F − 1 to expect; below ``f_threshold`` − 1 the new run's
     mismatch may not be located however long it is).
@@ -142,11 +146,12 @@ class ProposedExperiment:
     alternative: str
     gait: Gait | None
     nats_per_cycle: float
-    nominal_nats_per_cycle: float
+    baseline_nats_per_cycle: float
     cycles: int | None
     threshold: float
-    is_nominal: bool = False
+    is_baseline: bool = False
     mismatch_power: float = float("nan")
+    baseline: str = "nominal"
 
     @property
     def separable(self) -> bool:
@@ -158,10 +163,11 @@ class ProposedExperiment:
             "alternative": self.alternative,
             "separable": self.separable,
             "nats_per_cycle": float(self.nats_per_cycle),
-            "nominal_nats_per_cycle": float(self.nominal_nats_per_cycle),
+            "baseline_nats_per_cycle": float(self.baseline_nats_per_cycle),
             "cycles": self.cycles,
             "threshold": float(self.threshold),
-            "nominal_gait": self.is_nominal,
+            "baseline": self.baseline,
+            "baseline_drive": self.is_baseline,
             "mismatch_power": None if not math.isfinite(self.mismatch_power) else float(self.mismatch_power),
         }
 
@@ -299,20 +305,22 @@ def _refit(sim: _Simulator, fixed: Sequence[Effect], free: Sequence[Effect], gai
 def propose(
     base: ChainModel, reported: Sequence[Effect], alternative: Sequence[Effect], floors: Mapping[str, float],
     dt: float, w: int, threshold: float, config: ExperimentConfig = ExperimentConfig(),
-    labels: tuple[str, str] = ("reported", "alternative"),
+    labels: tuple[str, str] = ("reported", "alternative"), run: Gait | None = None,
 ) -> ProposedExperiment:
     """The admissible gait that best separates ``reported`` from ``alternative`` on ``base``.
 
     ``floors`` are the recording's noise floors by channel (passive joint names, ``xi_x``,
     ``xi_y``, ``xi_theta``), ``dt`` its sample period (s) and ``w`` the body-velocity window.
+    ``run``: the drive the recording ran (:func:`~suds_ros.core.physics.gait.fitted_gait`), the
+    baseline and the centre of the search; None: the robot's nominal gait.
     """
-    return propose_all(base, reported, [alternative], floors, dt, w, threshold, config, labels)
+    return propose_all(base, reported, [alternative], floors, dt, w, threshold, config, labels, run)
 
 
 def propose_all(
     base: ChainModel, reported: Sequence[Effect], alternatives: Sequence[Sequence[Effect]],
     floors: Mapping[str, float], dt: float, w: int, threshold: float, config: ExperimentConfig = ExperimentConfig(),
-    labels: tuple[str, str] = ("reported", "alternatives"),
+    labels: tuple[str, str] = ("reported", "alternatives"), run: Gait | None = None,
 ) -> ProposedExperiment:
     """The admissible gait that best separates ``reported`` from every one of ``alternatives`` at once.
 
@@ -331,7 +339,13 @@ def propose_all(
     sim = _Simulator(base, floors, names, dt, w, config.warm_cycles)
     order = config.order
     rng = np.random.default_rng(config.seed)
-    x_nom = nominal.to_vector(order)
+    if run is not None and run.joints != nominal.joints:
+        raise SudsConfigError(f"`run`: expected a drive of the joints {list(nominal.joints)}, got {list(run.joints)}")
+    centre, kind = (nominal, "nominal") if run is None else (run, "recorded")
+    if centre.order > order:  # the proposal's harmonics only
+        _, c, sn = centre.arrays()
+        centre = dataclasses.replace(centre, cos=tuple(map(tuple, c[:, :order])), sin=tuple(map(tuple, sn[:, :order])))
+    x_run = centre.to_vector(order)
     span = np.repeat(np.asarray(limits.limit), 2 * order + 1)
 
     mine = _targets(reported)
@@ -347,7 +361,7 @@ def propose_all(
             seps.append(min(one + two) if one + two else 0.0)
         return min(seps)
 
-    nominal_adm = _admissible(x_nom, nominal, order, limits)
+    baseline = _admissible(x_run, nominal, order, limits)
 
     def measured(gaits: list[Gait]) -> tuple[FloatArray, FloatArray]:
         """(separation before refitting, the mismatch's per-sample power) of each gait."""
@@ -355,8 +369,8 @@ def propose_all(
         sep = np.min([sim.nats(ours, sim.outputs(alt, gaits)) for alt in alternatives], axis=0)
         return np.nan_to_num(sep, nan=-np.inf), sim.power(ours, sim.outputs([], gaits))
 
-    pool = [nominal_adm] + [_admissible(x_nom + rng.normal(0.0, 0.6, x_nom.size) * span, nominal, order, limits)
-                            for _ in range(config.candidates)]
+    pool = [baseline] + [_admissible(x_run + rng.normal(0.0, 0.6, x_run.size) * span, nominal, order, limits)
+                         for _ in range(config.candidates)]
     s, power = measured(pool)
     first = np.zeros((len(nominal.joints), 2 * order + 1))
     first[:, [1, order + 1]] = 1.0
@@ -381,14 +395,14 @@ def propose_all(
              for _ in range(config.candidates)]
     s2, power2 = measured(pool2)
     allg, alls = pool + pool2, np.concatenate([s, np.where(power2 >= need, s2, -np.inf)])
-    # the nominal gait first (when admitted): the proposal is never worse than the drive already run
-    top = [nominal_adm] + [allg[i] for i in np.argsort(-alls)[: config.refit] if i and np.isfinite(alls[i])]
+    # the baseline first (when admitted): the proposal is never worse than the drive already run
+    top = [baseline] + [allg[i] for i in np.argsort(-alls)[: config.refit] if i and np.isfinite(alls[i])]
     seps = [refitted(g) for g in top]
     nom_nats = seps[0]
     k = int(np.argmax([sep if i or np.isfinite(alls[0]) else -np.inf for i, sep in enumerate(seps)]))
     nats = seps[k]
     if not nats > INSEPARABLE_NATS:
-        return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold)
+        return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold, baseline=kind)
     gait = top[k]
     bad = constraint_violations(gait, limits)
     if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
@@ -399,7 +413,7 @@ def propose_all(
     cycles = max(config.min_cycles, _cycles(sim, nats, threshold, extra, config.z),
                  _cycles(sim, visible, threshold, k_rep, config.z) if visible > 0 else 0)
     shown = float(sim.power(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
-    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0, shown)
+    return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0, shown, kind)
 
 
 def _cycles(sim: _Simulator, nats: float, threshold: float, extra_params: int, z: float) -> int:
@@ -427,15 +441,27 @@ def _targets(effects: Sequence[Effect]) -> set[tuple[str, object]]:
     return {(str(e["name"]), e.get("joint") or e.get("link")) for e in effects}
 
 
+def recorded_drive(rec: Recording, base: ChainModel, order: int) -> Gait:
+    """The drive ``rec`` ran on ``base``'s actuated joints, as a K = ``order`` gait at ``base``'s frequency."""
+    template = nominal_gait(RFTChain(base))
+    missing = [j for j in template.joints if j not in rec.joint_names]
+    if missing:
+        raise SudsDataError(f"recording: expected the actuated joints {list(template.joints)}, "
+                            f"got {list(rec.joint_names)} (no {missing})")
+    cols = [rec.joint_names.index(j) for j in template.joints]
+    return fitted_gait(template, rec.t, np.asarray(rec.r)[:, cols], order)
+
+
 def propose_for_report(
     rep: DiagnosisReport, base: ChainModel, dt: float, config: DiagnoseConfig = DiagnoseConfig(),
-    experiment: ExperimentConfig = ExperimentConfig(),
+    experiment: ExperimentConfig = ExperimentConfig(), run: Gait | None = None,
 ) -> tuple[ProposedExperiment, ...]:
     """One proposal per alternative of the report's first effect (none without alternatives).
 
     With two or more alternatives that a drive separates, a proposal that separates the reported
     set from all of them at once (:func:`propose_all`, labelled ``all of: A; B; …``) comes first:
-    the one run that settles the whole finding.
+    the one run that settles the whole finding.  ``run``: the drive the recording ran
+    (:func:`recorded_drive`), the baseline of every proposal; None: the nominal gait.
     """
     if not rep.effects or not rep.effects[0].alternatives:
         return ()
@@ -450,11 +476,12 @@ def propose_for_report(
         _, other = effect_sets(rep.effects, alt)
         parts = [(str(e["name"]), e.get("joint") or e.get("link")) for e in other]
         alt_label = set_label(parts) or NO_EFFECT  # type: ignore[arg-type]
-        out.append(propose(base, reported, other, rep.noise_floor, dt, w, threshold, experiment, (label, alt_label)))
+        out.append(propose(base, reported, other, rep.noise_floor, dt, w, threshold, experiment, (label, alt_label),
+                           run))
         others.append(other)
     apart = [(other, p) for other, p in zip(others, out) if p.separable]
     if len(apart) >= 2:
         out.insert(0, propose_all(base, reported, [other for other, _ in apart], rep.noise_floor, dt, w,
                                   threshold, experiment,
-                                  (label, "all of: " + "; ".join(p.alternative for _, p in apart))))
+                                  (label, "all of: " + "; ".join(p.alternative for _, p in apart)), run))
     return tuple(out)

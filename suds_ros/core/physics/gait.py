@@ -28,7 +28,8 @@ import numpy as np
 import yaml
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError
+from suds_ros.core.errors import MODEL_MISMATCH, SudsConfigError, SudsDataError
+from suds_ros.core.fourier import fourier_basis
 from suds_ros.core.physics.robot_model import load_strict_yaml, read_text
 from suds_ros.core.physics.system import SudsSystem
 
@@ -168,6 +169,27 @@ class Gait:
 
 
 # ------------------------------------------------------------------------ file
+def fitted_gait(template: Gait, t: FloatArray, r: FloatArray, order: int) -> Gait:
+    """The K = ``order`` gait of ``template``'s joints and frequency that fits the drive ``r`` at ``t``.
+
+    Least squares of each actuated joint's recorded angle (``r``, (n, na) rad, the template's joint
+    order; rows with a NaN are left out) on [1, cos 2πkft, sin 2πkft]: the mean periodic drive of
+    a recording, whatever its phase at ``t[0]`` (a steady cycle does not depend on it).
+    """
+    t = np.asarray(t, dtype=float)
+    r = np.asarray(r, dtype=float)
+    if r.ndim != 2 or r.shape != (t.size, len(template.joints)):
+        raise SudsDataError(f"`r`: expected shape ({t.size}, {len(template.joints)}), got {r.shape}")
+    ok = np.isfinite(r).all(axis=1) & np.isfinite(t)
+    if ok.sum() < 2 * order + 1:
+        raise SudsDataError(f"`r`: expected at least {2 * order + 1} finite samples, got {int(ok.sum())}")
+    X = fourier_basis(2 * np.pi * template.gait_hz * (t[ok] - t[ok][0]), order)
+    coef, *_ = np.linalg.lstsq(X, r[ok], rcond=None)  # (2K + 1, na): [1, cos 1, sin 1, cos 2, …]
+    cos, sin = coef[1::2].T, coef[2::2].T
+    return replace(template, offset=tuple(coef[0]), cos=tuple(map(tuple, cos)), sin=tuple(map(tuple, sin)),
+                   objective=None, predicted=())
+
+
 def gait_from_dict(doc: Any, source: str = "<gait>") -> Gait:
     """Validate a parsed ``suds-gait/1`` document and build its :class:`Gait`.
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -39,14 +41,14 @@ def test_a_cubic_spring_and_a_stiffer_spring_are_told_apart_by_a_drive_within_th
     b = [dict(name="joint_stiffness_error", joint="joint_2", scale=1.2)]
     p = propose(base, a, b, FLOORS, 0.01, 10, 60.0, FAST)
     assert p.separable and p.gait is not None
-    assert p.nats_per_cycle >= p.nominal_nats_per_cycle > 0
+    assert p.nats_per_cycle >= p.baseline_nats_per_cycle > 0
     assert p.cycles >= _cycles(p.nats_per_cycle)
     system = RFTChain(base)
     assert constraint_violations(p.gait, gait_limits(system, nominal_gait(system))) == []
     assert p.gait.joints == tuple(system.joint_names[i] for i in system.actuated)
     assert p.as_dict()["separable"] is True
     # it separates better than the nominal gait: the proposal says it is not that gait
-    assert p.nats_per_cycle > p.nominal_nats_per_cycle and p.as_dict()["nominal_gait"] is False
+    assert p.nats_per_cycle > p.baseline_nats_per_cycle and p.as_dict()["baseline_drive"] is False
 
 
 def test_effect_sets_swap_the_alternative_for_what_it_replaces() -> None:
@@ -125,3 +127,31 @@ def test_a_drive_that_hides_the_mismatch_is_not_proposed() -> None:
     assert blind[0] < 0.5 * min(blind[1], 2.0)  # what the check is for
     seen = powers(FAST)
     assert seen[0] >= min(seen[1], FAST.visible_power) * (1 - 1e-6)
+
+
+def test_the_baseline_is_the_drive_the_recording_ran() -> None:
+    """A recording made with half the nominal amplitude: its drive, fitted from the recording, is
+    the baseline of the proposal (never worse than running it longer), not the nominal gait."""
+    from suds_ros.core.diagnosis.experiment import recorded_drive
+    from suds_ros.core.physics.sim import SimConfig, simulate
+
+    base = purcell3_model()
+    system = RFTChain(base)
+    nominal = nominal_gait(system)
+    half = nominal.from_vector(0.5 * nominal.to_vector(2), 2)
+    rec = simulate(system, SimConfig(cycles=12, seed=3, gait=half, noise_std=1e-3))
+    run = recorded_drive(rec, base, 2)
+    # the OU perturbation on top of the drive averages out to a few hundredths of a radian
+    assert np.max(np.abs(run.to_vector(2) - half.to_vector(2))) < 0.06
+    a = [dict(name="joint_viscous_damping", joint="joint_2", d=0.01)]
+    b = [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.005)]
+    at_run = propose(base, a, b, FLOORS, 0.01, 10, 60.0, FAST, run=run)
+    at_nominal = propose(base, a, b, FLOORS, 0.01, 10, 60.0, FAST)
+    assert at_run.baseline == "recorded" and at_nominal.baseline == "nominal"
+    assert at_run.as_dict()["baseline"] == "recorded"
+    assert at_run.nats_per_cycle >= at_run.baseline_nats_per_cycle > 0
+    # the half-amplitude drive separates them differently from the nominal one
+    assert abs(at_run.baseline_nats_per_cycle / at_nominal.baseline_nats_per_cycle - 1) > 0.05
+    with pytest.raises(Exception, match="`run`"):
+        propose(base, a, b, FLOORS, 0.01, 10, 60.0, FAST,
+                run=dataclasses.replace(run, joints=("elsewhere",) * len(run.joints)))

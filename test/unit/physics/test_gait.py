@@ -167,3 +167,24 @@ def test_model_file_limits_load_write_and_apply(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump(doc))
     with pytest.raises(SudsConfigError, match=r"`joints\[0\].limit`: expected a number > 0"):
         load_model(path)
+
+
+def test_a_recorded_drive_is_fitted_as_a_gait_whatever_its_start() -> None:
+    """Two harmonics, noise 1e-3 rad, a lost stretch (NaN rows), stamps from t = 3.25 s: the
+    coefficients come back to 1e-4 rad, with the phase of the first stamp as the origin."""
+    from suds_ros.core.errors import SudsDataError
+    from suds_ros.core.physics.gait import fitted_gait
+
+    g = nominal_gait(make_system("swimmer9"))
+    x = g.to_vector(2) + np.random.default_rng(0).normal(0.0, 0.05, g.to_vector(2).size)
+    truth = g.from_vector(x, 2)
+    t = 3.25 + np.arange(0.0, 20.0, 0.01)
+    r = truth.r(t - t[0]) + np.random.default_rng(1).normal(0.0, 1e-3, (t.size, len(g.joints)))
+    r[500:700] = np.nan
+    got = fitted_gait(g, t, r, 2)
+    assert got.joints == g.joints and got.gait_hz == g.gait_hz and got.order == 2
+    assert np.max(np.abs(got.to_vector(2) - x)) < 1e-4
+    with pytest.raises(SudsDataError, match="finite samples"):
+        fitted_gait(g, t[:3], r[:3], 2)
+    with pytest.raises(SudsDataError, match="shape"):
+        fitted_gait(g, t, r[:, :2], 2)
