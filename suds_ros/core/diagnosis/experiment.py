@@ -102,8 +102,8 @@ class ExperimentConfig:
         The diagnosis locates a mismatch by a channel's residual power over its noise floor
         (F = 1 + power > ``f_threshold``), which more cycles do not raise.  A drive is admitted
         only if the reported set's largest per-channel power against the nominal model under it
-        (mean of (Δ/σ)²) is at least this much, or at least the largest of the first round of
-        drives (the baseline among them) when none reaches it.
+        (mean of (Δ/σ)²) is at least this much or, when no drive tried reaches it, at least the
+        largest any does (the baseline, the first round and a climb on that power).
     z : float
         Margin of the cycles asked for: held-out evidence E has a spread of about √(2E) nats, so
         the proposal asks for E with E − z·√(2E) = the threshold.

@@ -168,13 +168,13 @@ class Gait:
                        sin=tuple(map(tuple, m[:, order + 1:])), **changes)
 
 
-# ------------------------------------------------------------------------ file
 def fitted_gait(template: Gait, t: FloatArray, r: FloatArray, order: int) -> Gait:
     """The K = ``order`` gait of ``template``'s joints and frequency that fits the drive ``r`` at ``t``.
 
     Least squares of each actuated joint's recorded angle (``r``, (n, na) rad, the template's joint
     order; rows with a NaN are left out) on [1, cos 2πkft, sin 2πkft]: the mean periodic drive of
-    a recording, whatever its phase at ``t[0]`` (a steady cycle does not depend on it).
+    a recording, with time counted from its first usable stamp (a steady cycle does not depend on
+    the phase there).
     """
     t = np.asarray(t, dtype=float)
     r = np.asarray(r, dtype=float)
@@ -190,6 +190,7 @@ def fitted_gait(template: Gait, t: FloatArray, r: FloatArray, order: int) -> Gai
                    objective=None, predicted=())
 
 
+# ------------------------------------------------------------------------ file
 def gait_from_dict(doc: Any, source: str = "<gait>") -> Gait:
     """Validate a parsed ``suds-gait/1`` document and build its :class:`Gait`.
 
