@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from suds_ros.core.diagnosis import diagnose
-from suds_ros.core.diagnosis.report import NO_EFFECT, effect_label
+from suds_ros.core.diagnosis.report import effect_label
 from suds_ros.core.errors import SudsError
 from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
@@ -140,15 +140,14 @@ def _close(got: dict[str, float], want: dict[str, float]) -> bool:
 def judge(effects: list[dict], rep) -> tuple[bool, bool, str]:  # type: ignore[no-untyped-def]
     """(fully correct, false discovery, text) of a report against the injected ``effects``."""
     named = {(e.name, e.target) for e in rep.effects}
-    alts = {(a.name, a.target) for e in rep.effects for a in e.alternatives}
-    alts |= {(n, t) for e in rep.effects for a in e.alternatives for n, t, _ in a.with_effects}
+    alts = {(n, t) for e in rep.effects for a in e.alternatives for n, t, _ in a.added}
     injected = {(e["name"], _target(e)) for e in effects}
     # a named effect that an alternative holding an injected effect would replace is one side of an
     # "A or B" finding, not a false discovery
     replaced: set[tuple[str, str | None]] = set()
     for e in rep.effects:
         for a in e.alternatives:
-            if ({(a.name, a.target)} | {(n, t) for n, t, _ in a.with_effects}) & injected:
+            if {(n, t) for n, t, _ in a.added} & injected:
                 replaced |= {(lbl.split(":", 1)[0], lbl.split(":", 1)[1] if ":" in lbl else None)
                              for lbl in a.instead_of}
     false = bool(named - injected - alts - replaced) if rep.mismatch else False
@@ -194,9 +193,7 @@ def _alternative_sets(rep) -> list[dict]:  # type: ignore[no-untyped-def]
         for a in e.alternatives:
             s = {(f.name, f.target): dict(f.parameters) for f in rep.effects
                  if effect_label(f.name, f.target) not in a.instead_of}
-            if a.name != NO_EFFECT:
-                s[(a.name, a.target)] = dict(a.parameters)
-            s.update({(n, t): dict(p) for n, t, p in a.with_effects})
+            s.update({(n, t): dict(p) for n, t, p in a.added})
             out.append(s)
     return out
 

@@ -70,17 +70,16 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
             tgt = f" on {e.target}" if e.target else ""
             lines.append(f"  effect: {e.name}{tgt}: {ps}")
             for a in e.alternatives:
+                head = f"    OR (ambiguous: {a.evidence_gap:+.1f} nats of held-out evidence after replay): "
                 if a.name == NO_EFFECT:
-                    lines.append(f"    OR (ambiguous: {a.evidence_gap:+.1f} nats of held-out evidence after replay): "
-                                 "no effect at all (the nominal model): the recording does not yet show the finding "
-                                 "beyond the band")
+                    lines.append(head + "no effect at all (the nominal model): the recording does not yet show the "
+                                 "finding beyond the band")
                     continue
                 aps = ", ".join(f"{k} = {v:.4g}" for k, v in a.parameters.items())
                 more = "".join(f" + {n}{' on ' + t if t else ''} ({', '.join(f'{k} = {v:.4g}' for k, v in q.items())})"
                                for n, t, q in a.with_effects)
                 instead = f" instead of {', '.join(a.instead_of)}" if a.instead_of else ""
-                lines.append(f"    OR (ambiguous: {a.evidence_gap:+.1f} nats of held-out evidence after replay): "
-                             f"{a.name}{' on ' + a.target if a.target else ''} ({aps}){more}{instead}")
+                lines.append(head + f"{a.name}{' on ' + a.target if a.target else ''} ({aps}){more}{instead}")
         for g in rep.confounded_with:
             lines.append(f"  confounded on this data (cannot be told apart): {', '.join(g)}")
         ratio = rep.plain_rms_ratio

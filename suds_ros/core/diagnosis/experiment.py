@@ -190,9 +190,7 @@ def effect_sets(effects: Sequence[FittedEffect], alt: Alternative) -> tuple[list
     dropped = set(alt.instead_of)
     keep = [e for e in effects if effect_label(e.name, e.target) not in dropped]
     other = [_as_effect(e.name, e.target, e.parameters) for e in keep]
-    if alt.name != NO_EFFECT:
-        other.append(_as_effect(alt.name, alt.target, alt.parameters))
-    other.extend(_as_effect(n, t, p) for n, t, p in alt.with_effects)
+    other.extend(_as_effect(n, t, p) for n, t, p in alt.added)
     return reported, other
 
 
@@ -275,7 +273,7 @@ def _admissible(x: FloatArray, template: Gait, order: int, limits: GaitLimits) -
 def _refit(sim: _Simulator, fixed: Sequence[Effect], free: Sequence[Effect], gait: Gait) -> float:
     """Nats per cycle between ``fixed`` and ``free`` under ``gait`` after refitting ``free``'s parameters."""
     target = sim.outputs(fixed, [gait])
-    cand = Candidate(tuple((str(e["name"]), e.get("joint") or e.get("link")) for e in free))  # type: ignore[misc]
+    cand = Candidate(_parts(free))
     x0 = np.array([float(e[p]) for e in free for p in EFFECTS[str(e["name"])].param_names])  # type: ignore[arg-type]
     lo, hi = (np.asarray(b, dtype=float) for b in cand.bounds())
     scale = cand.scales()
@@ -348,12 +346,12 @@ def propose_all(
     x_run = centre.to_vector(order)
     span = np.repeat(np.asarray(limits.limit), 2 * order + 1)
 
-    mine = _targets(reported)
+    mine = set(_parts(reported))
 
     def refitted(g: Gait) -> float:
         seps = []
         for alt in alternatives:
-            theirs = _targets(alt)
+            theirs = set(_parts(alt))
             # a set nested in the other is mimicked exactly by the larger one at its neutral
             # values: only the larger set's departure from the smaller one can be seen
             one = [] if mine <= theirs else [_refit(sim, reported, alt, g)]
@@ -399,7 +397,8 @@ def propose_all(
     top = [baseline] + [allg[i] for i in np.argsort(-alls)[: config.refit] if i and np.isfinite(alls[i])]
     seps = [refitted(g) for g in top]
     nom_nats = seps[0]
-    k = int(np.argmax([sep if i or np.isfinite(alls[0]) else -np.inf for i, sep in enumerate(seps)]))
+    # the others in ``top`` are admitted by construction; the baseline only when it shows the mismatch
+    k = int(np.argmax(seps if np.isfinite(alls[0]) else [-np.inf] + seps[1:]))
     nats = seps[k]
     if not nats > INSEPARABLE_NATS:
         return ProposedExperiment(labels[0], labels[1], None, nats, nom_nats, None, threshold, baseline=kind)
@@ -407,12 +406,13 @@ def propose_all(
     bad = constraint_violations(gait, limits)
     if bad:  # cannot happen (_admissible scales into the limits); never propose outside them
         raise SudsConfigError(f"proposed gait violates its limits: {bad}")
-    visible = float(sim.nats(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
+    ours, zero = sim.outputs(reported, [gait]), sim.outputs([], [gait])
+    visible = float(sim.nats(ours, zero)[0])
     k_rep = _n_params(reported)
     extra = max(max(0, k_rep - _n_params(alt)) for alt in alternatives)
     cycles = max(config.min_cycles, _cycles(sim, nats, threshold, extra, config.z),
                  _cycles(sim, visible, threshold, k_rep, config.z) if visible > 0 else 0)
-    shown = float(sim.power(sim.outputs(reported, [gait]), sim.outputs([], [gait]))[0])
+    shown = float(sim.power(ours, zero)[0])
     return ProposedExperiment(labels[0], labels[1], gait, nats, nom_nats, cycles, threshold, k == 0, shown, kind)
 
 
@@ -436,9 +436,9 @@ def _n_params(effects: Sequence[Effect]) -> int:
     return sum(len(EFFECTS[str(e["name"])].params) for e in effects)
 
 
-def _targets(effects: Sequence[Effect]) -> set[tuple[str, object]]:
-    """The (name, target) of each effect of a set."""
-    return {(str(e["name"]), e.get("joint") or e.get("link")) for e in effects}
+def _parts(effects: Sequence[Effect]) -> tuple[tuple[str, str | None], ...]:
+    """The (name, target) of each effect of a set, as :class:`~.naming.Candidate` takes them."""
+    return tuple((str(e["name"]), e.get("joint") or e.get("link")) for e in effects)  # type: ignore[misc]
 
 
 def recorded_drive(rec: Recording, base: ChainModel, order: int) -> Gait:
@@ -474,8 +474,7 @@ def propose_for_report(
     others = []
     for alt in rep.effects[0].alternatives:
         _, other = effect_sets(rep.effects, alt)
-        parts = [(str(e["name"]), e.get("joint") or e.get("link")) for e in other]
-        alt_label = set_label(parts) or NO_EFFECT  # type: ignore[arg-type]
+        alt_label = set_label(_parts(other)) or NO_EFFECT
         out.append(propose(base, reported, other, rep.noise_floor, dt, w, threshold, experiment, (label, alt_label),
                            run))
         others.append(other)

@@ -591,10 +591,10 @@ def _ambiguous(win: _Tried, tried: list[_Tried], config: DiagnoseConfig,
             continue
         seen.add(key)
         fits = fitted_effects(t.cand, t.x, t.se)
-        new = [(e.name, e.target, e.parameters) for e in fits if effect_label(e.name, e.target) not in mine]
-        if not new or all(_is_neutral(e, model, config.member_z) for e in fits
-                          if effect_label(e.name, e.target) not in mine):
+        added = [e for e in fits if effect_label(e.name, e.target) not in mine]
+        if all(_is_neutral(e, model, config.member_z) for e in added):  # none added, or only near-zero ones
             continue
+        new = [(e.name, e.target, e.parameters) for e in added]
         # a member both sets share but the alternative needs at other values (a reparameterisation:
         # stiffness_to_drag_error 1.37 + joint_4 × 0.79 for joint_3 × 1.37 + joint_4 × 1.08) is
         # listed with its values, and the reported one it replaces in ``instead_of``

@@ -235,11 +235,15 @@ class Alternative:
     instead_of: tuple[str, ...] = ()
 
     @property
+    def added(self) -> tuple[tuple[str, str | None, Mapping[str, float]], ...]:
+        """(name, target, parameters) of every effect the alternative adds (none for the nominal model)."""
+        first = () if self.name == NO_EFFECT else ((self.name, self.target, self.parameters),)
+        return first + self.with_effects
+
+    @property
     def label(self) -> str:
         """``name:target + …`` of the effects the alternative adds (``none`` for the nominal model)."""
-        if self.name == NO_EFFECT:
-            return NO_EFFECT
-        return set_label([(self.name, self.target)] + [(n, t) for n, t, _ in self.with_effects])
+        return set_label([(n, t) for n, t, _ in self.added]) or NO_EFFECT
 
     def as_dict(self) -> dict[str, object]:
         return {
