@@ -123,7 +123,7 @@ from suds_ros.core.diagnosis.locate import (
 )
 from suds_ros.core.diagnosis.discovery import discover, formula
 from suds_ros.core.diagnosis.naming import Candidate
-from suds_ros.core.diagnosis.refine import extension_gains, fitted_effects, refine_choice
+from suds_ros.core.diagnosis.refine import Refined, extension_gains, fitted_effects, is_neutral, refine_choice
 from suds_ros.core.diagnosis.null import null_recording
 from suds_ros.core.diagnosis.replay import RecordingReplay, piece_starts, replay, replay_recording
 from suds_ros.core.diagnosis.report import (
@@ -405,7 +405,8 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     if alternatives:
         notes.append(f"ambiguous: {len(alternatives)} other explanation(s) within {config.ambiguity_band:g} nats "
                      f"of held-out evidence after replay (see the first effect's alternatives)")
-    cand, x, se, dropped, rep1, E1 = win.cand, win.x, win.se, win.dropped, win.replay, win.E1
+    cand, x, dropped, rep1, E1 = win.cand, win.x, win.refined.dropped, win.replay, win.E1
+    notes.extend(_misfit_notes(win.refined))
     ranked, member_ev, groups = win.option, win.option.member_ev, win.option.groups
     clock.mark("refine")
     # floor with the better model (effects can leak into the fourth differences)
@@ -426,11 +427,27 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     confounded = tuple(kept_g for g in groups if g[0] not in dropped and g[0] in kept
                        for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
                        if len(kept_g) > 1)
-    effects = fitted_effects(cand, x, se, evidence)
+    effects = fitted_effects(cand, x, win.refined.stderr, evidence)
     if effects and alternatives:
         effects[0] = dataclasses.replace(effects[0], alternatives=alternatives)
     return _Fit(effects, rep1, E1, floor, F0,
                 located, conditions, confounded, False, tuple(notes))
+
+
+def _misfit_notes(refined: Refined) -> list[str]:
+    """Notes for the refined parameters whose estimates from the channels and gait phases disagree."""
+    out = []
+    i = 0
+    for nme, tgt in refined.cand.parts:
+        for pn in EFFECTS[nme].param_names:
+            if refined.spread[i] > 0:
+                out.append(
+                    f"{effect_label(nme, tgt)} {pn}: the estimates from single channels and quarters of the gait "
+                    f"cycle disagree beyond their noise (p = {refined.misfit_p[i]:.1g}), so the model still lacks "
+                    f"something; its stderr includes their spread {refined.spread[i]:.3g} (sampling alone "
+                    f"{refined.se[i]:.3g})")
+            i += 1
+    return out
 
 
 @dataclass(frozen=True)
@@ -449,14 +466,24 @@ class _Tried:
     """An option refined and replayed: the refined set, its residuals and its two figures of merit."""
 
     option: _Option
-    cand: Candidate
-    x: FloatArray
-    se: FloatArray
-    dropped: tuple[str, ...]
+    refined: Refined
     replay: RecordingReplay
     E1: FloatArray
     train_evidence: float  # output-error evidence on the training half, nats: the arbitration
     evidence: float  # output-error evidence on the held-out half, nats: the ambiguity band
+
+    @property
+    def cand(self) -> Candidate:
+        return self.refined.cand
+
+    @property
+    def x(self) -> FloatArray:
+        return self.refined.x
+
+    @property
+    def se(self) -> FloatArray:
+        """Sampling standard errors: what the set's own decisions (neutral members, alternatives) use."""
+        return self.refined.se
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
@@ -525,12 +552,12 @@ def _weak_rivals(naming: Naming, config: DiagnoseConfig, seen: set[frozenset]) -
 def _try(nom: _Nominal, opt: _Option) -> _Tried:
     """Refine an option in the simulator and replay the whole recording with it."""
     data, model, table = nom.data, nom.model, nom.table
-    cand, x, se, dropped = refine_choice(opt.cand, opt.x, model, data, nom.config, nom.w, nom.substeps, nom.floors)
-    fitted_model, delay = apply_effects(model, cand.effects(x))
+    got = refine_choice(opt.cand, opt.x, model, data, nom.config, nom.w, nom.substeps, nom.floors)
+    fitted_model, delay = apply_effects(model, got.cand.effects(got.x))
     rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
     E1 = table.residuals(rep1.rp, rep1.xi)
-    return _Tried(opt, cand, x, se, dropped, rep1, E1,
-                  table.evidence(nom.E0, E1, x.size, held=False), table.evidence(nom.E0, E1, x.size))
+    return _Tried(opt, got, rep1, E1,
+                  table.evidence(nom.E0, E1, got.x.size, held=False), table.evidence(nom.E0, E1, got.x.size))
 
 
 def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | None, str]:
@@ -611,11 +638,9 @@ def _ambiguous(win: _Tried, tried: list[_Tried], config: DiagnoseConfig,
 def _is_neutral(e: FittedEffect, model: ChainModel, z: float) -> bool:
     """Whether every parameter of ``e`` lies within ``z`` standard errors of its neutral value on ``model``."""
     neutral = neutral_params(e.name, model)
-    for k, v in e.parameters.items():
-        se = e.stderr.get(k, float("nan"))
-        if not (np.isfinite(se) and abs(v - neutral[k]) < z * se):
-            return False
-    return True
+    keys = list(e.parameters)
+    return is_neutral(np.array([e.parameters[k] for k in keys]), np.array([e.stderr.get(k, np.nan) for k in keys]),
+                      np.array([neutral[k] for k in keys]), z)
 
 
 def _moved(alt: FittedEffect, mine: FittedEffect) -> bool:

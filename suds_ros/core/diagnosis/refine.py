@@ -1,14 +1,22 @@
-"""Refining a named effect inside the simulator (output error) with cluster-robust standard errors."""
+"""Refining a named effect inside the simulator (output error) with cluster-robust standard errors.
+
+The standard error of a refined parameter has two parts.  The sampling part is the cluster-robust
+sandwich over segments (:func:`_sandwich_stderr`).  The misfit part (:func:`misfit_spread`) is
+there only when the model being refined is not the robot's: the parameter is then estimated again
+from each channel and each quarter of the gait cycle alone, and when those estimates disagree
+more than their own noise allows, their spread is what the data say about the parameter.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize
 import scipy.stats
 
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import FloatArray, IntArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.floor import Floors
 from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
@@ -21,35 +29,67 @@ from suds_ros.core.physics.effects import EFFECTS, apply_effects
 from suds_ros.core.physics.rft import ChainModel
 
 
+@dataclass(frozen=True)
+class Refined:
+    """A set of effects refined in the simulator.
+
+    ``se`` is the sampling standard error, ``spread`` the misfit spread (zero where the channels
+    and gait phases agree, :func:`misfit_spread`) and ``misfit_p`` the p-value of that agreement,
+    per parameter in canonical order.  ``dropped`` labels the members dropped as neutral.
+    """
+
+    cand: Candidate
+    x: FloatArray
+    se: FloatArray
+    spread: FloatArray
+    misfit_p: FloatArray
+    dropped: tuple[str, ...] = ()
+
+    @property
+    def stderr(self) -> FloatArray:
+        """The reported standard error: the sampling error and the misfit spread in quadrature."""
+        return np.hypot(self.se, self.spread)
+
+
 def refine_choice(
     cand: Candidate, x0: FloatArray, model: ChainModel, data: Data, config: DiagnoseConfig,
     w: int, substeps: int, floors: Floors,
-) -> tuple[Candidate, FloatArray, FloatArray, tuple[str, ...]]:
-    """Refine the chosen set in the simulator; returns (candidate, x, stderr, labels of dropped members).
+) -> Refined:
+    """Refine the chosen set in the simulator.
 
     After refining a set of several effects, the members whose parameters all lie within
-    ``config.member_z`` standard errors of their neutral values are dropped and the others are
-    refined again (nothing is dropped when no member would remain).
+    ``config.member_z`` sampling standard errors of their neutral values are dropped and the others
+    are refined again (nothing is dropped when no member would remain).
     """
-    x, se = _refine(cand, x0, model, data, config, w, substeps, floors)
+    first = _refine(cand, x0, model, data, config, w, substeps, floors)
+    x, se = first.x, first.se
     if len(cand.parts) < 2:
-        return cand, x, se, ()
+        return first
     keep, drop, i = [], [], 0
     neutral = cand.neutral(model)
     for k, (nme, tgt) in enumerate(cand.parts):
         npar = len(EFFECTS[nme].params)
-        z = np.abs(x[i:i + npar] - neutral[i:i + npar]) / np.maximum(se[i:i + npar], 1e-300)
-        if np.nanmax(z) >= config.member_z:
-            keep.append((k, i, npar))
-        else:
+        if is_neutral(x[i:i + npar], se[i:i + npar], neutral[i:i + npar], config.member_z):
             drop.append(effect_label(nme, tgt))
+        else:
+            keep.append((k, i, npar))
         i += npar
     if not keep or not drop:
-        return cand, x, se, ()
+        return first
     sub = Candidate(tuple(cand.parts[k] for k, _, _ in keep))
     x_sub = np.concatenate([x[i:i + npar] for _, i, npar in keep])
-    x, se = _refine(sub, x_sub, model, data, config, w, substeps, floors)
-    return sub, x, se, tuple(drop)
+    again = _refine(sub, x_sub, model, data, config, w, substeps, floors)
+    return Refined(sub, again.x, again.se, again.spread, again.misfit_p, tuple(drop))
+
+
+def is_neutral(x: FloatArray, se: FloatArray, neutral: FloatArray, z: float) -> bool:
+    """Whether every parameter ``x`` lies within ``z`` standard errors ``se`` of its ``neutral`` value.
+
+    An undefined (NaN) or zero standard error never makes a parameter neutral: an effect is not
+    set aside on a fit that cannot say how well it knows it.
+    """
+    x, se, neutral = (np.asarray(a, dtype=float) for a in (x, se, neutral))
+    return bool(np.all(np.isfinite(se) & (np.abs(x - neutral) < z * se)))
 
 
 def fitted_effects(
@@ -101,6 +141,25 @@ def _residual_vector(
     e_xi = np.where(np.isfinite(e_xi), e_xi, 0.0)
     B = len(starts)
     return np.concatenate([e_rp.reshape(B, -1), e_xi.reshape(B, -1)], axis=1)
+
+
+def _residual_parts(data: Data, length: int, w: int, k: int, quarters: int = 4) -> IntArray:
+    """The part of the data each of a segment's ``k`` residuals (:func:`_residual_vector`) belongs to.
+
+    A part is one channel (a passive angle, or x, y or θ of the body velocity) in one quarter of
+    the gait cycle; parts are numbered channel × ``quarters`` + quarter.
+    """
+    n_p = data.pas.size
+    n_rp = length * n_p
+    t_rp = np.arange(n_rp) // max(n_p, 1)  # r_p is sample-major
+    ch_rp = np.arange(n_rp) % max(n_p, 1)
+    m = np.arange(k - n_rp)  # ξ: window-major, (x, y, θ) per window, one window per w samples
+    t_xi = (m // 3) * w + w // 2
+    ch_xi = n_p + m % 3
+    t = np.concatenate([t_rp, t_xi])
+    ch = np.concatenate([ch_rp, ch_xi])
+    quarter = np.minimum((t % data.spc) * quarters // data.spc, quarters - 1)
+    return (ch * quarters + quarter).astype(np.int64)
 
 
 def _training_segments(data: Data, cfg: DiagnoseConfig) -> tuple[list[int], int]:
@@ -180,8 +239,8 @@ def _refine(
     w: int,
     substeps: int,
     floors: Floors,
-) -> tuple[FloatArray, FloatArray]:
-    """Output-error least squares of the candidate's parameters; returns (x, stderr)."""
+) -> Refined:
+    """Output-error least squares of the candidate's parameters, with their standard errors."""
     starts, length = _training_segments(data, cfg)
     lo, hi = (np.asarray(b, dtype=float) for b in cand.bounds())
     scales = cand.scales()
@@ -210,7 +269,8 @@ def _refine(
     else:
         x, R = x0, r0
         J = fd_jacobian(fun, x, R, np.maximum(1e-3 * np.abs(x), 1e-2 * scales), hi, parallel=True)
-    return x, _sandwich_stderr(J, R, x.size)
+    spread, p_value = misfit_spread(J, R, _residual_parts(data, length, w, R.shape[1]), cfg.misfit_alpha)
+    return Refined(cand, x, _sandwich_stderr(J, R, x.size), spread, p_value)
 
 
 def _sandwich_stderr(J: FloatArray, R: FloatArray, p: int) -> FloatArray:
@@ -240,3 +300,58 @@ def _sandwich_stderr(J: FloatArray, R: FloatArray, p: int) -> FloatArray:
     s2 = float(np.sum(Rb**2)) / max(Rb.size - p, 1)
     se_model = np.sqrt(np.maximum(np.diag(inv), 0.0) * s2)
     return np.maximum(se_sand, se_model)
+
+
+def misfit_spread(J: FloatArray, R: FloatArray, parts: IntArray, alpha: float) -> tuple[FloatArray, FloatArray]:
+    """Per parameter, the spread of its estimates from the parts of the data, when they disagree.
+
+    J (B·k, p) Jacobian and R (B, k) residuals at the fit, over B segments (clusters); ``parts``
+    (k,) labels each residual of a segment with a part of the data (:func:`_residual_parts`).
+
+    For parameter i, the column of J is first made orthogonal to the other parameters' columns
+    (so each part's estimate moves parameter i alone, the others held at their fit).  Part s then
+    gives the one-step estimate Δ_s = g_s / a_s, g_s = Σ_b j_sb'R_sb, a_s = j_s'j_s, with the
+    cluster-robust variance v_s = B·var_b(j_sb'R_sb) / a_s².  When the model is right the Δ_s
+    scatter about zero as v_s says; their agreement is tested by Σ z_s² against χ² with S − 1
+    degrees of freedom (z_s the Student t statistic Δ_s/√v_s with B − 1 degrees of freedom, turned
+    into a normal score).  Where the test rejects at ``alpha``, the spread is the
+    DerSimonian–Laird between-part standard deviation τ (the spread beyond the noise); else 0.
+
+    The spread is not divided by √S: an error the model lacks biases every part alike, and the
+    disagreement between parts is the only measure of it the data give.  Returns (spread, p).
+    """
+    B, k = R.shape
+    p = J.shape[1]
+    spread, pval = np.zeros(p), np.ones(p)
+    if B < 3:
+        return spread, pval
+    labels = np.unique(parts)
+    member = parts[None, :] == labels[:, None]  # (S, k)
+    for i in range(p):
+        col = J[:, i]
+        others = np.delete(J, i, axis=1)
+        if others.size:
+            col = col - others @ np.linalg.lstsq(others, col, rcond=None)[0]
+        jb = col.reshape(B, k)
+        a = member.astype(float) @ np.sum(jb**2, axis=0)  # (S,)
+        gb = (jb * R) @ member.T.astype(float)  # (B, S) per segment and part
+        use = a > 1e-9 * a.sum()
+        if np.count_nonzero(use) < 3:
+            continue
+        a, gb = a[use], gb[:, use]
+        delta = gb.sum(axis=0) / a
+        var = B * np.var(gb, axis=0, ddof=1) / a**2
+        if not np.all(var > 0):
+            continue
+        t_stat = delta / np.sqrt(var)
+        z = scipy.stats.norm.isf(scipy.stats.t.sf(np.abs(t_stat), B - 1))
+        dof = delta.size - 1
+        pval[i] = float(scipy.stats.chi2.sf(np.sum(z**2), dof))
+        if pval[i] >= alpha:
+            continue
+        wt = 1.0 / var
+        mean = np.sum(wt * delta) / wt.sum()
+        q = float(np.sum(wt * (delta - mean) ** 2))
+        tau2 = (q - dof) / (wt.sum() - np.sum(wt**2) / wt.sum())
+        spread[i] = float(np.sqrt(max(tau2, 0.0)))
+    return spread, pval

@@ -113,7 +113,11 @@ class DiagnoseConfig:
         Maximum simulator evaluations per refined parameter (least-squares budget).
     member_z : float
         After refining a set of effects, a member whose parameters all lie within ``member_z``
-        standard errors of their neutral values is dropped (the others are refined again).
+        sampling standard errors of their neutral values is dropped (the others are refined again).
+    misfit_alpha : float
+        Significance level of the test that a refined parameter's estimates from each channel and
+        quarter of the gait cycle agree; where it rejects, their spread joins the parameter's
+        standard error (:func:`~suds_ros.core.diagnosis.refine.misfit_spread`).
     substeps : int or None
         RK4 steps per sample interval; None picks them from the stiffest passive mode.
     replay_chunk : float
@@ -154,6 +158,7 @@ class DiagnoseConfig:
     refine_cycles: int = 30
     refine_nfev: int = 5
     member_z: float = 4.0
+    misfit_alpha: float = 0.01
     substeps: int | None = None
     replay_chunk: float = 3.0
     replay_warm: float = 3.0
@@ -185,6 +190,7 @@ class DiagnoseConfig:
             ("refine_nfev", self.refine_nfev >= 1),
             ("refine_cycles", self.refine_cycles >= 1),
             ("member_z", self.member_z >= 0),
+            ("misfit_alpha", 0.0 <= self.misfit_alpha < 1.0),
             ("substeps", self.substeps is None or self.substeps >= 1),
             ("replay_chunk", self.replay_chunk >= 0),
             ("replay_warm", self.replay_warm >= 0),

@@ -132,11 +132,13 @@ def test_the_report_does_not_depend_on_the_worker_processes() -> None:
 def _tried(parts, x, se, evidence):  # type: ignore[no-untyped-def]
     """A refined set as ``_ambiguous`` reads it (no replay)."""
     from suds_ros.core.diagnosis.pipeline import _Option, _Tried
+    from suds_ros.core.diagnosis.refine import Refined
 
     cand = Candidate(tuple(parts))
     x, se = np.asarray(x, dtype=float), np.asarray(se, dtype=float)
     opt = _Option(cand, x, (), (), 0.0)
-    return _Tried(opt, cand, x, se, (), None, None, evidence, evidence)  # type: ignore[arg-type]
+    refined = Refined(cand, x, se, np.zeros_like(se), np.ones_like(se))
+    return _Tried(opt, refined, None, None, evidence, evidence)  # type: ignore[arg-type]
 
 
 def test_the_nominal_model_is_an_alternative_when_the_finding_is_within_the_band() -> None:

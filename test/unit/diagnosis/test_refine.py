@@ -62,8 +62,8 @@ def _gains(effects, parts):  # type: ignore[no-untyped-def]
     config = DiagnoseConfig(refine_cycles=10)
     nom = replay_nominal(prepare(simulate(RFTChain(model), SimConfig(cycles=20, seed=8)), base), base, config, None)
     damping = Candidate((("joint_viscous_damping", "joint_2"),))
-    cand, x, _, _ = refine_choice(damping, np.array([0.5]), base, nom.data, config, nom.w, nom.substeps, nom.floors)
-    return extension_gains(cand, x, parts, base, nom.data, config, nom.w, nom.substeps, nom.floors)
+    got = refine_choice(damping, np.array([0.5]), base, nom.data, config, nom.w, nom.substeps, nom.floors)
+    return extension_gains(got.cand, got.x, parts, base, nom.data, config, nom.w, nom.substeps, nom.floors)
 
 
 def test_the_score_test_sees_an_effect_that_a_damping_on_its_joint_stood_in_for() -> None:
@@ -80,3 +80,78 @@ def test_the_score_test_sees_an_effect_that_a_damping_on_its_joint_stood_in_for(
     assert both[0] > 10 * threshold and both[0] > 10 * max(both[1:]), both
     alone = _gains([dict(name="joint_viscous_damping", joint="joint_2", d=0.45)], parts)
     assert max(alone) < threshold, alone
+
+
+# ------------------------------------------------------------------------------ misfit spread
+def _parts_fit(bias_sd: float, seed: int):  # type: ignore[no-untyped-def]
+    """A one-parameter least-squares fit over 20 segments × 8 parts whose parts are biased.
+
+    Each part s carries a systematic offset b_s (the same in every segment, sd ``bias_sd``) along
+    the parameter's column, as an error the model lacks would; returns (J, R, parts, true spread).
+    """
+    rng = np.random.default_rng(seed)
+    B, S, m = 20, 8, 30
+    parts = np.repeat(np.arange(S), m)
+    j = rng.standard_normal((B, S * m))
+    b = bias_sd * rng.standard_normal(S)
+    y = j * b[parts][None, :] + rng.standard_normal((B, S * m))
+    x = np.sum(j * y) / np.sum(j**2)  # the fit
+    return j.reshape(-1, 1), y - x * j, parts, float(np.std(b, ddof=1))
+
+
+def test_misfit_spread_is_zero_when_the_parts_agree() -> None:
+    """No part biased: over 100 fits the test rejects about as often as its level (1 %), and a
+    spread, when it is reported at all, is small next to the sampling error."""
+    from suds_ros.core.diagnosis.refine import _sandwich_stderr, misfit_spread
+
+    rejected, pvals = 0, []
+    for seed in range(100):
+        J, R, parts, _ = _parts_fit(0.0, seed)
+        spread, p = misfit_spread(J, R, parts, 0.01)
+        pvals.append(p[0])
+        rejected += int(spread[0] > 0)
+        assert spread[0] <= 3 * _sandwich_stderr(J, R, 1)[0] * np.sqrt(8)
+    assert rejected <= 5
+    assert 0.3 < np.median(pvals) < 0.7  # roughly uniform under agreement
+
+
+def test_misfit_spread_measures_the_parts_disagreement() -> None:
+    """Parts biased by sd 0.3 with a sampling error near 0.015 (0.04 per part): the test rejects,
+    and the spread is the parts' own (within 40 %), more than ten times the sampling error."""
+    from suds_ros.core.diagnosis.refine import _sandwich_stderr, misfit_spread
+
+    for seed in range(5):
+        J, R, parts, true = _parts_fit(0.3, seed)
+        spread, p = misfit_spread(J, R, parts, 0.01)
+        assert p[0] < 1e-6
+        assert spread[0] == pytest.approx(true, rel=0.4), (spread, true)
+        assert spread[0] > 10 * _sandwich_stderr(J, R, 1)[0]
+
+
+def test_misfit_spread_holds_the_other_parameters_at_their_fit() -> None:
+    """Two parameters: a bias along the second's column shows in the second's spread; the first,
+    whose column is orthogonal to it, is left alone."""
+    from suds_ros.core.diagnosis.refine import misfit_spread
+
+    rng = np.random.default_rng(5)
+    B, S, m = 20, 8, 30
+    parts = np.repeat(np.arange(S), m)
+    j1, j2 = rng.standard_normal((2, B, S * m))
+    b = 0.2 * rng.standard_normal(S)
+    y = j2 * b[parts][None, :] + rng.standard_normal((B, S * m))
+    J = np.stack([j1.ravel(), j2.ravel()], axis=1)
+    x = np.linalg.lstsq(J, y.ravel(), rcond=None)[0]
+    R = (y.ravel() - J @ x).reshape(B, -1)
+    spread, p = misfit_spread(J, R, parts, 0.01)
+    assert spread[0] == 0.0 and p[0] > 0.01
+    assert spread[1] > 0.1 and p[1] < 1e-6
+
+
+def test_is_neutral_needs_every_parameter_within_z_and_a_defined_stderr() -> None:
+    """One rule for a refined member dropped as neutral and an alternative set aside as one."""
+    from suds_ros.core.diagnosis.refine import is_neutral
+
+    assert is_neutral([2.01, 0.0], [0.01, 0.5], [2.0, 0.0], 4.0)
+    assert not is_neutral([2.01, 3.0], [0.01, 0.5], [2.0, 0.0], 4.0)  # one parameter 6 se off
+    assert not is_neutral([2.0], [np.nan], [2.0], 4.0)  # a fit that cannot say: not neutral
+    assert not is_neutral([2.0], [0.0], [2.0], 4.0)
