@@ -101,6 +101,27 @@ def _at(rows: list[dict], cycles: int, key: str) -> float | None:
     return done[-1][key] if done else None
 
 
+def _cells(doc: dict, loop: dict, cps: tuple[int, ...]) -> tuple[list[str], int, int]:
+    """Table rows (loop / CMA-ES at each checkpoint), and the cells where the loop is ahead or level, of all."""
+    lim = doc["limit"]
+    rows, ahead, total = [], 0, 0
+    for r in doc["runs"]:
+        kind = r.get("start", "nominal")
+        lr = [x for x in loop["runs"] if x["start"] == kind and x["seed"] == r["seed"]]
+        if not lr:
+            continue
+        cells = [kind, str(r["seed"])]
+        for c in cps:
+            ours = _at(lr[0]["rows"], c, "incumbent_true")
+            theirs = _at(r["evals"], c, "best_true")
+            fmt = [("—" if v is None else f"{100 * v / lim:.1f}") for v in (ours, theirs)]
+            cells.append(" / ".join(fmt))
+            total += 1
+            ahead += int(ours is not None and (theirs is None or ours >= theirs))
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows, ahead, total
+
+
 def report() -> None:
     lines = ["# CMA-ES against the loop at the same cycle budget", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_cma.py`.", "",
@@ -119,23 +140,14 @@ def report() -> None:
         lines += [f"## {name} (limit {lim:.5f} m/s; cma {doc['cma_version']})", "",
                   "| start | seed | " + " | ".join(f"{c} cycles: loop / CMA-ES" for c in cps) + " |",
                   "|---" * (2 + len(cps)) + "|"]
-        ahead = 0
-        total = 0
-        for r in doc["runs"]:
-            kind = r.get("start", "nominal")
-            lr = [x for x in loop["runs"] if x["start"] == kind and x["seed"] == r["seed"]]
-            if not lr:
-                continue
-            cells = [kind, str(r["seed"])]
-            for c in cps:
-                ours = _at(lr[0]["rows"], c, "incumbent_true")
-                theirs = _at(r["evals"], c, "best_true")
-                fmt = [("—" if v is None else f"{100 * v / lim:.1f}") for v in (ours, theirs)]
-                cells.append(" / ".join(fmt))
-                total += 1
-                ahead += int(ours is not None and (theirs is None or ours >= theirs))
-            lines.append("| " + " | ".join(cells) + " |")
-        lines += ["", f"The loop is ahead or level at {ahead} of {total} (seed, budget) cells.", ""]
+        rows, ahead, total = _cells(doc, loop, cps)
+        lines += rows + ["", f"The loop is ahead or level at {ahead} of {total} (seed, budget) cells.", ""]
+        confirm = RESULTS / f"optimize_loop_{name}_confirm.json"
+        if confirm.exists():  # the loop's confirmation ablation (benchmarks/optimize_loop.py --confirm-sigmas)
+            c_doc = json.loads(confirm.read_text())
+            _, c_ahead, c_total = _cells(doc, c_doc, cps)
+            lines += [f"With the loop's `confirm_sigmas` = {c_doc.get('confirm_sigmas')} "
+                      f"(`optimize_loop_{name}_confirm.json`): ahead or level at {c_ahead} of {c_total}.", ""]
     write("optimize_cma.md", "\n".join(lines) + "\n")
 
 

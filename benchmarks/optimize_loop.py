@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 from _common import RESULTS, SNAKE5, machine, stamp, write
 
@@ -42,27 +43,35 @@ def starts(nom: Gait) -> dict[str, Gait]:
             "wave reversed": back}
 
 
-def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False) -> None:
+def _path(name: str, confirm: float) -> Path:
+    """The JSON of a robot's runs: the loop's defaults, or with ``confirm_sigmas`` (the ablation)."""
+    return RESULTS / (f"optimize_loop_{name}.json" if confirm == 0 else f"optimize_loop_{name}_confirm.json")
+
+
+def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False, confirm: float = 0.0) -> None:
     spec, budget, target = ROBOTS[name]
     system = load_system(spec)
     nom = nominal_gait(system)
     limits = gait_limits(system)
-    path = RESULTS / f"optimize_loop_{name}.json"
-    old = json.loads(path.read_text()) if path.exists() else {}
+    path = _path(name, confirm)
+    src = _path(name, 0.0)  # the limit is the robot's, whatever the loop's settings
+    old = json.loads(src.read_text()) if src.exists() else {}
     if reuse_limit and old.get("limit"):  # the physics limit does not depend on the loop: reuse it
         limit, secs = old["limit"], old["limit_seconds"]
     else:
         t0 = time.perf_counter()
         limit = optimize_gait(system, OptimizeConfig(order=3, starts=4)).value
         secs = time.perf_counter() - t0
-    doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs, "runs": []}
+    doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs,
+           "confirm_sigmas": confirm, "runs": []}
     print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
     for kind, start in starts(nom).items():
         if kind not in kinds:
             continue
         for seed in (seeds if kind != "wave reversed" else seeds[:1]):
             t1 = time.perf_counter()
-            res = optimize_loop(system, LoopConfig(budget_cycles=budget, seed=seed), start=start, limits=limits)
+            res = optimize_loop(system, LoopConfig(budget_cycles=budget, seed=seed, confirm_sigmas=confirm),
+                                start=start, limits=limits)
             secs = time.perf_counter() - t1
             rows, incumbent = [], None
             for it in res.iterations:
@@ -77,6 +86,7 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
                              "true_rotation": true["rotation"], "incumbent_true": incumbent["speed"],
                              "incumbent_true_rotation": incumbent["rotation"],
                              "replaced_true": None if replaced is None else replaced["speed"],
+                             "confirming": it.note.startswith("to be confirmed"),
                              "in_bounds": not constraint_violations(it.gait, limits)})
             doc["runs"].append({"start": kind, "seed": seed, "rows": rows, "cycles_used": res.cycles_used,
                                 "stopped": res.stopped, "seconds": secs})
@@ -128,6 +138,41 @@ def aggregates() -> list[str]:
     return out
 
 
+def ablation() -> list[str]:
+    """The default loop against the loop with confirmation (``confirm_sigmas``), run by run."""
+    out = []
+    for name in ROBOTS:
+        base, conf = _path(name, 0.0), _path(name, 1.0)
+        if not (base.exists() and conf.exists()):
+            continue
+        a, b = json.loads(base.read_text()), json.loads(conf.read_text())
+        limit, target = a["limit"], a["target"]
+        runs_b = {(r["start"], r["seed"]): r for r in b["runs"]}
+        if not out:
+            out += ["## Ablation: confirm a marginal gain before keeping it", "",
+                    "`LoopConfig.confirm_sigmas` (run with `--confirm-sigmas`): a candidate whose measured gain is "
+                    "within that many standard errors of the difference is run again (1 + 4 cycles) and judged on "
+                    "both stretches pooled.  % of the limit of the incumbent at the target and at the budget, "
+                    "default (off) / with confirmation; the same seeds, so the two differ only from the first "
+                    "marginal gain on.", "",
+                    "| robot | start | seed | confirm σ | at the target: off / on | at the budget: off / on | "
+                    "confirmations |", "|" + "---|" * 7]
+        sums = [0.0, 0.0]
+        for ra in a["runs"]:
+            rb = runs_b.get((ra["start"], ra["seed"]))
+            if rb is None:
+                continue
+            ta, tb = (_at(r["rows"], target) or r["rows"][0] for r in (ra, rb))
+            ba, bb = ra["rows"][-1]["incumbent_true"] / limit, rb["rows"][-1]["incumbent_true"] / limit
+            sums[0] += ba
+            sums[1] += bb
+            out.append(f"| {name} | {ra['start']} | {ra['seed']} | {b.get('confirm_sigmas', '—')} | "
+                       f"{100 * ta['incumbent_true'] / limit:.1f} / {100 * tb['incumbent_true'] / limit:.1f} | "
+                       f"{100 * ba:.1f} / {100 * bb:.1f} | {sum(bool(x.get('confirming')) for x in rb['rows'])} |")
+        out.append(f"| {name} | **sum at the budget** | | | | {100 * sums[0]:.1f} / {100 * sums[1]:.1f} | |")
+    return out + [""] if out else []
+
+
 def limit_info() -> dict[str, tuple[float, float]]:
     """Robot → (limit m/s, seconds the physics optimiser took) from the JSON files."""
     out = {}
@@ -137,6 +182,15 @@ def limit_info() -> dict[str, tuple[float, float]]:
             doc = json.loads(path.read_text())
             out[name] = (doc["limit"], doc["limit_seconds"])
     return out
+
+
+def _verdict(row: dict, rerun: bool) -> str:
+    """A run's outcome as the per-run tables say it."""
+    if rerun:
+        return "re-run of the incumbent"
+    if row["accepted"]:
+        return "yes"
+    return "to be confirmed" if row.get("confirming") else "no"
 
 
 def report() -> None:
@@ -186,7 +240,7 @@ def report() -> None:
                 details.append(
                     f"| {r['index']} | {r['cycles_used']} | {pred} | {r['measured']:.4f} | "
                     f"{r['measured_rotation']:+.3f} | {r['true']:.4f} | {r['true_rotation']:+.3f} | "
-                    f"{'re-run of the incumbent' if rerun else 'yes' if r['accepted'] else 'no'} | "
+                    f"{_verdict(r, rerun)} | "
                     f"{100 * r['incumbent_true'] / limit:.1f} |")
             details.append("")
     lines += ["", "## Aggregates (computed from the table)", "", *aggregates(), ""]
@@ -218,7 +272,7 @@ def report() -> None:
               "on swimmer9. The limits were computed by this script (the physics optimiser, order 3, 4 starts; "
               "with `--reuse-limit` taken from the robot's earlier JSON): "
               + ", ".join(f"{k} {v[0]:.5f} m/s in {v[1]:.0f} s" for k, v in limit_info().items()) + ".",
-              "", "## Per run", "", *details]
+              "", *ablation(), "## Per run", "", *details]
     write("optimize_loop.md", "\n".join(lines) + "\n")
 
 
@@ -230,11 +284,13 @@ def main() -> None:
     r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     r.add_argument("--starts", nargs="+", default=["nominal", "half amplitude", "wave reversed"])
     r.add_argument("--reuse-limit", action="store_true", help="take the limit from an earlier run's JSON")
+    r.add_argument("--confirm-sigmas", type=float, default=0.0,
+                   help="LoopConfig.confirm_sigmas; > 0 writes the ablation's optimize_loop_<robot>_confirm.json")
     sub.add_parser("report")
     args = ap.parse_args()
     if args.cmd == "run":
         for name in args.robots:
-            run(name, args.seeds, args.starts, args.reuse_limit)
+            run(name, args.seeds, args.starts, args.reuse_limit, args.confirm_sigmas)
     else:
         report()
 

@@ -26,9 +26,12 @@ One iteration
    measured objective, and for ``speed``/``efficiency`` a measured |rotation| per cycle within
    ``max_rotation`` (the spec's straight-course bound; for ``turn`` a measured speed no lower
    than the start gait's).  A feasible gait always beats an infeasible one; between infeasible
-   gaits the smaller violation wins.  Accepted: the candidate becomes the incumbent and its
-   cycles the next model's data; the radius grows (× ``grow``, up to ``trust_max``) when the
-   measured gain is at least half the predicted gain and the step reached the region's edge.
+   gaits the smaller violation wins.  Optionally (``confirm_sigmas``, off by default) a gain
+   within that many standard errors of the difference is not kept at once: the candidate is run
+   again and judged on both stretches pooled.  Accepted: the
+   candidate becomes the incumbent and its cycles the next model's data; the radius grows
+   (× ``grow``, up to ``trust_max``) when the measured gain is at least half the predicted gain
+   and the step reached the region's edge.
    Rejected: back to the incumbent's model, radius × ``shrink``.  Below ``trust_min`` the incumbent
    is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
    also undoes a lucky first one) and a new model, and the radius starts afresh.
@@ -129,6 +132,14 @@ class LoopConfig:
     accept_sigmas : float
         A candidate is kept only if its measured gain exceeds this many standard errors of the
         difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
+    confirm_sigmas : float
+        A candidate that measures better than the incumbent, but by less than this many standard
+        errors of the difference, is run again (settling + ``step_cycles``) before it is kept:
+        its two stretches are pooled and judged once more (no further confirmation).  Without the
+        budget for that run it is rejected.  0 (default): kept on its first measurement.  Near the
+        limit the measured gains are within the measurement's noise and keeping a lucky one walks
+        the gait away from the limit; confirming helps there but spends cycles that a poor start
+        needs (``docs/results/optimize_loop.md``, ablation: on balance worse at the budget).
     rotation_margin : float
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
         (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
@@ -166,6 +177,7 @@ class LoopConfig:
     max_rotation: float = 0.05
     rotation_margin: float = 0.5
     accept_sigmas: float = 0.0
+    confirm_sigmas: float = 0.0
     watch: bool = False
     change_sigmas: float = 2.5
     samples_per_cycle: int = 100
@@ -194,6 +206,7 @@ class LoopConfig:
                   ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("rotation_margin", 0 < self.rotation_margin <= 1, "in (0, 1]"),
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
+                  ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
                   ("change_sigmas", self.change_sigmas > 0, "> 0"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
@@ -490,7 +503,8 @@ class RunRequest:
     ----------
     gait : Gait, the gait to switch to (at a cycle boundary) and run.
     cycles : int, cycles to run it: ``settle_cycles`` to discard, then the cycles to measure.
-    kind : str, ``start``, ``candidate`` (a trust-region step) or ``rerun`` (the incumbent again).
+    kind : str, ``start``, ``candidate`` (a trust-region step), ``confirm`` (a candidate whose
+        measured gain was within ``confirm_sigmas``, again) or ``rerun`` (the incumbent again).
     """
 
     gait: Gait
@@ -549,6 +563,7 @@ class GaitSearch:
         self.changes: list[int] = []  # iterations at which a changed robot was taken
         self._pending: RunRequest | None = RunRequest(start, config.settle_cycles + config.first_cycles, "start",
                                                       "start gait")
+        self._confirming: list[Recording] = []  # a candidate's first stretch while it is run again
 
     @property
     def best(self) -> Gait:
@@ -653,8 +668,12 @@ class GaitSearch:
                                accepted=True, trust=None, trust_used=None, note=req.note)
         elif req.kind == "rerun":
             it = self._rerun_done(req, meas, data)
+        elif req.kind == "confirm":
+            stretches = [*self._confirming, data]
+            self._confirming = []
+            it = self._judge(req, measure_recording(stretches, cfg.samples_per_cycle, req.gait.gait_hz), stretches)
         else:
-            it = self._judge(req, meas, data)
+            it = self._judge(req, meas, [data])
         self.iterations.append(it)
         if self._log is not None:
             self._log(it)
@@ -683,8 +702,8 @@ class GaitSearch:
         self._best_index = it.index
         return it
 
-    def _judge(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
-        """Accept or reject a candidate by its measurement; schedule a re-run when the region collapsed."""
+    def _judge(self, req: RunRequest, meas: Measurement, stretches: list[Recording]) -> LoopIteration:
+        """Accept, confirm or reject a candidate by its measurement; schedule a re-run when the region collapsed."""
         cfg, step, cand = self.config, req.step, req.gait
         old = self._best_meas
         assert old is not None
@@ -692,6 +711,24 @@ class GaitSearch:
         pred_gain = step.value - step.recorded_value
         meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
         kappa_used = step.trust_radius
+        confirm = ""
+        marginal = req.kind == "candidate" and cfg.confirm_sigmas > 0 and _feasible(old, cfg, self._speed_floor)[0]
+        if accepted and marginal:
+            z = _sigmas(meas.value(cfg.objective), old.value(cfg.objective),
+                        meas.value_se(cfg.objective), old.value_se(cfg.objective))
+            if z < cfg.confirm_sigmas:
+                if self.cycles_used + self._step_cycles <= cfg.budget_cycles:
+                    self._confirming = list(stretches)
+                    self._pending = RunRequest(cand, self._step_cycles, "confirm",
+                                               f"measured gain {meas_gain:+.4g} ({z:.2f} se): run again", step=step)
+                    return LoopIteration(index=len(self.iterations), gait=cand, cycles=req.cycles,
+                                         cycles_used=self.cycles_used, predicted=step.value,
+                                         predicted_std=step.value_std, predicted_incumbent=step.recorded_value,
+                                         measured=meas, accepted=False, trust=kappa_used,
+                                         trust_used=step.trust_used,
+                                         note=f"to be confirmed: measured gain {meas_gain:+.4g} is {z:.2f} se "
+                                              f"(< {cfg.confirm_sigmas:g}); run again before it is kept")
+                accepted, confirm = False, f"gain {z:.2f} se unconfirmed: no budget to run it again"
         if accepted:
             ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
             grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
@@ -699,14 +736,14 @@ class GaitSearch:
             if grew:
                 self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {self._kappa:.3g}"
-            self._best_gait, self._best_meas, self._best_data = cand, meas, [data]
+            self._best_gait, self._best_meas, self._best_data = cand, meas, list(stretches)
             self._fresh = False  # measured on the robot as it is now
             self._best_index, self._best_pred = len(self.iterations), step.value
             self._model, self._rejected, self._low_streak = None, [], 0
         else:
             self._kappa *= cfg.shrink
             self._rejected.append(cand)
-            why = ("measured objective not higher" if _feasible(meas, cfg, self._speed_floor)[0]
+            why = (confirm or "measured objective not higher" if _feasible(meas, cfg, self._speed_floor)[0]
                    else ("measured rotation |{:.3g}| rad/cycle over the bound".format(meas.rotation)
                          if cfg.objective != "turn" else "measured speed under the start gait's"))
             note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -50,6 +52,7 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
      "unsupported_objective"),
     ({"budget_cycles": 20, "step_cycles": 3}, "`step_cycles`: expected ≥ 4, got 3", "bad_config"),
     ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
+    ({"budget_cycles": 20, "confirm_sigmas": -1.0}, "`confirm_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
 ])
 def test_config_refusals(kwargs: dict[str, object], message: str, code: str) -> None:
     with pytest.raises(SudsConfigError, match=message) as exc:
@@ -117,3 +120,22 @@ def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
     # the next step comes from the model of both stretches, with the radius afresh
     assert its[3].predicted is not None and its[3].trust == pytest.approx(2.0)
     assert res.index == (3 if its[3].accepted else 2)
+
+
+def test_a_marginal_gain_is_run_again_before_it_is_kept() -> None:
+    """From purcell3's nominal gait (98.8 % of the limit) the candidates' measured gains are within
+    the measurement's noise: such a candidate is run again and judged on both stretches pooled,
+    and none is kept on a first measurement within ``confirm_sigmas``."""
+    system = make_system("purcell3")
+    cfg = LoopConfig(budget_cycles=26, seed=0, confirm_sigmas=1.0)
+    its = optimize_loop(system, cfg).iterations
+    confirming = [i for i, it in enumerate(its) if it.note.startswith("to be confirmed")]
+    assert confirming, [it.note for it in its]
+    for i in confirming:
+        first, again = its[i], its[i + 1]
+        assert not first.accepted and again.gait is first.gait
+        assert again.measured.cycles == first.measured.cycles + cfg.step_cycles  # both stretches pooled
+        incumbent = max((it for it in its[:i] if it.accepted), key=lambda it: it.index)
+        assert again.accepted == is_better(again.measured, incumbent.measured, cfg)
+    off = optimize_loop(system, dataclasses.replace(cfg, confirm_sigmas=0.0)).iterations  # the default
+    assert not any(it.note.startswith("to be confirmed") for it in off)
