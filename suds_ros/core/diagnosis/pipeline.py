@@ -62,8 +62,9 @@ number in the report is computed on the held-out half.
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) is reported (the equation
    error has biases of its own; a note says so).  Sets that
    swap a member of the selection for one it was confounded with in the equation error are refined
-   too (``swap_max``).  Then the effects of the leading sets of the forward step that failed the
-   threshold (``extend_max``) are scored on top of the reported set in output error (a score
+   too (``swap_max``).  Then the forward selection's members that the reported set lacks and the
+   effects of the leading sets of the forward step that failed the threshold (``extend_max``)
+   are scored on top of the reported set in output error (a score
    test, :func:`_extension`); the best is refined with it and added only when its replay
    evidence is more than ``evidence_threshold`` above the set's on both halves (the equation
    error can hold a real effect back; a note says so).  Ambiguity: every refined set whose
@@ -561,22 +562,35 @@ def _try(nom: _Nominal, opt: _Option) -> _Tried:
 
 
 def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | None, str]:
-    """The reported set with one more effect that the equation error held back, if the replay shows it.
+    """The reported set with one more effect, if the replay shows it.
 
-    The leading sets of the forward step that failed the threshold (``Naming.rejected``) name
-    the effects to try.  Each is scored against the refined set in output error by a score test
+    The effects to try: the forward selection's members that the reported set lacks (when the
+    simulator preferred another option), and the effects of the leading sets of the forward step
+    that failed the threshold (``Naming.rejected``: the equation error held them back).  Each is
+    scored against the refined set in output error by a score test
     (:func:`~.refine.extension_gains`, one replay per parameter); the best, if its first-order
     gain passes ``evidence_threshold``, is refined with the set, and replaces it only when its
     replay evidence is more than ``evidence_threshold`` above the set's on the training half *and*
     the held-out half.  Returns (the extended set or None, a note or '').
     """
     config = nom.config
-    parts, starts = [], {}
+    parts, starts, origin = [], {}, {}
+    # the forward selection's own members that the reported set lacks (the simulator preferred a
+    # set without them: one may still belong on top of it), then the held-back effects
+    chosen, i = naming.chosen, 0
+    for part in chosen.cand.parts:
+        n = len(EFFECTS[part[0]].params)
+        if part not in win.cand.parts and part not in parts and _compatible(win.cand, part):
+            parts.append(part)
+            starts[part] = chosen.x[i:i + n]
+            origin[part] = "which the forward selection had chosen"
+        i += n
     for r in naming.rejected:
         part = r.cand.parts[-1]
         if part not in parts and _compatible(win.cand, part):
             parts.append(part)
             starts[part] = r.x[r.x.size - len(EFFECTS[part[0]].params):]
+            origin[part] = "which the equation error held back"
     if not parts:
         return None, ""
     gains = extension_gains(win.cand, win.x, parts, nom.model, nom.data, config, nom.w, nom.substeps, nom.floors)
@@ -589,7 +603,7 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
                             float("nan")))
     d_train, d_held = ext.train_evidence - win.train_evidence, ext.evidence - win.evidence
     if parts[k] in ext.cand.parts and min(d_train, d_held) > config.evidence_threshold:
-        return ext, (f"the simulator added {label}, which the equation error held back: replay evidence "
+        return ext, (f"the simulator added {label}, {origin[parts[k]]}: replay evidence "
                      f"{d_train:.0f} nats above {win.cand.label} on the training half and {d_held:.0f} held out")
     return None, (f"{label} tried on top of {win.cand.label} in the simulator (first-order gain {gains[k]:.0f} "
                   f"nats) and not kept: {d_train:.0f} nats on the training half, {d_held:.0f} held out")
