@@ -178,3 +178,20 @@ def test_a_drag_ratio_at_the_robots_own_value_is_no_alternative() -> None:
     # the same value is a real alternative on a robot of ratio 2
     assert [a.name for a in _ambiguous(win, [win, ratio], DiagnoseConfig(ambiguity_band=60.0),
                                        purcell3_model())] == ["drag_anisotropy_error", "none"]
+
+
+@pytest.mark.slow
+def test_a_member_the_preferred_set_lacks_is_tried_on_top(check_recovered) -> None:  # type: ignore[no-untyped-def]
+    """purcell3 with a Coulomb friction, a rest offset and a pose-frame offset (the lab sweep's case
+    75): the forward selection takes damping + rest offset + pose offset, the simulator prefers
+    friction + rest offset, and the pose offset, dropped with the selection, is scored on top of
+    that set, refined and kept: all three are named."""
+    effects = [dict(name="joint_coulomb_friction", joint="joint_2", mu=0.6060534044908222),
+               dict(name="pose_frame_offset", x=-0.09535238890209351, y=0.10555721208168409, yaw=0.060078967534107464),
+               dict(name="spring_rest_offset", joint="joint_2", offset=-0.2511877283114359)]
+    base = purcell3_model()
+    model, delay = apply_effects(base, effects)
+    rec = simulate(RFTChain(model), SimConfig(cycles=60, seed=3728, pose_delay=delay, gait_hz=base.gait_hz))
+    rep = diagnose(rec, base)
+    check_recovered(rep, effects)
+    assert any("added pose_frame_offset, which the forward selection had chosen" in n for n in rep.notes), rep.notes
