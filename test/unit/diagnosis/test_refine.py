@@ -155,3 +155,18 @@ def test_is_neutral_needs_every_parameter_within_z_and_a_defined_stderr() -> Non
     assert not is_neutral([2.01, 3.0], [0.01, 0.5], [2.0, 0.0], 4.0)  # one parameter 6 se off
     assert not is_neutral([2.0], [np.nan], [2.0], 4.0)  # a fit that cannot say: not neutral
     assert not is_neutral([2.0], [0.0], [2.0], 4.0)
+
+
+def test_residual_parts_follow_the_residual_layout() -> None:
+    """One passive joint, a 100-sample cycle, windows of 10: r_p's samples fall in its four
+    quarters, 25 each; ξ's windows (centred at 5, 15, … 85) in channel 1–3's quarters by centre."""
+    from types import SimpleNamespace
+
+    from suds_ros.core.diagnosis.refine import _residual_parts
+
+    data = SimpleNamespace(pas=np.array([1]), spc=100)
+    parts = _residual_parts(data, 100, 10, 100 + 9 * 3)  # type: ignore[arg-type]
+    assert np.array_equal(np.bincount(parts[:100]), [25, 25, 25, 25])
+    xi = parts[100:].reshape(9, 3)  # window-major, (x, y, θ) per window
+    assert np.array_equal(xi[:, 0] // 4, np.ones(9)) and np.array_equal(xi[:, 2] // 4, np.full(9, 3))
+    assert list(xi[:, 0] % 4) == [0, 0, 1, 1, 1, 2, 2, 3, 3]  # centres 5, 15 | 25, 35, 45 | 55, 65 | 75, 85
