@@ -76,7 +76,12 @@ def test_live_pipeline_predicts_test_cycles(start_process, node_command, tmp_pat
     print(pred.output()[-400:])
     score = score_live_predictions(bag, TRAIN_CYCLES)
     print(score.summary())
-    assert score.coverage >= 0.95, score
+    # the first model comes when the estimator has fitted its first chunks; on a loaded machine that
+    # can be after the stream (5x real time) has entered the test cycles. Bound that lag, then ask
+    # that once there is a model no test interval goes unpredicted (the predictor buffers the run)
+    late = max(0.0, score.first_prediction_s - TRAIN_CYCLES)  # cycles of the test half before it (1 Hz)
+    assert late <= 3.0, score
+    assert score.n_scored >= 0.98 * (score.n_intervals - round(late * N_SAMPLES / (TRAIN_CYCLES + TEST_CYCLES))), score
     assert score.gamma_body >= 0.8 and score.gamma_passive >= 0.8, score
     model = last_model(bag)
     assert model.n_samples == N_SAMPLES - 1
