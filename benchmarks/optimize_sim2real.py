@@ -100,6 +100,16 @@ def _cell(v: dict, limit: float) -> str:
     return f"{100 * v['speed'] / limit:.1f} % ({v['rotation']:+.3f}{'' if v['straight'] else ', NOT straight'})"
 
 
+def _best_known(doc: dict) -> float:
+    """The true robot's limit as far as known: the physics optimiser's value or a faster straight gait found here.
+
+    The optimiser's 8 starts can miss the best optimum; any gait within the bounds that is straight
+    on the true physics is a lower bound of the limit too.
+    """
+    found = [doc["nominal"]] + [r[k] for r in doc["runs"] for k in ("loop", "diagnosed")]
+    return max([doc["limit"]] + [v["speed"] for v in found if v["straight"]])
+
+
 def _effects(effects: list[dict]) -> str:
     return "; ".join(" ".join(f"{k}={v:.4g}" if isinstance(v, float) else str(v) for k, v in e.items())
                      for e in effects) or "none"
@@ -109,7 +119,8 @@ def report() -> None:
     lines = ["# Sim-to-real: three gaits for a robot that differs from its model file", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_sim2real.py`.", "",
              "Each cell: the gait's true speed as a % of the true robot's limit (the physics optimiser on the true "
-             "physics, order 3, 8 starts), and its true net rotation per cycle (the spec's straight-course bound is "
+             "physics, order 3, 8 starts, or the fastest straight gait found here on the true physics if that is "
+             "faster), and its true net rotation per cycle (the spec's straight-course bound is "
              "0.05 rad).  "
              "'nominal' = the best gait on the nominal model file; 'loop' = the data-driven loop on the true robot "
              "(budget below, every cycle counted, from the nominal gait); 'diagnosed' = the best gait on the model "
@@ -121,10 +132,11 @@ def report() -> None:
         if not path.exists():
             continue
         doc = json.loads(path.read_text())
-        lim = doc["limit"]
+        lim = _best_known(doc)
         lines += [f"## {name}: {CASES[name][3]}", "",
                   f"Robot `{doc['robot']}`; concealed effects: {_effects(doc['effects'])}.  True limit "
-                  f"{lim:.5f} m/s; the nominal model's own optimum {doc['nominal_on_model']:.5f} m/s (on the model).  "
+                  f"{lim:.5f} m/s (the physics optimiser's own: {doc['limit']:.5f}); the nominal model's own optimum "
+                  f"{doc['nominal_on_model']:.5f} m/s (on the model).  "
                   f"Loop budget {doc['budget']} cycles; diagnosis on {doc['cycles']} cycles.", "",
                   "| seed | nominal-model gait | data-driven loop | after diagnosis | effects named by the diagnosis "
                   "| confounded | time loop / diagnose+optimise (s) |", "|---|---|---|---|---|---|---|"]
