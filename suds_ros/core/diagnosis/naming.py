@@ -228,6 +228,11 @@ class Candidate:
     def scales(self) -> FloatArray:
         return np.array([p.scale for n, _ in self.parts for p in EFFECTS[n].params])
 
+    def slices(self) -> list[slice]:
+        """Each part's parameters in the canonical parameter vector (the order of :meth:`bounds`)."""
+        ends = np.cumsum([len(EFFECTS[n].params) for n, _ in self.parts], dtype=int)
+        return [slice(int(e) - len(EFFECTS[n].params), int(e)) for (n, _), e in zip(self.parts, ends)]
+
     def effects(self, x: FloatArray) -> list[dict[str, object]]:
         out: list[dict[str, object]] = []
         i = 0

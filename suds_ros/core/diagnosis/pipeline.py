@@ -438,16 +438,14 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
 def _misfit_notes(refined: Refined) -> list[str]:
     """Notes for the refined parameters whose estimates from the channels and gait phases disagree."""
     out = []
-    i = 0
-    for nme, tgt in refined.cand.parts:
-        for pn in EFFECTS[nme].param_names:
-            if refined.spread[i] > 0:
+    for (nme, tgt), sl in zip(refined.cand.parts, refined.cand.slices()):
+        for pn, spread, p, se in zip(EFFECTS[nme].param_names, refined.spread[sl], refined.misfit_p[sl],
+                                     refined.se[sl]):
+            if spread > 0:
                 out.append(
                     f"{effect_label(nme, tgt)} {pn}: the estimates from single channels and quarters of the gait "
-                    f"cycle disagree beyond their noise (p = {refined.misfit_p[i]:.1g}), so the model still lacks "
-                    f"something; its stderr includes their spread {refined.spread[i]:.3g} (sampling alone "
-                    f"{refined.se[i]:.3g})")
-            i += 1
+                    f"cycle disagree beyond their noise (p = {p:.1g}), so the model still lacks something; its "
+                    f"stderr includes their spread {spread:.3g} (sampling alone {se:.3g})")
     return out
 
 
@@ -498,11 +496,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
     out = [_Option(chosen.cand, chosen.x, naming.evidence, naming.confounded, chosen.score.score)]
     out += [_Option(a.cur.cand, a.cur.x, a.evidence, a.groups, a.cur.score.score) for a in naming.alternatives]
     seen = {frozenset(o.cand.parts) for o in out}
-    slices, i = {}, 0
-    for part in chosen.cand.parts:
-        n = len(EFFECTS[part[0]].params)
-        slices[effect_label(*part)] = (part, chosen.x[i:i + n])
-        i += n
+    slices = {effect_label(*part): (part, chosen.x[sl]) for part, sl in zip(chosen.cand.parts, chosen.cand.slices())}
     swaps: list[_Option] = []
     for group in naming.confounded:
         if group[0] not in slices:
@@ -577,19 +571,17 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
     parts, starts, origin = [], {}, {}
     # the forward selection's own members that the reported set lacks (the simulator preferred a
     # set without them: one may still belong on top of it), then the held-back effects
-    chosen, i = naming.chosen, 0
-    for part in chosen.cand.parts:
-        n = len(EFFECTS[part[0]].params)
+    chosen = naming.chosen
+    for part, sl in zip(chosen.cand.parts, chosen.cand.slices()):
         if part not in win.cand.parts and part not in parts and _compatible(win.cand, part):
             parts.append(part)
-            starts[part] = chosen.x[i:i + n]
+            starts[part] = chosen.x[sl]
             origin[part] = "which the forward selection had chosen"
-        i += n
     for r in naming.rejected:
         part = r.cand.parts[-1]
         if part not in parts and _compatible(win.cand, part):
             parts.append(part)
-            starts[part] = r.x[r.x.size - len(EFFECTS[part[0]].params):]
+            starts[part] = r.x[r.cand.slices()[-1]]
             origin[part] = "which the equation error held back"
     if not parts:
         return None, ""

@@ -65,19 +65,17 @@ def refine_choice(
     x, se = first.x, first.se
     if len(cand.parts) < 2:
         return first
-    keep, drop, i = [], [], 0
+    keep, drop = [], []
     neutral = cand.neutral(model)
-    for k, (nme, tgt) in enumerate(cand.parts):
-        npar = len(EFFECTS[nme].params)
-        if is_neutral(x[i:i + npar], se[i:i + npar], neutral[i:i + npar], config.member_z):
-            drop.append(effect_label(nme, tgt))
+    for part, sl in zip(cand.parts, cand.slices()):
+        if is_neutral(x[sl], se[sl], neutral[sl], config.member_z):
+            drop.append(effect_label(*part))
         else:
-            keep.append((k, i, npar))
-        i += npar
+            keep.append((part, sl))
     if not keep or not drop:
         return first
-    sub = Candidate(tuple(cand.parts[k] for k, _, _ in keep))
-    x_sub = np.concatenate([x[i:i + npar] for _, i, npar in keep])
+    sub = Candidate(tuple(part for part, _ in keep))
+    x_sub = np.concatenate([x[sl] for _, sl in keep])
     again = _refine(sub, x_sub, model, data, config, w, substeps, floors)
     return Refined(sub, again.x, again.se, again.spread, again.misfit_p, tuple(drop))
 
@@ -100,17 +98,15 @@ def fitted_effects(
     ``x`` and ``se`` are in canonical order; ``evidence`` is by member label, in nats.
     """
     out: list[FittedEffect] = []
-    i = 0
     ev = evidence or {}
-    for nme, tgt in cand.parts:
+    for (nme, tgt), sl in zip(cand.parts, cand.slices()):
         pn = EFFECTS[nme].param_names
         out.append(FittedEffect(
             nme, tgt,
-            {p: float(x[i + k]) for k, p in enumerate(pn)},
-            {p: float(se[i + k]) for k, p in enumerate(pn)},
+            {p: float(v) for p, v in zip(pn, x[sl])},
+            {p: float(v) for p, v in zip(pn, se[sl])},
             ev.get(effect_label(nme, tgt)),
         ))
-        i += len(pn)
     return out
 
 
@@ -326,15 +322,15 @@ def misfit_spread(J: FloatArray, R: FloatArray, parts: IntArray, alpha: float) -
     if B < 3:
         return spread, pval
     labels = np.unique(parts)
-    member = parts[None, :] == labels[:, None]  # (S, k)
+    member = (parts[None, :] == labels[:, None]).astype(float)  # (S, k) indicator of each part
     for i in range(p):
         col = J[:, i]
         others = np.delete(J, i, axis=1)
         if others.size:
             col = col - others @ np.linalg.lstsq(others, col, rcond=None)[0]
         jb = col.reshape(B, k)
-        a = member.astype(float) @ np.sum(jb**2, axis=0)  # (S,)
-        gb = (jb * R) @ member.T.astype(float)  # (B, S) per segment and part
+        a = member @ np.sum(jb**2, axis=0)  # (S,)
+        gb = (jb * R) @ member.T  # (B, S) per segment and part
         use = a > 1e-9 * a.sum()
         if np.count_nonzero(use) < 3:
             continue

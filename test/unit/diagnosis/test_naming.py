@@ -143,3 +143,11 @@ def test_a_candidates_neutral_drag_ratio_is_the_robots() -> None:
     assert cand.neutral(m) == pytest.approx([0.0, 2.5])
     # without a model, the catalogue's value
     assert cand.neutral() == pytest.approx([0.0, 2.0])
+
+
+def test_candidate_slices_index_each_part_in_the_parameter_vector() -> None:
+    """A 3-, a 1- and a 2-parameter effect: slices 0:3, 3:4, 4:6, covering the bounds' order."""
+    cand = Candidate((("pose_frame_offset", None), ("joint_viscous_damping", "joint_2"), ("background_flow", None)))
+    assert cand.slices() == [slice(0, 3), slice(3, 4), slice(4, 6)]
+    assert cand.slices()[-1].stop == len(cand.bounds()[0])
+    assert Candidate(()).slices() == []
