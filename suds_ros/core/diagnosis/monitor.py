@@ -63,7 +63,12 @@ Statistic and levels
 --------------------
 Every ``update_every`` samples, once ``floor_cycles`` cycles are at hand (the first report), per
 channel F = mean(residual²) / floor over the last ``window_cycles`` gait cycles (≈ 1 when the
-nominal physics holds; a systematic error adds its power on top).  Level OK (F ≤ ``warn``), WARN
+nominal physics holds; a systematic error adds its power on top).  A misfit that repeats with the
+gait but is small next to one cycle's noise (a pose stream a few ms late) is seen better over
+several cycles: from ``MIN_COHERENT`` whole cycles on, the channel's F is the larger of that and
+the phase-coherent statistic over the last ``coherent_cycles`` cycles (:func:`coherent_statistic`:
+the residual's power at the first ``harmonics`` gait harmonics against the power between them,
+on the same scale).  Level OK (F ≤ ``warn``), WARN
 (``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
 entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
 of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
@@ -134,6 +139,10 @@ CLIP_MEAN = float(1.0 - math.erfc(CLIP / math.sqrt(2.0)) * (1.0 - CLIP**2)
                   - 2.0 * CLIP * math.exp(-CLIP**2 / 2.0) / math.sqrt(2.0 * math.pi))
 #: seed of the synthetic noise (one stream per monitor: the statistics are reproducible)
 SYNTHETIC_SEED = 0
+#: fewest whole gait cycles of the phase-coherent statistic (with fewer, its few noise bins make false alarms)
+MIN_COHERENT = 4
+#: smallest tail probability the phase-coherent statistic maps (beyond it the reported F is capped: ≈ 350 for H = 2)
+TINY_TAIL = 1e-300
 
 
 @dataclass(frozen=True)
@@ -165,6 +174,11 @@ class MonitorConfig:
         Cycles of paired samples kept (≥ ``persist_cycles`` and the statistic's windows).
     update_every : int
         Paired samples between two updates of the statistics.
+    coherent_cycles : int
+        Whole gait cycles (at most) of the phase-coherent statistic (:func:`coherent_statistic`;
+        taken from ``MIN_COHERENT`` cycles of data on; 0: off).
+    harmonics : int
+        Gait harmonics the phase-coherent statistic tests.
     """
 
     gait_hz: float = setting(1.0, "gait frequency, Hz", gt=0.0, le=1000.0)
@@ -182,15 +196,18 @@ class MonitorConfig:
     history_cycles: float = setting(12.0, "cycles of samples kept", ge=1.0, le=10000.0)
     update_every: int = setting(10, "samples between statistics updates (and suds/mismatch messages)",
                                 ge=1, le=100000)
+    coherent_cycles: int = setting(8, "whole gait cycles of the phase-coherent statistic (0: off)", ge=0, le=1000)
+    harmonics: int = setting(2, "gait harmonics the phase-coherent statistic tests", ge=1, le=100)
 
     def __post_init__(self) -> None:
         check_settings(self)
         if not self.error > self.warn:
             raise SudsConfigError(f"`error`: expected a threshold > warn ({self.warn}), got {self.error!r}")
-        if not self.history_cycles >= max(self.persist_cycles, self.window_cycles, self.floor_cycles):
-            raise SudsConfigError(f"`history_cycles`: expected ≥ persist_cycles, window_cycles and floor_cycles "
-                                  f"({self.persist_cycles}, {self.window_cycles}, {self.floor_cycles}), "
-                                  f"got {self.history_cycles!r}")
+        if not self.history_cycles >= max(self.persist_cycles, self.window_cycles, self.floor_cycles,
+                                          self.coherent_cycles):
+            raise SudsConfigError(f"`history_cycles`: expected ≥ persist_cycles, window_cycles, floor_cycles and "
+                                  f"coherent_cycles ({self.persist_cycles}, {self.window_cycles}, "
+                                  f"{self.floor_cycles}, {self.coherent_cycles}), got {self.history_cycles!r}")
         spc = self.rate / self.gait_hz
         if abs(spc - round(spc)) > 1e-9 * spc or round(spc) < 8:
             raise SudsConfigError(f"`rate`: rate / gait_hz must be an integer ≥ 8 (samples per cycle), "
@@ -528,6 +545,48 @@ def residual_floor(system: SudsSystem, t: FloatArray, r: FloatArray, pose: Float
     e = equation_residuals(system, t, r, pose, w, rates)
     e1 = equation_residuals(system, t, r, pose, 1, rates)
     return e, noise_power(t, e1, w)
+
+
+def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
+                       harmonics: int) -> FloatArray:
+    """Residual power at the gait's harmonics over the power between them, per channel (NaN: too short).
+
+    ``e1`` (n − 1, channels) the one-interval residuals over the stamps ``t`` (n,), ``valid``
+    (n − 1,) the intervals to use, ``period`` the gait period, s.  Over the last N whole cycles
+    (N = ``cycles`` or as many as ``t`` spans, give or take a sample; at least ``MIN_COHERENT``),
+    a span L = N·period, the residual's Fourier coefficients c_j = Σ_i e1_i Δt_i exp(−2πi j τ_i / L)
+    (τ_i the interval's middle from the span's start) for j = 1 … N(H + 1) − 1, H = ``harmonics``.  What
+    repeats with the gait falls on j = N, 2N, …, HN; noise of any smooth spectrum spreads over
+    every j.  The ratio ρ = mean over the harmonics k of |c_kN|² / the mean |c_j|² of the bins
+    next to it (|j − kN| < N; the noise of a differenced signal rises steeply with frequency) is
+    ≈ 1 under noise and 1 + N × the power ratio of a periodic misfit.  Under noise ρ is about an
+    F(2H, 2K) variable (K the other bins), whose tail is long when K is small; it is reported on the window statistic's
+    scale: the F whose tail probability as a mean of 2H squared standard normals, χ²(2H)/2H,
+    is ρ's tail probability as F(2H, 2K) (the same false-alarm rate at every N; → ρ as K
+    grows).  A misfit that does not repeat with the gait (or a gait far from ``period``) goes to
+    the other bins and lowers ρ: this statistic can miss it, never invent one.
+    """
+    from scipy.stats import chi2, f as fisher
+
+    N = min(int(cycles), int(math.floor((t[-1] - t[0] + np.median(np.diff(t))) / period)))  # jitter: ± a sample
+    if N < MIN_COHERENT:
+        return np.full(e1.shape[1], np.nan)
+    L = N * period
+    start = t[-1] - L
+    tm = 0.5 * (t[1:] + t[:-1])
+    use = np.asarray(valid, dtype=bool) & (tm >= start)
+    j = np.arange(1, N * (harmonics + 1))
+    c = np.exp(-2j * np.pi * np.outer(j, (tm[use] - start) / L)) @ (e1[use] * np.diff(t)[use, None])
+    power = np.abs(c) ** 2
+    harm = j % N == 0
+    k = np.arange(1, harmonics + 1)
+    near = (np.abs(j[None, :] - N * k[:, None]) < N) & ~harm  # (H, bins): the bins next to harmonic k
+    local = near.astype(float) @ power / near.sum(axis=1)[:, None]  # (H, channels): the noise there
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.mean(power[harm] / local, axis=0)
+        rho = np.where(np.all(local > 0, axis=0), rho, np.nan)
+    tail = np.maximum(fisher.sf(rho, 2 * harmonics, 2 * int((~harm).sum())), TINY_TAIL)
+    return np.where(np.isfinite(rho), chi2.isf(tail, 2 * harmonics) / (2 * harmonics), np.nan)
 
 
 # ------------------------------------------------------------------ the monitor
@@ -877,24 +936,11 @@ class MismatchMonitor:
         if ready < n:
             return
         n_stat = int(round(cfg.window_cycles * self._spc)) + w
-        hist = list(self._hist)[:ready]
         fresh = self._floor is None or self.updated % FLOOR_EVERY == 0
-        last = hist[-(n if fresh else n_stat):]  # the floor's span when it is renewed, else the statistic's
-        m = len(last)
-        t = np.array([h.t for h in last])
-        versions = slice(None) if fresh else slice(0, 1)
-        R = np.array([h.r[versions] for h in last]).transpose(1, 0, 2)  # (versions, m, nj)
-        P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
-        rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
-        replays = list(self._replays)[ready - m + 1:ready]
-        gap = (np.diff(t) > cfg.gap / cfg.rate) | np.array([rep is None or rep.stiff for rep in replays])
-        shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
-        shape_ok[1:] &= ~gap[:-1]
-        shape_ok[:-1] &= ~gap[1:]
-        pose_ok = np.array([bool(h.pose_ok[0]) for h in last])
+        # the floor's span when it is renewed, else the statistic's
+        t, R, P, split, shape_ok, pose_ok = self._series(ready, n if fresh else n_stat, fresh)
         win_ok = (np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1)
                   & pose_ok[:-w] & pose_ok[w:])
-        split = (rates[..., :3], rates[..., 3:])
         E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
         if fresh:
             valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
@@ -910,7 +956,42 @@ class MismatchMonitor:
         ms = np.mean(tail**2, axis=0) if tail.shape[0] else np.zeros(len(self.channels))
         ok = np.isfinite(floor) & (floor > 0)
         F = np.where(ok, ms / np.where(ok, floor, 1.0), 0.0)
+        if cfg.coherent_cycles:
+            F = np.fmax(F, self._coherent(ready))
         self._set_levels(t[-1], F)
+
+    def _series(self, ready: int, m: int, twins: bool
+                ) -> tuple[FloatArray, FloatArray, FloatArray, tuple[FloatArray, FloatArray], BoolArray, BoolArray]:
+        """The last ``m`` of the ``ready`` usable samples: stamps, shapes, poses, predicted rates and what to trust.
+
+        ``R`` (versions, m, nj) and ``P`` (versions, m, 3): the data only, or with its noisy twins
+        (``twins``); ``split`` their predicted (ξ, ṙ_p) per interval; ``shape_ok`` (m − 1,) the
+        intervals neither across nor next to a gap (nor near a singular shape), ``pose_ok`` (m,)
+        the samples whose pose was read between trusted pose samples.
+        """
+        cfg = self.config
+        last = list(self._hist)[:ready][-m:]
+        m = len(last)
+        versions = slice(None) if twins else slice(0, 1)
+        t = np.array([h.t for h in last])
+        R = np.array([h.r[versions] for h in last]).transpose(1, 0, 2)  # (versions, m, nj)
+        P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
+        rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
+        replays = list(self._replays)[ready - m + 1:ready]
+        gap = (np.diff(t) > cfg.gap / cfg.rate) | np.array([rep is None or rep.stiff for rep in replays])
+        shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
+        shape_ok[1:] &= ~gap[:-1]
+        shape_ok[:-1] &= ~gap[1:]
+        pose_ok = np.array([bool(h.pose_ok[0]) for h in last])
+        return t, R, P, (rates[..., :3], rates[..., 3:]), shape_ok, pose_ok
+
+    def _coherent(self, ready: int) -> FloatArray:
+        """:func:`coherent_statistic` of the data over the last ``coherent_cycles`` cycles at hand."""
+        cfg = self.config
+        t, R, P, split, shape_ok, pose_ok = self._series(ready, cfg.coherent_cycles * self._spc + 1, False)
+        e1 = equation_residuals(self.system, t, R, P, 1, split)[0]
+        return coherent_statistic(t, e1, shape_ok & pose_ok[:-1] & pose_ok[1:], 1.0 / cfg.gait_hz,
+                                  cfg.coherent_cycles, cfg.harmonics)
 
     def _set_levels(self, stamp: float, F: FloatArray) -> None:
         cfg = self.config

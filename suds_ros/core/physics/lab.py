@@ -11,8 +11,9 @@ How: the actuated set-points are the twin's (reference + OU at the nominal shape
 grid, the joint moving on the straight line between set-points).  The run is
 integrated on a grid ``oversample`` times finer than the shape grid, so every kink
 of the drive is a grid point, and both streams are read off that dense, noise-free
-trajectory at their own jittered stamps (linear interpolation between points
-0.8 ms apart at the default), then measurement noise is added and messages dropped.
+trajectory at their own jittered stamps (cubic Hermite interpolation with the physics' own
+rates at the grid points, 2.5 ms apart at 100 Hz: :class:`~suds_ros.core.physics.sim.DenseRun`),
+then measurement noise is added and messages dropped.
 :func:`simulate_lab_blocks` does all of this a few cycles at a time, with the same result.
 """
 
@@ -28,6 +29,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.physics.sim import (
     BLOCK_CYCLES,
+    DenseRun,
     OUDrive,
     SimBlock,
     SimConfig,
@@ -265,7 +267,7 @@ def _lab_blocks(system: SudsSystem, config: SimConfig, lab: LabConditions,
     poses = _Stream(_stamp_chunks(pose_jitter, *pose_grid), rng, pose_inside, n_pose, lab.drop)
     noise_r, noise_pose = rng_noise, skip_normals(rng_noise, n_kept * nj)  # r's noise first, then the pose's
     planar = getattr(system, "planar", True)
-    window = Window(nj + 3)  # the dense run's joints and pose
+    window = DenseRun(_still(system)[0], flow)  # the dense run's joints and pose
     unwrap = YawUnwrap()
     for g0, g1, _, R, P in pieces:
         t_gait = (np.arange(g0, g1) - nw_f) * dt_f
