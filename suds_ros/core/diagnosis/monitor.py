@@ -66,9 +66,9 @@ channel F = mean(residual²) / floor over the last ``window_cycles`` gait cycles
 nominal physics holds; a systematic error adds its power on top).  A misfit that repeats with the
 gait but is small next to one cycle's noise (a pose stream a few ms late) is seen better over
 several cycles: from ``MIN_COHERENT`` whole cycles on, the channel's F is the larger of that and
-the phase-coherent statistic over the last ``coherent_cycles`` cycles (:func:`coherent_statistic`:
+the phase-coherent score over the last ``coherent_cycles`` cycles (:func:`coherent_statistic`:
 the residual's power at the first ``harmonics`` gait harmonics against the power between them,
-on the same scale).  Level OK (F ≤ ``warn``), WARN
+scored by its tail probability under noise: WARN at 1e-5, ERROR at 1e-6 per update).  Level OK (F ≤ ``warn``), WARN
 (``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
 entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
 of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
@@ -141,8 +141,10 @@ CLIP_MEAN = float(1.0 - math.erfc(CLIP / math.sqrt(2.0)) * (1.0 - CLIP**2)
 SYNTHETIC_SEED = 0
 #: fewest whole gait cycles of the phase-coherent statistic (with fewer, its few noise bins make false alarms)
 MIN_COHERENT = 4
-#: smallest tail probability the phase-coherent statistic maps (beyond it the reported F is capped: ≈ 350 for H = 2)
-TINY_TAIL = 1e-300
+#: the phase-coherent statistic's score: 0 down to this tail probability under noise, then SCORE_PER_DECADE per
+#: decade below it (with the default levels WARN at a 1e-5 tail, ERROR at 1e-6)
+SCORE_ZERO = 1e-4
+SCORE_PER_DECADE = 4.0
 
 
 @dataclass(frozen=True)
@@ -547,30 +549,25 @@ def residual_floor(system: SudsSystem, t: FloatArray, r: FloatArray, pose: Float
     return e, noise_power(t, e1, w)
 
 
-def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
-                       harmonics: int) -> FloatArray:
-    """Residual power at the gait's harmonics over the power between them, per channel (NaN: too short).
+def harmonic_ratio(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
+                   harmonics: int) -> tuple[FloatArray, int]:
+    """The residual's power at the gait's harmonics over the power next to them, per channel; its noise bins.
 
     ``e1`` (n − 1, channels) the one-interval residuals over the stamps ``t`` (n,), ``valid``
     (n − 1,) the intervals to use, ``period`` the gait period, s.  Over the last N whole cycles
-    (N = ``cycles`` or as many as ``t`` spans, give or take a sample; at least ``MIN_COHERENT``),
-    a span L = N·period, the residual's Fourier coefficients c_j = Σ_i e1_i Δt_i exp(−2πi j τ_i / L)
-    (τ_i the interval's middle from the span's start) for j = 1 … N(H + 1) − 1, H = ``harmonics``.  What
-    repeats with the gait falls on j = N, 2N, …, HN; noise of any smooth spectrum spreads over
-    every j.  The ratio ρ = mean over the harmonics k of |c_kN|² / the mean |c_j|² of the bins
-    next to it (|j − kN| < N; the noise of a differenced signal rises steeply with frequency) is
-    ≈ 1 under noise and 1 + N × the power ratio of a periodic misfit.  Under noise ρ is about an
-    F(2H, 2K) variable (K the other bins), whose tail is long when K is small; it is reported on the window statistic's
-    scale: the F whose tail probability as a mean of 2H squared standard normals, χ²(2H)/2H,
-    is ρ's tail probability as F(2H, 2K) (the same false-alarm rate at every N; → ρ as K
-    grows).  A misfit that does not repeat with the gait (or a gait far from ``period``) goes to
-    the other bins and lowers ρ: this statistic can miss it, never invent one.
+    (N = ``cycles`` or as many as ``t`` spans, give or take a sample; at least ``MIN_COHERENT``,
+    else NaN), a span L = N·period, the residual's Fourier coefficients
+    c_j = Σ_i e1_i Δt_i exp(−2πi j τ_i / L) (τ_i the interval's middle from the span's start) for
+    j = 1 … N(H + 1) − 1, H = ``harmonics``.  What repeats with the gait falls on j = N, 2N, …, HN;
+    noise of any smooth spectrum spreads over every j.  ρ = the mean over the harmonics k of
+    |c_kN|² / the mean |c_j|² of the bins next to it (|j − kN| < N: the noise of a differenced
+    signal rises steeply with frequency) is ≈ 1 under noise, about an F(2H, 2K) variable with K the
+    other bins (returned), and 1 + N × the power ratio of a periodic misfit.  A misfit that does not
+    repeat with the gait (or a gait far from ``period``) goes to the other bins and lowers ρ.
     """
-    from scipy.stats import chi2, f as fisher
-
     N = min(int(cycles), int(math.floor((t[-1] - t[0] + np.median(np.diff(t))) / period)))  # jitter: ± a sample
     if N < MIN_COHERENT:
-        return np.full(e1.shape[1], np.nan)
+        return np.full(e1.shape[1], np.nan), 0
     L = N * period
     start = t[-1] - L
     tm = 0.5 * (t[1:] + t[:-1])
@@ -584,9 +581,29 @@ def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: 
     local = near.astype(float) @ power / near.sum(axis=1)[:, None]  # (H, channels): the noise there
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = np.mean(power[harm] / local, axis=0)
-        rho = np.where(np.all(local > 0, axis=0), rho, np.nan)
-    tail = np.maximum(fisher.sf(rho, 2 * harmonics, 2 * int((~harm).sum())), TINY_TAIL)
-    return np.where(np.isfinite(rho), chi2.isf(tail, 2 * harmonics) / (2 * harmonics), np.nan)
+    return np.where(np.all(local > 0, axis=0), rho, np.nan), int((~harm).sum())
+
+
+def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
+                       harmonics: int) -> FloatArray:
+    """How far the residual power at the gait's harmonics stands out of the noise: a score per channel.
+
+    The :func:`harmonic_ratio` ρ (arguments as there) scored by its tail probability p under noise
+    (ρ as F(2H, 2K)): 0 while p > ``SCORE_ZERO``, then ``SCORE_PER_DECADE`` per decade below it
+    (NaN with too few cycles).  So the levels mean false-alarm rates per update, whatever N: with
+    the default WARN 4 and ERROR 8, p < 1e-5 and p < 1e-6.  On the window statistic's own scale
+    (≈ 1 under noise) its 2H = 4 degrees of freedom would put WARN at p = 3e-3: some channel of
+    most nominal 60-cycle runs, whose updates are ~100 nearly independent looks per channel.
+    This score can miss a misfit that does not repeat with the gait, never invent one.
+    """
+    from scipy.stats import f as fisher
+
+    rho, K = harmonic_ratio(t, e1, valid, period, cycles, harmonics)
+    if K == 0:
+        return rho
+    decades = -fisher.logsf(rho, 2 * harmonics, 2 * K) / math.log(10.0)
+    score = SCORE_PER_DECADE * np.maximum(decades + math.log10(SCORE_ZERO), 0.0)
+    return np.where(np.isfinite(rho), score, np.nan)
 
 
 # ------------------------------------------------------------------ the monitor

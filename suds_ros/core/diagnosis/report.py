@@ -395,7 +395,9 @@ class DiagnosisReport:
         """The JSON schema of ``suds diagnose --json`` (exactly these keys).
 
         ``discovered`` and each effect's ``evidence`` were added by the stepwise selection, each
-        effect's ``alternatives`` by the ambiguity report; nothing was removed.
+        effect's ``alternatives`` by the ambiguity report, ``notes`` (the text report's notes: the
+        simulator's arbitration, ambiguity, a parameter whose estimates from parts of the data
+        disagree, …) later; nothing was removed.
         """
         return {
             "mismatch": bool(self.mismatch),
@@ -416,6 +418,7 @@ class DiagnosisReport:
                 "improvement": float(self.improvement),
             },
             "discovered": [d.as_dict() for d in self.discovered],
+            "notes": [str(n) for n in self.notes],
         }
 
     def to_json(self, indent: int | None = 2) -> str:

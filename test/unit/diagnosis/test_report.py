@@ -11,8 +11,11 @@ from suds_ros.core.physics.systems import purcell3_model
 
 
 def test_json_schema_is_exact(purcell3_run) -> None:  # type: ignore[no-untyped-def]
-    d = json.loads(diagnose(purcell3_run, purcell3_model()).to_json())
-    assert set(d) == {"mismatch", "located", "effects", "confounded_with", "unexplained", "fit", "discovered"}
+    rep = diagnose(purcell3_run, purcell3_model())
+    d = json.loads(rep.to_json())
+    assert d["notes"] == list(rep.notes)  # the text report's notes, e.g. a parameter the data disagree on
+    assert set(d) == {"mismatch", "located", "effects", "confounded_with", "unexplained", "fit", "discovered",
+                      "notes"}
     assert set(d["fit"]) == {"heldout_rms_before", "heldout_rms_after", "improvement"}
     assert set(d["fit"]["heldout_rms_before"]) == {"joint_2", "xi_x", "xi_y", "xi_theta"}
 
