@@ -232,10 +232,10 @@ def simulate_lab_blocks(system: SudsSystem, config: SimConfig = SimConfig(),
     substeps = auto_substeps(still, dt_f) if fine.substeps is None else fine.substeps
     stops = block_stops(nw_f, n_f, block_cycles * fine.samples_per_cycle)
     pieces = trajectory(still, drive, dt_f, stops, _rest_angles(system), substeps, progress)
-    return _lab_blocks(system, config, lab, pieces, flow, rng_noise, span, nw_f, n_f, dt_f)
+    return _lab_blocks(system, still, config, lab, pieces, flow, rng_noise, span, nw_f, n_f, dt_f)
 
 
-def _lab_blocks(system: SudsSystem, config: SimConfig, lab: LabConditions,
+def _lab_blocks(system: SudsSystem, still: SudsSystem, config: SimConfig, lab: LabConditions,
                 pieces: Iterator[tuple[int, int, FloatArray, FloatArray, FloatArray]], flow: tuple[float, float],
                 rng_noise: np.random.Generator, span: float, nw_f: int, n_f: int, dt_f: float
                 ) -> Iterator[SimBlock]:
@@ -267,7 +267,7 @@ def _lab_blocks(system: SudsSystem, config: SimConfig, lab: LabConditions,
     poses = _Stream(_stamp_chunks(pose_jitter, *pose_grid), rng, pose_inside, n_pose, lab.drop)
     noise_r, noise_pose = rng_noise, skip_normals(rng_noise, n_kept * nj)  # r's noise first, then the pose's
     planar = getattr(system, "planar", True)
-    window = DenseRun(_still(system)[0], flow)  # the dense run's joints and pose
+    window = DenseRun(still, flow)  # the dense run's joints and pose
     unwrap = YawUnwrap()
     for g0, g1, _, R, P in pieces:
         t_gait = (np.arange(g0, g1) - nw_f) * dt_f
