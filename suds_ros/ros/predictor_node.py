@@ -180,15 +180,8 @@ def make_executor(kind: str) -> Any:
     return rclpy.executors.SingleThreadedExecutor()
 
 
-def _spin(node: PredictorNode) -> None:
-    executor = make_executor(node.config.executor)
-    executor.add_node(node)
-    while rclpy.ok(context=node.context):  # EventsExecutor.spin() never returns control in Jazzy
-        executor.spin_once(timeout_sec=0.2)
-
-
 def _report(node: PredictorNode) -> None:
-    # not the node's logger: after Ctrl-C its /rosout publisher is gone with the context
+    # a logger of its own: the summary is not meant for /rosout
     log = rclpy.logging.get_logger(f"{node.get_name()}.summary")
     log.info(f"{node.predictions} predictions, {node.models} models, {node.before_model} samples "
              f"before the first model, skipped {dict(node.skipped)}")
@@ -197,7 +190,8 @@ def _report(node: PredictorNode) -> None:
 def main(args: list[str] | None = None) -> int:
     """Run the predictor until SIGINT/SIGTERM; 1 with the reason if it cannot start."""
     return run_node(args, name="predictor", doc=__doc__, config_cls=PredictorConfig,
-                    make=PredictorNode, run=_spin, close=_report)
+                    make=PredictorNode, close=_report,
+                    executor=lambda node: make_executor(node.config.executor))
 
 
 if __name__ == "__main__":

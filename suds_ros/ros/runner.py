@@ -29,6 +29,7 @@ def run_node(
     make: Callable[[], N],
     run: Callable[[N], Any] | None = None,
     close: Callable[[N], None] | None = None,
+    executor: Callable[[N], Any] | None = None,
 ) -> int:
     """Start the node ``make()`` and ``run`` it until it returns, SIGINT/SIGTERM or shutdown.
 
@@ -46,6 +47,11 @@ def run_node(
     down, and only then is the node destroyed.  (With rclpy's handlers and ``rclpy.spin``, the handler
     thread's shutdown of the global executor raced ``destroy_node``'s wake-up of it: one
     pipeline run in about 15 left the estimator hanging in ``destroy_node`` after Ctrl-C.)
+    ``executor(node)`` makes that executor (default: a ``SingleThreadedExecutor``); it is spun
+    with ``spin_once`` and, after ``close``, the node is taken off it and it is shut down before
+    the node is destroyed.  (The predictor's EventsExecutor, spun by a loop of the node's own under
+    rclpy's signal handlers and dropped with the node still on it, aborted the process now and
+    then at shutdown: "Destroying callback manager with callbacks remaining".)
     A ``run`` of the node's own keeps rclpy's signal handlers (it must return once the context
     is shut down).
     Once the node is made, the garbage collector stops scanning every object made so far (``gc.freeze``).
@@ -59,16 +65,22 @@ def run_node(
     if wants_help(args):
         print(parameters_help(name, doc.strip().splitlines()[0], config_cls))
         return 0
-    executor = None
+    spinner = None
     if run is not None:
+        if executor is not None:
+            raise ValueError("run_node: `run` and `executor` exclude each other")
         rclpy.init(args=args)
     else:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         stop = threading.Event()
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
-        executor = SingleThreadedExecutor()
-        run = lambda n: _spin_until(n, executor, stop)  # noqa: E731
+        make_executor = executor if executor is not None else (lambda _node: SingleThreadedExecutor())
+
+        def run(n: Any) -> None:
+            nonlocal spinner
+            spinner = make_executor(n)
+            _spin_until(n, spinner, stop)
     node = None
     try:
         node = make()
@@ -91,8 +103,9 @@ def run_node(
         if node is not None:
             if close is not None:
                 close(node)
-            if executor is not None:
-                executor.shutdown(timeout_sec=1.0)  # destroy_node's wake-up of it is then a no-op
+            if spinner is not None:
+                spinner.remove_node(node)
+                spinner.shutdown(timeout_sec=1.0)  # destroy_node's wake-up of it is then a no-op
             node.destroy_node()  # type: ignore[attr-defined]
         try:
             rclpy.try_shutdown()
