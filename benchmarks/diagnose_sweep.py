@@ -17,6 +17,8 @@ and says so), and so does an alternative that is, as a whole set (the reported e
 it replaces, with its own), exactly the injected one.  A *false discovery* is a reported effect
 that was not injected and is not an alternative of one.  With ``--max-effects 1`` and
 ``--catalogue-only`` it is the earlier single-effect sweep.  Cases run in ``--jobs`` processes.
+A drawn robot the simulator cannot run (a softening spring past its stable range) is listed, not
+counted, and replaced by the next draw, so a full sweep counts ``--cases`` simulated cases.
 
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]
 Writes docs/results/diagnose_sweep_lab.md (docs/results/diagnose_sweep.md is the earlier built-in-only, aligned sweep).
@@ -27,6 +29,8 @@ from __future__ import annotations
 import argparse
 import platform
 import time
+from collections.abc import Iterator
+from itertools import count
 from pathlib import Path
 
 import numpy as np
@@ -274,9 +278,29 @@ def run_case(args: tuple[int, str, list[dict], int, float | None, int]) -> tuple
     return i, (f"{head} {text} | {'yes' if ok else 'NO'} | {'YES' if false else 'no'} | {wall:.1f} |")
 
 
+def draw_cases(args: argparse.Namespace) -> Iterator[tuple[int, str, list[dict], int, float | None, int]]:
+    """The seeded stream of cases: (index, system, effects, simulation seed, pose rate or None, cycles).
+
+    The stream is endless; a full sweep takes a further case for each drawn case the simulator cannot
+    run, so the first ``--cases`` draws are the same whatever follows them.
+    """
+    rng = np.random.default_rng(args.seed)
+    for i in count():
+        system = args.systems[i % len(args.systems)]
+        effects = draw_effects(rng, system, args.max_effects, args.catalogue_only)
+        sim_seed = int(rng.integers(100, 10_000))
+        pose_hz = float(rng.choice(LAB_POSE_HZ)) if rng.random() < args.lab else None
+        yield i, system, effects, sim_seed, pose_hz, args.cycles
+
+
+def simulated(row: str) -> bool:
+    """Whether a result row is of a case that was simulated (and so diagnosed and counted)."""
+    return row.split(" | ")[-3] != "—"
+
+
 def write_table(args: argparse.Namespace, cases: list, rows: dict[int, str], total: float) -> tuple[int, int]:
     """Write the results so far (the file says how many of the cases have run); (passed, false)."""
-    run = {i: row for i, row in rows.items() if row.split(" | ")[-3] != "—"}  # simulated and diagnosed
+    run = {i: row for i, row in rows.items() if simulated(row)}
     ok = {i: row.split(" | ")[-3] == "yes" for i, row in run.items()}
     false = {i: row.split(" | ")[-2] == "YES" for i, row in run.items()}
     not_simulated = len(rows) - len(run)
@@ -326,7 +350,9 @@ def write_table(args: argparse.Namespace, cases: list, rows: dict[int, str], tot
         "",
         f"**{passed} of {len(run)} cases fully correct** ({per_k}); **false discoveries in {n_false} of "
         f"{len(run)} cases**." + (f" {not_simulated} drawn case(s) could not be simulated (marked in the "
-                                  "table) and are not counted." if not_simulated else ""),
+                                  "table): they are not counted, and each was replaced by the next draw of "
+                                  "the same seeded stream (the cases numbered from "
+                                  f"{args.cases} on)." if not_simulated else ""),
         "",
         f"Among the {len(visible)} cases whose every injected effect the recording shows (known-parameter "
         f"evidence above {threshold:g} nats): **{passed_visible} fully correct**.",
@@ -358,30 +384,32 @@ def main() -> None:
     args = ap.parse_args()
     if args.out is None and args.only is None:
         args.out = "docs/results/diagnose_sweep_lab.md"
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    rng = np.random.default_rng(args.seed)
-    cases = []
-    for i in range(args.cases):
-        system = args.systems[i % len(args.systems)]
-        effects = draw_effects(rng, system, args.max_effects, args.catalogue_only)
-        sim_seed = int(rng.integers(100, 10_000))
-        pose_hz = float(rng.choice(LAB_POSE_HZ)) if rng.random() < args.lab else None
-        cases.append((i, system, effects, sim_seed, pose_hz, args.cycles))
+    draws = draw_cases(args)
+    cases = [next(draws) for _ in range(args.cases)]
     todo = cases if args.only is None else [c for c in cases if c[0] in set(args.only)]
     t_start = time.perf_counter()
     rows: dict[int, str] = {}
     passed = n_false = 0
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for i, row in pool.map(run_case, todo):
-            rows[i] = row
-            print(row, flush=True)
-            if args.out is not None:
-                passed, n_false = write_table(args, cases, rows, time.perf_counter() - t_start)
-            else:
-                passed += row.split(" | ")[-3] == "yes"
-                n_false += row.split(" | ")[-2] == "YES"
-    print(f"{passed}/{len(todo)} fully correct, {n_false} with a false discovery"
+        pending = {pool.submit(run_case, c) for c in todo}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                i, row = future.result()
+                rows[i] = row
+                print(row, flush=True)
+                if args.only is None and not simulated(row):  # a full sweep counts --cases simulated cases
+                    extra = next(draws)
+                    cases.append(extra)
+                    pending.add(pool.submit(run_case, extra))
+                if args.out is not None:
+                    passed, n_false = write_table(args, cases, rows, time.perf_counter() - t_start)
+                else:
+                    passed += row.split(" | ")[-3] == "yes"
+                    n_false += row.split(" | ")[-2] == "YES"
+    print(f"{passed}/{sum(map(simulated, rows.values()))} fully correct, {n_false} with a false discovery"
           + (f"; wrote {args.out}" if args.out else ""))
 
 
