@@ -329,6 +329,32 @@ def simulate(
     return recording_from_blocks(system, config.gait_hz, blocks)
 
 
+def simulate_actuator_lag(system: SudsSystem, config: SimConfig, lag_samples: int) -> Recording:
+    """A run whose actuators follow their set-points ``lag_samples`` sample periods late, recording the set-points.
+
+    Physics outside the effect catalogue, for checking that a diagnosis says "unexplained" rather
+    than forcing a catalogue entry: the joints move along the commanded drive (the nominal gait +
+    the OU perturbation, from ``config.seed`` + 1000) delayed, while the recording's actuated angles
+    are the *commanded* ones with the same sensor noise as the run's.  ``config.gait`` is not used.
+    """
+    import dataclasses
+
+    if lag_samples < 1:
+        raise SudsConfigError(f"`lag_samples`: expected an integer ≥ 1, got {lag_samples!r}")
+    n = config.cycles * config.samples_per_cycle
+    n_warm = int(round(config.warmup / config.dt))
+    k = np.arange(-n_warm, n)
+    ref = system.reference(k * config.dt)
+    cmd = ref + ou_path(np.random.default_rng(config.seed + 1000), k.size, ref.shape[1], config.dt,
+                        config.kappa, config.ou_std)
+    actual = np.concatenate([np.repeat(cmd[:1], lag_samples, axis=0), cmd[:-lag_samples]], axis=0)
+    rec = simulate(system, config, r_a=actual)
+    r = rec.r.copy()
+    idx = [rec.joint_names.index(nm) for nm in rec.actuated]
+    r[:, idx] = cmd[n_warm:] + (r[:, idx] - rec.truth["r"][:, idx])
+    return dataclasses.replace(rec, r=r)
+
+
 def reference_of(system: SudsSystem, config: SimConfig) -> Callable[[FloatArray], FloatArray]:
     """r_ref at gait time s (cycles) → (len(s), na): ``config.gait`` (checked against ``system``) or the nominal.
 

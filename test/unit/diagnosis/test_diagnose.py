@@ -14,7 +14,7 @@ import pytest
 from suds_ros.core.diagnosis import DiagnoseConfig, diagnose
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.rft import RFTChain
-from suds_ros.core.physics.sim import SimConfig, simulate
+from suds_ros.core.physics.sim import SimConfig, simulate, simulate_actuator_lag
 from suds_ros.core.physics.systems import purcell3_model, swimmer9_model
 from suds_ros.report.diagnosis import summary_text
 
@@ -126,28 +126,6 @@ def test_pairs_slow(  # type: ignore[no-untyped-def]
 
 
 # ------------------------------------------------------------------------------ unexplained
-def _lagged_actuator_recording(base, lag_samples: int, cycles: int, seed: int):  # type: ignore[no-untyped-def]
-    """Actuator lag (outside the catalogue): the joints follow the commanded set-points
-    ``lag_samples`` × 10 ms late, but the recording holds the *commanded* actuated angles."""
-    import dataclasses
-
-    from suds_ros.core.physics.sim import ou_path
-
-    cfg = SimConfig(cycles=cycles, seed=seed)
-    chain = RFTChain(base)
-    n = cycles * cfg.samples_per_cycle
-    nw = int(round(cfg.warmup / cfg.dt))
-    k = np.arange(-nw, n)
-    ref = chain.reference(k * cfg.dt)
-    cmd = ref + ou_path(np.random.default_rng(seed + 1000), k.size, ref.shape[1], cfg.dt, cfg.kappa, cfg.ou_std)
-    actual = np.concatenate([np.repeat(cmd[:1], lag_samples, axis=0), cmd[:-lag_samples]], axis=0)
-    rec = simulate(chain, cfg, r_a=actual)
-    r = rec.r.copy()
-    idx = [rec.joint_names.index(nm) for nm in rec.actuated]
-    r[:, idx] = cmd[nw:] + (r[:, idx] - rec.truth["r"][:, idx])  # commanded + the same sensor noise
-    return dataclasses.replace(rec, r=r)
-
-
 def _outside(case: str):  # type: ignore[no-untyped-def]
     if case == "purcell3-link_length":
         base = purcell3_model()
@@ -158,8 +136,8 @@ def _outside(case: str):  # type: ignore[no-untyped-def]
         ll[7] = 1.5  # link 8, between joint_7 and joint_8
         return base, simulate(RFTChain(base.with_(link_length=tuple(ll))), SimConfig(cycles=20, seed=52))
     if case == "purcell3-actuator_lag":
-        return purcell3_model(), _lagged_actuator_recording(purcell3_model(), 4, 20, 54)
-    return swimmer9_model(), _lagged_actuator_recording(swimmer9_model(), 4, 20, 53)
+        return purcell3_model(), simulate_actuator_lag(RFTChain(purcell3_model()), SimConfig(cycles=20, seed=54), 4)
+    return swimmer9_model(), simulate_actuator_lag(RFTChain(swimmer9_model()), SimConfig(cycles=20, seed=53), 4)
 
 
 OUTSIDE = {

@@ -8,7 +8,7 @@ import pytest
 from suds_ros.core import se2
 from suds_ros.core.errors import SudsConfigError, SudsDataError, SudsSimulationError
 from suds_ros.core.physics.rft import RFTChain
-from suds_ros.core.physics.sim import SimConfig, auto_substeps, integrate, ou_path, simulate
+from suds_ros.core.physics.sim import SimConfig, auto_substeps, integrate, ou_path, simulate, simulate_actuator_lag
 from suds_ros.core.physics.systems import make_system, purcell3_model, swimmer9_model
 
 
@@ -154,3 +154,18 @@ def test_an_unstable_softening_spring_is_refused_with_the_reason() -> None:
         with pytest.raises(SudsSimulationError, match="softening cubic spring") as info:
             simulate(RFTChain(model), SimConfig(cycles=4, seed=1))
         assert info.value.code == "simulation_failed" and isinstance(info.value, FloatingPointError)
+
+
+def test_actuator_lag_records_the_commands_while_the_joints_follow_them_late() -> None:
+    """The recorded actuated angles lead the true ones by the lag; the truth is a lagged run."""
+    chain = RFTChain(purcell3_model())
+    cfg = SimConfig(cycles=2, seed=5)
+    rec = simulate_actuator_lag(chain, cfg, 3)
+    act = [rec.joint_names.index(n) for n in rec.actuated]
+    recorded = rec.r[:, act] - (rec.r[:, act] - rec.truth["r"][:, act]).mean(axis=0)
+    true = rec.truth["r"][:, act]
+    shift = [float(np.sqrt(np.mean((recorded[: recorded.shape[0] - k] - true[k:]) ** 2))) for k in range(6)]
+    assert int(np.argmin(shift)) == 3, shift  # true(t) = command(t − 3 dt)
+    assert shift[3] < 0.2 * shift[0], shift
+    with pytest.raises(SudsConfigError, match="lag_samples"):
+        simulate_actuator_lag(chain, cfg, 0)
