@@ -44,10 +44,7 @@ FORMATS = ("csv", "wcon", "dlc", "sleap")
 #: metres per unit of length
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "micron": 1e-6,
                 "microns": 1e-6, "nm": 1e-9}
-#: seconds per unit of time (WCON)
-TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "min": 60.0,
-              "minute": 60.0, "minutes": 60.0, "h": 3600.0, "hr": 3600.0, "hour": 3600.0,
-              "hours": 3600.0}
+
 
 #: error codes of this module
 BAD_TRACK_FILE = "bad_track_file"
@@ -210,11 +207,100 @@ def read_midline_csv(path: Path) -> Tracks:
 
 
 # ------------------------------------------------------------------ wcon
-def _unit(path: Path, units: dict[str, Any], key: str, table: dict[str, float]) -> str:
+#: WCON unit grammar (tracker-commons ``WCON_format.md``, "Units"): SI prefixes, full or abbreviated
+_PREFIX_WORDS = {"centi": 1e-2, "milli": 1e-3, "micro": 1e-6, "nano": 1e-9, "kilo": 1e3, "mega": 1e6, "giga": 1e9}
+_PREFIX_ABBREVIATIONS = {"c": 1e-2, "m": 1e-3, "u": 1e-6, "\u00b5": 1e-6, "\u03bc": 1e-6, "n": 1e-9, "k": 1e3,
+                         "M": 1e6, "G": 1e9}
+#: units of length (L, metres) and time (T, seconds): full words (plural allowed) and abbreviations
+_UNIT_WORDS = {"metre": (1.0, "L"), "meter": (1.0, "L"), "inch": (0.0254, "L"), "micron": (1e-6, "L"),
+               "second": (1.0, "T"), "minute": (60.0, "T"), "hour": (3600.0, "T"), "day": (86400.0, "T")}
+_UNIT_ABBREVIATIONS = {"m": (1.0, "L"), "in": (0.0254, "L"), "s": (1.0, "T"), "sec": (1.0, "T"),
+                       "min": (60.0, "T"), "h": (3600.0, "T"), "hr": (3600.0, "T"), "d": (86400.0, "T")}
+
+
+def _unit_word(word: str) -> tuple[float, str] | None:
+    """One unit symbol or word, with an optional SI prefix (never a full prefix on an abbreviation)."""
+    if word in _UNIT_ABBREVIATIONS:  # "min" is a minute, "m" a metre: no prefix read first
+        return _UNIT_ABBREVIATIONS[word]
+    singular = [word] + ([word[:-2]] if word.endswith("es") else []) + ([word[:-1]] if word.endswith("s") else [])
+    for w in singular:
+        if w in _UNIT_WORDS:
+            return _UNIT_WORDS[w]
+        for prefix, factor in _PREFIX_WORDS.items():
+            if w.startswith(prefix) and w[len(prefix):] in _UNIT_WORDS:
+                scale, dim = _UNIT_WORDS[w[len(prefix):]]
+                return factor * scale, dim
+    for prefix, factor in _PREFIX_ABBREVIATIONS.items():
+        if word.startswith(prefix) and word[len(prefix):] in _UNIT_ABBREVIATIONS:
+            scale, dim = _UNIT_ABBREVIATIONS[word[len(prefix):]]
+            return factor * scale, dim
+    return None
+
+
+def wcon_unit(expr: str) -> tuple[float, dict[str, int]]:
+    """A WCON unit expression → (SI factor, dimension exponents ``{"L": …, "T": …}``).
+
+    Follows the tracker-commons specification: SI prefixes (``milli``/``m``, ``micro``/``u``/``µ``
+    …) on metres, inches, microns, seconds, minutes, hours and days, full words (singular or
+    plural; metre or meter) or abbreviations, never mixed; ``*``, ``/`` and integer ``^`` powers;
+    numeric factors (``"0.04*s"``: frame numbers at 25 fps).  ``""`` and ``"1"`` are dimensionless.
+
+    Raises
+    ------
+    ValueError
+        The expression does not follow that grammar (the message names the part).
+    """
+    text = expr.strip()
+    scale, dims = 1.0, {"L": 0, "T": 0}
+    if text in ("", "1"):
+        return scale, dims
+    tokens = text.replace("/", " / ").replace("*", " * ").split()
+    sign = 1
+    expect_term = True
+    for tok in tokens:
+        if tok in ("*", "/"):
+            if expect_term:
+                raise ValueError(f"an operator where a unit or number was expected in {expr!r}")
+            sign = 1 if tok == "*" else -1
+            expect_term = True
+            continue
+        if not expect_term:
+            raise ValueError(f"{tok!r} follows a unit without * or / in {expr!r}")
+        base, _, power_text = tok.partition("^")
+        try:
+            power = int(power_text) if power_text else 1
+        except ValueError:
+            raise ValueError(f"power {power_text!r}: expected an integer in {expr!r}") from None
+        try:
+            factor = float(base)
+        except ValueError:
+            unit = _unit_word(base)
+            if unit is None:
+                raise ValueError(f"unknown unit {base!r} in {expr!r}") from None
+            factor, dim = unit
+            dims[dim] += sign * power
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"factor {base!r}: expected a positive number in {expr!r}")
+        scale *= factor ** (sign * power)
+        expect_term = False
+    if expect_term:
+        raise ValueError(f"{expr!r} ends with an operator")
+    return scale, dims
+
+
+def _unit(path: Path, units: dict[str, Any], key: str, dim: str) -> float:
+    """SI factor of ``units[key]``, which must be a length (``dim`` "L") or a time ("T")."""
     u = units.get(key)
-    if not isinstance(u, str) or u.strip() not in table:
-        raise _fail(path, f"units.{key}: expected one of {', '.join(sorted(table))}, got {u!r}")
-    return u.strip()
+    kind = {"L": "a length (m, mm, um, micrometers, ...)", "T": "a time (s, ms, seconds, 0.04*s, ...)"}[dim]
+    if not isinstance(u, str):
+        raise _fail(path, f"units.{key}: expected {kind}, got {u!r}")
+    try:
+        scale, dims = wcon_unit(u)
+    except ValueError as exc:
+        raise _fail(path, f"units.{key}: expected {kind}, got {u!r}: {exc}") from None
+    if dims != {"L": int(dim == "L"), "T": int(dim == "T")}:
+        raise _fail(path, f"units.{key}: expected {kind}, got {u!r}")
+    return scale
 
 
 def _series(path: Path, where: str, value: Any, n: int) -> list[Any]:
@@ -247,11 +333,10 @@ def read_wcon(path: Path) -> Tracks:
     units = doc["units"]
     if not isinstance(units, dict):
         raise _fail(path, f"units: expected an object, got {units!r}")
-    t_unit = _unit(path, units, "t", TIME_UNITS)
-    x_unit = _unit(path, units, "x", LENGTH_UNITS)
-    y_unit = _unit(path, units, "y", LENGTH_UNITS)
-    if y_unit != x_unit and LENGTH_UNITS[y_unit] != LENGTH_UNITS[x_unit]:
-        raise _fail(path, f"units: x in {x_unit!r} but y in {y_unit!r}; expected one length unit")
+    t_scale = _unit(path, units, "t", "T")
+    scale = _unit(path, units, "x", "L")
+    if not math.isclose(_unit(path, units, "y", "L"), scale, rel_tol=1e-12):
+        raise _fail(path, f"units: x in {units['x']!r} but y in {units['y']!r}; expected one length unit")
     records = doc["data"] if isinstance(doc["data"], list) else [doc["data"]]
     ids = []
     for k, rec in enumerate(records):
@@ -287,10 +372,11 @@ def read_wcon(path: Path) -> Tracks:
             pts[i, :f.shape[0]] = f
             pts[i, f.shape[0]:] = f[-1]  # shorter midline: its tail repeated (no length added)
         # a time with no points stays NaN: lost
-    scale = LENGTH_UNITS[x_unit]
-    t_s = np.asarray(times) * TIME_UNITS[t_unit]
-    unit = next(u for u, v in (("m", 1.0), ("mm", 1e-3), ("um", 1e-6)) if v == scale) \
-        if scale in (1.0, 1e-3, 1e-6) else x_unit
+    t_s = np.asarray(times) * t_scale
+    unit = next((u for u, v in (("m", 1.0), ("mm", 1e-3), ("um", 1e-6)) if math.isclose(v, scale, rel_tol=1e-12)),
+                None)
+    if unit is None:  # another length unit (inches, 12*in, ...): the points in metres
+        pts, unit = pts * scale, "m"
     varied = counts if np.any(counts[counts > 0] != p) else None
     return Tracks(pts, t_s, None, unit, "wcon", tuple(f"p{k}" for k in range(p)), varied)
 

@@ -75,11 +75,45 @@ def test_wcon_varying_point_counts_pad_with_the_tail(tmp_path: Path) -> None:
     np.testing.assert_array_equal(got.points[1], [[0, 0], [1, 0], [1, 0]])
 
 
+@pytest.mark.parametrize("expr, scale, dims", [
+    ("mm", 1e-3, (1, 0)), ("um", 1e-6, (1, 0)), ("\u00b5m", 1e-6, (1, 0)), ("\u03bcm", 1e-6, (1, 0)),
+    ("micrometers", 1e-6, (1, 0)),  # as Tierpsy writes it
+    ("millimetre", 1e-3, (1, 0)), ("microns", 1e-6, (1, 0)), ("Mm", 1e6, (1, 0)), ("inches", 0.0254, (1, 0)),
+    ("12*in", 0.3048, (1, 0)), ("in/72", 0.0254 / 72, (1, 0)), ("0.04*s", 0.04, (0, 1)), ("ms", 1e-3, (0, 1)),
+    ("min", 60.0, (0, 1)), ("minutes", 60.0, (0, 1)), ("mm^2/s", 1e-6, (2, -1)), ("1", 1.0, (0, 0)),
+])
+def test_wcon_unit_grammar(expr: str, scale: float, dims: tuple[int, int]) -> None:
+    """The tracker-commons unit grammar: SI prefixes, words or abbreviations, *, /, ^ and factors."""
+    got, d = tr.wcon_unit(expr)
+    assert got == pytest.approx(scale, rel=1e-12) and (d["L"], d["T"]) == dims
+
+
+@pytest.mark.parametrize("expr", ["msecond", "millis", "fortnight", "mm mm", "m/", "*s", "mm^1.5", "0*s"])
+def test_wcon_unit_grammar_refuses_what_it_does_not_define(expr: str) -> None:
+    """Mixed abbreviation and word, unknown words, missing operators, fractional powers, zero factors."""
+    with pytest.raises(ValueError):
+        tr.wcon_unit(expr)
+
+
+def test_wcon_in_micrometers_and_inches_reads_in_si(tmp_path: Path) -> None:
+    """A Tierpsy export's \"micrometers\" and a frame clock \"0.04*s\"; inches come back in metres."""
+    rec = {"id": 1, "t": [0, 1], "x": [[1, 2], [1, 2]], "y": [[0, 0], [0, 1]]}
+    um = read_tracks(write(tmp_path / "um.wcon", wcon(rec, {"t": "0.04*s", "x": "micrometers", "y": "microns"})))
+    assert um.units == "um" and um.t.tolist() == [0.0, 0.04]
+    np.testing.assert_array_equal(um.points[1], [[1, 0], [2, 1]])
+    inch = read_tracks(write(tmp_path / "in.wcon", wcon(rec, {"t": "s", "x": "in", "y": "inches"})))
+    assert inch.units == "m"
+    np.testing.assert_allclose(inch.points[1], [[0.0254, 0], [0.0508, 0.0254]])
+
+
 @pytest.mark.parametrize("text, match", [
     ("{not json", "invalid JSON"),
     (json.dumps({"data": []}), "expected a JSON object with `units` and `data`"),
     (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "fortnight", "x": "mm", "y": "mm"}), "units.t"),
     (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "s", "x": "px", "y": "px"}), "units.x"),
+    (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "mm", "x": "mm", "y": "mm"}), "units.t: expected a time"),
+    (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "s", "x": "mm/s", "y": "mm"}), "units.x: expected a length"),
+    (wcon({"id": 1, "t": 0, "x": [1], "y": [1]}, {"t": "s", "x": "mm", "y": "um"}), "x in 'mm' but y in 'um'"),
     (wcon([{"id": 1, "t": 0, "x": [1], "y": [1]}, {"id": 2, "t": 0, "x": [1], "y": [1]}]), "2 animals"),
     (wcon({"id": 1, "t": [0, 1], "x": [[1]], "y": [[1], [2]]}), r"data\[0\].x: expected 2 entries"),
     (wcon({"id": 1, "t": [0, 1], "x": [[], []], "y": [[], []]}), "no midline"),

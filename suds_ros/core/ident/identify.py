@@ -636,6 +636,8 @@ def split_cycles(rec: Recording, n_train: int, n_test: int | None = None) -> tup
         raise SudsDataError(
             f"cannot train on {n_train} cycles: the recording holds {n_cycles} cycles of "
             f"{1.0 / hz:g} s ({rec.t[-1] - rec.t[0] + dt:.3f} s of shape stamps)"
+            + (f"; train on fewer, e.g. {n_cycles // 2} (the first half)" if n_cycles >= 2 else ""),
+            code=TOO_LITTLE_DATA,
         )
     stop = n_cycles if n_test is None else min(n_cycles, n_train + n_test)
     k_train, k_stop = np.searchsorted(rec.t, rec.t[0] + np.array([n_train, stop]) / hz - 0.5 * dt)
