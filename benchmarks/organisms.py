@@ -1,7 +1,7 @@
-"""Real animals: tracked fish imported with `suds import`, identified with `suds identify`, against kernel ridge.
+"""Real animals: tracked fish and a crawling worm through `suds import` and `suds identify`, against kernel ridge.
 
-Data (not in this repository): the example recordings of the R package fishmechr (Eric Tytell,
-Tufts University; https://github.com/tytell/fishmechr, licence CC BY 4.0), files under its
+Data (not in this repository).  Two fish, the example recordings of the R package fishmechr (Eric
+Tytell, Tufts University; https://github.com/tytell/fishmechr, licence CC BY 4.0), files under its
 ``data-raw/``:
 
 zebrafish   ``2024-11-14_labels2.001_fish_01-040RPM-ortho-….analysis.csv``: an adult zebrafish
@@ -14,10 +14,23 @@ prickleback ``XMUC02_Trial1_sleap-1.csv``: a rock prickleback (*Xiphister mucosu
 Get them with ``git clone https://github.com/tytell/fishmechr`` (measured at commit 6655ac9) and pass
 the checkout, or a bare mirror of it, as ``--fishmechr PATH`` (default ``benchmarks/data/fishmechr``).
 
-For each animal: the keypoints are written as a midline CSV (head first, pixels; a missing point
-leaves the frame lost, which `suds import` drops and reports), imported with ``suds import``,
+One crawling nematode, the example file of OpenWorm's movement_cloud (https://github.com/openworm/movement_cloud,
+licence MIT, ``LICENSE.md``):
+
+worm        ``webworm/static/webworm/example.wcon``: a *C. elegans* adult hermaphrodite (strain RB1374,
+            ocr-3(ok1559)) crawling off food on NGM agar, Schafer lab single-worm tracker (MRC LMB,
+            2010), exported by Tierpsy to WCON: 49-point skeletons in plate coordinates (µm), 25 fps,
+            820 frames, 41 % of them lost by the tracker.  Imported from the WCON file as it is.
+
+Get it with ``git clone https://github.com/openworm/movement_cloud`` (measured at commit 5af05a2) and
+pass the checkout, or a bare mirror, as ``--movement-cloud PATH`` (default
+``benchmarks/data/movement_cloud``).
+
+For each fish the keypoints are written as a midline CSV (head first, pixels; a missing point
+leaves the frame lost, which `suds import` drops and reports); the worm's WCON file is imported
+directly.  Each recording is imported with ``suds import``,
 identified with ``suds identify --model`` on the first cycles (12 of the zebrafish's, 3 of the
-prickleback's) and scored on every later one (held-out cycles), and the same split is given to
+prickleback's, 9 of the worm's) and scored on every later one (held-out cycles), and the same split is given to
 the kernel-ridge peer of ``benchmarks/peers.py``
 (RBF kernel ridge on the identifier's own interval inputs [r̄, ṙ_a, cos φ, sin φ], its
 hyperparameters by blocked cross-validation on the training cycles).  Γ per body channel:
@@ -26,10 +39,10 @@ hyperparameters by blocked cross-validation on the training cycles).  Γ per bod
 scores the body velocity over the pose stream's own intervals; the per-channel comparison here
 fits the same identifier without that step (``IdentifyConfig(regrid=False)``: intervals between
 the file's frames, one set of intervals for both methods), and the report gives both.
-The files state no pixel size: lengths are imported with a nominal 0.1 mm per pixel, which
+The fish files state no pixel size: lengths are imported with a nominal 0.1 mm per pixel, which
 changes no Γ (every output scales alike, the ridge is relative).
 
-    PYTHONPATH=. python benchmarks/organisms.py [--fishmechr PATH]
+    PYTHONPATH=. python benchmarks/organisms.py [--fishmechr PATH] [--movement-cloud PATH]
 
 Needs scikit-learn (benchmarks/requirements-peers.txt) and matplotlib.  Writes
 docs/results/organisms.md and docs/results/organisms.png.
@@ -59,48 +72,58 @@ from _common import ROOT, RESULTS, machine, stamp, write  # noqa: E402
 
 from suds_ros.cli.main import main as suds  # noqa: E402
 
-DEFAULT = ROOT / "benchmarks" / "data" / "fishmechr"
-SOURCE = "https://github.com/tytell/fishmechr"
+SOURCES = {  # data set → (where it is fetched from, default local path, licence)
+    "fishmechr": ("https://github.com/tytell/fishmechr", ROOT / "benchmarks" / "data" / "fishmechr",
+                  "CC BY 4.0"),
+    "movement_cloud": ("https://github.com/openworm/movement_cloud",
+                       ROOT / "benchmarks" / "data" / "movement_cloud", "MIT"),
+}
 PX = 1e-4  # nominal metres per pixel (the files give none; Γ does not depend on it)
 
 
 @dataclass(frozen=True)
 class Animal:
-    """One tracked recording of the fishmechr examples and how it is read."""
+    """One tracked recording and how it is read."""
 
     name: str
     species: str
+    source: str  # key of SOURCES
     file: str
-    fps: float
-    points: tuple[tuple[str, ...], ...]  # head to tail; several names: their mean
+    fps: float | None  # None: the file has times (WCON)
+    points: tuple[tuple[str, ...], ...] | None  # SLEAP keypoints head to tail (several: their mean); None: WCON
     links: int
     train: int  # training cycles (the rest is held out)
     note: str
 
 
 ANIMALS = (
-    Animal("zebrafish", "Danio rerio (adult), flow tank 40 RPM",
+    Animal("zebrafish", "Danio rerio (adult), flow tank 40 RPM", "fishmechr",
            "data-raw/2024-11-14_labels2.001_fish_01-040RPM-ortho-2024-11-14T044525.analysis.csv", 50.0,
            (("snout",), ("left_eye", "right_eye"), ("left_pec_fin_base", "right_pec_fin_base"),
             ("pelvic_fin_base",), ("anus",), ("peduncle",)),
            4, 12, "SLEAP keypoints from below; midline: snout, eye centre, pectoral-fin-base centre, pelvic "
                   "fin base, anus, peduncle (the caudal-fin lobes are missing in a third of the frames)"),
-    Animal("prickleback", "Xiphister mucosus (rock prickleback)", "data-raw/XMUC02_Trial1_sleap-1.csv", 60.0,
-           (("Snout",), ("BP1",), ("BP2",), ("BP3",), ("BP4",), ("BP5",), ("BP6",), ("Tail",)),
+    Animal("prickleback", "Xiphister mucosus (rock prickleback)", "fishmechr", "data-raw/XMUC02_Trial1_sleap-1.csv",
+           60.0, (("Snout",), ("BP1",), ("BP2",), ("BP3",), ("BP4",), ("BP5",), ("BP6",), ("Tail",)),
            7, 3, "SLEAP keypoints Snout, BP1–BP6, Tail (the keypoints are the joints)"),
+    Animal("worm", "Caenorhabditis elegans (adult hermaphrodite, RB1374 ocr-3(ok1559)), crawling off food on agar",
+           "movement_cloud", "webworm/static/webworm/example.wcon", None, None,
+           8, 9, "Schafer lab single-worm tracker (2010), WCON exported by Tierpsy: 49-point skeletons in "
+                 "plate coordinates, µm, 25 fps; crawling, so every joint is driven"),
 )
 
 
-def read_text(source: Path, path: str) -> str:
-    """A file of the fishmechr checkout (``source/path``) or of a bare git mirror (``HEAD:path``)."""
+def read_text(source: Path, path: str, key: str) -> str:
+    """A file of a checkout (``source/path``) or of a bare git mirror (``HEAD:path``) of ``SOURCES[key]``."""
     if (source / path).is_file():
         return (source / path).read_text(encoding="utf-8-sig")
     if (source / "HEAD").is_file():
         out = subprocess.run(["git", f"--git-dir={source}", "show", f"HEAD:{path}"], capture_output=True)
         if out.returncode == 0:
             return out.stdout.decode("utf-8-sig")
-    raise SystemExit(f"{path} not found under {source}.\nGet the data with:\n  git clone {SOURCE} "
-                     f"{DEFAULT}\nor pass --fishmechr PATH (a checkout or a bare mirror of {SOURCE}).")
+    url, default, _ = SOURCES[key]
+    raise SystemExit(f"{path} not found under {source}.\nGet the data with:\n  git clone {url} "
+                     f"{default}\nor pass --{key.replace('_', '-')} PATH (a checkout or a bare mirror of {url}).")
 
 
 def source_commit(source: Path) -> str:
@@ -146,13 +169,23 @@ def one(animal: Animal, source: Path, work: Path) -> dict:
 
     from suds_ros.cli.common import load_recording_and_model
     from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+    from suds_ros.io.tracks import read_tracks
 
     n_train = animal.train
-    src = work / f"{animal.name}.csv"
-    frames, pts = midline_csv(animal, read_text(source, animal.file), src)
     rec_path = work / f"{animal.name}.mcap"
-    rc, text = run_cli(["import", str(src), "-o", str(rec_path), "--links", str(animal.links), "--units", "px",
-                        "--px-size", repr(PX), "--fps", repr(animal.fps), "--json", "--overwrite"])
+    text = read_text(source, animal.file, animal.source)
+    if animal.points is None:  # a WCON file, imported as it is
+        src = work / f"{animal.name}.wcon"
+        src.write_text(text, encoding="utf-8")
+        tracks = read_tracks(src)
+        frames, pts = np.arange(tracks.points.shape[0]), tracks.points
+        flags = []
+    else:
+        src = work / f"{animal.name}.csv"
+        frames, pts = midline_csv(animal, text, src)
+        flags = ["--units", "px", "--px-size", repr(PX), "--fps", repr(animal.fps)]
+    rc, text = run_cli(["import", str(src), "-o", str(rec_path), "--links", str(animal.links), *flags,
+                        "--json", "--overwrite"])
     if rc != 0:
         raise SystemExit(f"suds import failed for {animal.name}")
     imp = json.loads(text)
@@ -201,7 +234,8 @@ def figure(results: list[dict], path: Path) -> None:
             row[0].plot(pts[k, 0, 0], pts[k, 0, 1], "o", color="k", ms=2)
         row[0].set_aspect("equal")
         row[0].invert_yaxis()
-        row[0].set_title(f"{res['animal'].name}: midlines (px, head ●)")
+        unit = "px" if res["animal"].points is not None else "file units"
+        row[0].set_title(f"{res['animal'].name}: midlines ({unit}, head ●)")
         for ax, ch in zip(row[1:], (0, 2)):
             t = res["t"]
             ax.plot(t, res["truth"][:, ch], color="k", lw=1, label="measured")
@@ -217,39 +251,50 @@ def figure(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def report(results: list[dict], source: Path) -> str:
+def report(results: list[dict], sources: dict[str, Path]) -> str:
     lines = [
-        "# Real animals: tracked fish through `suds import` and `suds identify`",
+        "# Real animals: tracked fish and a crawling worm through `suds import` and `suds identify`",
         "",
         f"Generated by `benchmarks/organisms.py` ({stamp()}; {machine()}).  Measured numbers only.",
         "",
         "## Data",
         "",
-        f"From the R package **fishmechr** by Eric Tytell (Tufts University), {SOURCE}, commit "
-        f"`{source_commit(source)}`, licence **CC BY 4.0** (the package's `LICENSE.md`); files under its "
-        "`data-raw/`, read in place (not copied into this repository):",
+        "Read in place from the sources below (not copied into this repository).  Every joint is taken as "
+        "actuated (`suds import` default), so the identified outputs are the body velocity channels ξx, ξy, ξθ "
+        "of the body link.",
         "",
     ]
-    for res in results:
-        a, imp = res["animal"], res["import"]
-        lines.append(f"- **{a.name}** — {a.species}: `{a.file}`, {a.fps:g} fps, {a.note}. "
-                     f"{imp['frames']} frames, {imp['kept']} kept ({imp['lost']['frames']} lost to a missing "
-                     f"keypoint), chain of {imp['links']} links, gait {imp['gait_hz']:.3g} Hz (dominant "
-                     "frequency of the joint angles).")
+    credits = {
+        "fishmechr": "the R package **fishmechr** by Eric Tytell (Tufts University), example files under its "
+                     "`data-raw/`",
+        "movement_cloud": "OpenWorm's **movement_cloud** (the Open Worm Movement Database's web viewer), its "
+                          "example file: a recording of the Schafer lab's single-worm tracker (MRC Laboratory of "
+                          "Molecular Biology, Laura Grundy, 2010; method of Yemini et al. 2013, "
+                          "doi:10.1038/nmeth.2560)",
+    }
+    for key in dict.fromkeys(res["animal"].source for res in results):
+        url, _, licence = SOURCES[key]
+        lines += [f"From {credits[key]}: {url}, commit `{source_commit(sources[key])}`, licence **{licence}** "
+                  "(its `LICENSE.md`).", ""]
+        for res in results:
+            a, imp = res["animal"], res["import"]
+            if a.source != key:
+                continue
+            fps = f"{a.fps:g} fps" if a.fps else "times from the file"
+            lines.append(f"- **{a.name}** — {a.species}: `{a.file}`, {fps}, {a.note}. "
+                         f"{imp['frames']} frames, {imp['kept']} kept ({imp['lost']['frames']} lost by the "
+                         f"tracker, dropped), chain of {imp['links']} links, gait {imp['gait_hz']:.3g} Hz "
+                         "(dominant frequency of the joint angles).")
+        lines.append("")
     lines += [
-        "",
-        f"Pixel size: not stated by the files; imported with a nominal {PX * 1e3:g} mm per pixel, which changes "
-        "no Γ below.  Every joint is taken as actuated (`suds import` default), so the identified outputs are "
-        "the body velocity channels ξx, ξy, ξθ of the body link.",
-        "",
-        "No crawling nematode is included: no public, licence-compatible tracked-worm midline data was found "
-        "among the GitHub repositories that could be fetched (the WCON files of openworm/tracker-commons are "
-        "hand-made format examples of a few points, not tracked worms).",
+        f"Pixel size: not stated by the fish files; imported with a nominal {PX * 1e3:g} mm per pixel, which "
+        "changes no Γ below.  The worm's file states its unit (`\"micrometers\"`, read by the WCON unit grammar).",
         "",
         "## Held-out Γ per body channel",
         "",
         "Split: the first gait cycles train (zebrafish 12, prickleback 3: its slow gait gives about 5 "
-        "cycles in the whole file), every later cycle is held out (`suds identify --train-cycles N`).  "
+        "cycles in the whole file; worm 9 of its 18), every later cycle is held out "
+        "(`suds identify --train-cycles N`).  "
         "Γ = 1 − Σ|prediction − measured| / Σ|phase-only template − measured| on "
         "the held-out intervals (0: no better than the template).  Kernel ridge: `benchmarks/peers.py` `krr` "
         "(RBF, standardised [r̄, ṙ_a, cos φ, sin φ], α and γ by blocked CV on the training cycles) on the "
@@ -274,21 +319,30 @@ def report(results: list[dict], source: Path) -> str:
     lines += ["", "Reading the figure: the prickleback's ξθ jumps from frame to frame at 60 fps, far above its "
               "0.45 Hz gait; both models follow it through the joint velocities of the same jittering keypoints, "
               "so its high Γ on ξθ reflects that kinematic coupling more than a swimming model.  The held-out "
-              "sets are short (2 prickleback cycles; 13 zebrafish cycles of about 10 frames each).",
-              "", "![data and held-out predictions](organisms.png)", ""]
+              "sets are short (2 prickleback cycles; 13 zebrafish cycles of about 10 frames each)."]
+    worm = next((res for res in results if res["animal"].name == "worm"), None)
+    if worm is not None:
+        g, k = dict(zip(worm["channels"], worm["gamma_ours"])), dict(zip(worm["channels"], worm["gamma_krr"]))
+        lines[-1] += (f"  The crawling worm's forward and turning velocities are predicted (ξx {g['xi_x']:.2f}, ξθ "
+                      f"{g['xi_theta']:.2f}; kernel ridge {k['xi_x']:.2f}, {k['xi_theta']:.2f}); its sideways "
+                      f"velocity ξy is not, by either model (Γ {g['xi_y']:.2f} and {k['xi_y']:.2f}: no better than "
+                      "its phase average).")
+    lines += ["", "![data and held-out predictions](organisms.png)", ""]
     return "\n".join(lines)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fishmechr", type=Path, default=DEFAULT,
-                    help=f"checkout or bare git mirror of {SOURCE} (default {DEFAULT})")
+    for key, (url, default, _) in SOURCES.items():
+        ap.add_argument(f"--{key.replace('_', '-')}", type=Path, default=default,
+                        help=f"checkout or bare git mirror of {url} (default {default})")
     args = ap.parse_args()
+    sources = {key: getattr(args, key) for key in SOURCES}
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     with tempfile.TemporaryDirectory() as tmp:
-        results = [one(a, args.fishmechr, Path(tmp)) for a in ANIMALS]
+        results = [one(a, sources[a.source], Path(tmp)) for a in ANIMALS]
     figure(results, RESULTS / "organisms.png")
-    write("organisms.md", report(results, args.fishmechr))
+    write("organisms.md", report(results, sources))
 
 
 if __name__ == "__main__":

@@ -173,10 +173,13 @@ def phase_ranges(
     np.add.at(sums, (ci, b), e[ok])
     np.add.at(cnt, (ci, b), 1.0)
     M = np.where(cnt > 0, sums / np.maximum(cnt, 1), np.nan)
-    mean = np.nanmean(M, axis=0)
-    sd = np.nanstd(M, axis=0, ddof=1)
     nc = np.sum(np.isfinite(M), axis=0)
-    tstat = mean / np.maximum(sd / np.sqrt(np.maximum(nc, 1)), 1e-300)
+    tested = nc >= 2  # a bin seen in fewer than two cycles (frames lost) has no spread to test against
+    tstat = np.zeros(bins)
+    if tested.any():
+        mean = np.nanmean(M[:, tested], axis=0)
+        sd = np.nanstd(M[:, tested], axis=0, ddof=1)
+        tstat[tested] = mean / np.maximum(sd / np.sqrt(nc[tested]), 1e-300)
     tcrit = scipy.stats.t.ppf(1 - alpha / (2 * bins), max(cycles.size - 1, 1))
     sig = np.abs(tstat) > tcrit
     if not sig.any():
