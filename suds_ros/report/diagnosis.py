@@ -65,8 +65,10 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
         if rep.unexplained:
             lines.append("  UNEXPLAINED: no catalogue effect accounts for the located mismatch")
         for e in rep.effects:
-            ps = ", ".join(f"{k} = {v:.4g} ± {rep_se:.2g}"
-                           for (k, v), rep_se in zip(e.parameters.items(), e.stderr.values()))
+            ps = ", ".join(
+                (f"{k} {'≥' if e.at_bound[k] == 'upper' else '≤'} {v:.4g} (at the {e.at_bound[k]} end of its "
+                 "admissible range: a limit, no stderr)") if k in e.at_bound else f"{k} = {v:.4g} ± {rep_se:.2g}"
+                for (k, v), rep_se in zip(e.parameters.items(), e.stderr.values()))
             tgt = f" on {e.target}" if e.target else ""
             lines.append(f"  effect: {e.name}{tgt}: {ps}")
             for a in e.alternatives:

@@ -429,6 +429,10 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
                        for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
                        if len(kept_g) > 1)
     effects = fitted_effects(cand, x, win.refined.stderr, evidence)
+    notes += [f"{effect_label(e.name, e.target)} {k}: the fit stopped at the {end} end of its admissible range "
+              f"({e.parameters[k]:.4g}): the recording asks for a {'larger' if end == 'upper' else 'smaller'} "
+              "value, so read it as a limit; it has no stderr"
+              for e in effects for k, end in e.at_bound.items()]
     if effects and alternatives:
         effects[0] = dataclasses.replace(effects[0], alternatives=alternatives)
     return _Fit(effects, rep1, E1, floor, F0,

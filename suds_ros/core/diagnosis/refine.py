@@ -9,6 +9,7 @@ more than their own noise allows, their spread is what the data say about the pa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -25,7 +26,7 @@ from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
 from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect, effect_label
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.parallel import fork_map
-from suds_ros.core.physics.effects import EFFECTS, apply_effects
+from suds_ros.core.physics.effects import EFFECTS, ParamSpec, apply_effects
 from suds_ros.core.physics.rft import ChainModel
 
 
@@ -100,14 +101,30 @@ def fitted_effects(
     out: list[FittedEffect] = []
     ev = evidence or {}
     for (nme, tgt), sl in zip(cand.parts, cand.slices()):
-        pn = EFFECTS[nme].param_names
+        specs = EFFECTS[nme].params
+        bound = {p.name: end for p, v in zip(specs, x[sl]) for end in [at_bound(p, float(v))] if end}
         out.append(FittedEffect(
             nme, tgt,
-            {p: float(v) for p, v in zip(pn, x[sl])},
-            {p: float(v) for p, v in zip(pn, se[sl])},
+            {p.name: float(v) for p, v in zip(specs, x[sl])},
+            {p.name: math.nan if p.name in bound else float(v) for p, v in zip(specs, se[sl])},
             ev.get(effect_label(nme, tgt)),
+            at_bound=bound,
         ))
     return out
+
+
+#: a fitted value this close to an end of its range (relative to the parameter's scale) sits on it
+BOUND_TOL = 1e-6
+
+
+def at_bound(spec: ParamSpec, value: float) -> str | None:
+    """``"lower"`` or ``"upper"`` when ``value`` sits on that finite end of ``spec``'s range, else None."""
+    tol = BOUND_TOL * max(spec.scale, abs(value))
+    if math.isfinite(spec.upper) and value >= spec.upper - tol:
+        return "upper"
+    if math.isfinite(spec.lower) and value <= spec.lower + tol:
+        return "lower"
+    return None
 
 
 def _segments(lo: int, hi: int, length: int) -> list[int]:

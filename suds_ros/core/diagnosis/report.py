@@ -270,7 +270,10 @@ class FittedEffect:
     ``evidence`` is the held-out log-likelihood (nats, after the BIC penalty) lost when this effect
     is left out of the named set (equation error; None when not measured).  ``alternatives`` (on
     the effect reported first only): the explanations within ``ambiguity_band`` of the reported
-    set's held-out evidence after replay — the finding is ambiguous between them.
+    set's held-out evidence after replay — the finding is ambiguous between them.  ``at_bound``:
+    the parameters whose fit stopped at an end of their admissible range (``"lower"`` or
+    ``"upper"``): the recording asks for a value beyond it, so the value is a limit, not an
+    estimate, and its stderr is NaN (``null`` in JSON).
     """
 
     name: str
@@ -279,6 +282,7 @@ class FittedEffect:
     stderr: Mapping[str, float]
     evidence: float | None = None
     alternatives: tuple[Alternative, ...] = ()
+    at_bound: Mapping[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, object]:
         return {
@@ -288,6 +292,7 @@ class FittedEffect:
             "stderr": {k: float(v) for k, v in self.stderr.items()},
             "evidence": None if self.evidence is None else float(self.evidence),
             "alternatives": [a.as_dict() for a in self.alternatives],
+            "at_bound": dict(self.at_bound),
         }
 
 

@@ -64,3 +64,34 @@ def test_untested_channels_are_the_all_nan_columns() -> None:
     assert table.untested(E) == ["b"]
     rms = table.rms(E)
     assert np.isnan(rms["b"]) and rms["a"] == rms["c"] == 1.0
+
+
+def test_a_parameter_fitted_at_the_end_of_its_range_is_a_limit_without_stderr() -> None:
+    """A real crawling worm pushed c⊥/c∥ to its upper bound (100), reported as "100 ± 260": the
+    value is then a limit the data want beyond, and no stderr is given (null in JSON)."""
+    import math
+
+    import numpy as np
+
+    from suds_ros.core.diagnosis import DiagnosisReport
+    from suds_ros.core.diagnosis.naming import Candidate
+    from suds_ros.core.diagnosis.refine import at_bound, fitted_effects
+    from suds_ros.core.physics.effects import EFFECTS
+    from suds_ros.report.diagnosis import summary_text
+
+    (ratio,) = EFFECTS["drag_anisotropy_error"].params
+    assert at_bound(ratio, ratio.upper) == "upper" and at_bound(ratio, ratio.lower) == "lower"
+    assert at_bound(ratio, 0.999 * ratio.upper) is None and at_bound(ratio, 2.0) is None
+    cand = Candidate((("drag_anisotropy_error", None), ("joint_viscous_damping", "joint_2")))
+    fx = fitted_effects(cand, np.array([ratio.upper, 0.3]), np.array([258.0, 0.01]))
+    assert fx[0].at_bound == {"ratio": "upper"} and math.isnan(fx[0].stderr["ratio"])
+    assert fx[1].at_bound == {} and fx[1].stderr == {"d": 0.01}
+    floor = {"joint_2": 0.001, "xi_x": 0.01, "xi_y": 0.01, "xi_theta": 0.02}
+    rep = DiagnosisReport(mismatch=True, located=(), effects=tuple(fx), confounded_with=(), unexplained=False,
+                          heldout_rms_before=floor, heldout_rms_after=floor, improvement=0.7, system="purcell3",
+                          noise_floor=floor, statistics={c: 1.0 for c in floor})
+    d = json.loads(rep.to_json())
+    assert d["effects"][0]["stderr"] == {"ratio": None} and d["effects"][0]["at_bound"] == {"ratio": "upper"}
+    assert d["effects"][1]["at_bound"] == {}
+    text = summary_text(rep)
+    assert "ratio ≥ 100 (at the upper end of its admissible range" in text and "d = 0.3 ± 0.01" in text, text
