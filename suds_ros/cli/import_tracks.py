@@ -43,7 +43,8 @@ Written: the recording (-o) and, beside it, FILE.yaml (suds-robot/1): mean link 
 every joint actuated except --passive (these get a placeholder stiffness: edit it), drag
 c∥ = 1, c⊥ = 2 (nominal), gait_hz from the dominant frequency of the joint angles, and each
 actuated joint's drive fitted at that frequency.  DeepLabCut .h5 and SLEAP files need the
-optional `movement` package (pip install movement).
+optional `movement` package (pip install movement); a LightningPose .csv (--format
+lightningpose) and a DeepLabCut .csv are read through it when it is installed, else directly.
 
 Intermittent motion (--segment MEASURE:THRESH): activity is measured at every kept frame over a
 centred window of one gait cycle, and a bout is a run of frames at or above THRESH lasting at
@@ -65,14 +66,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                               description=__doc__.splitlines()[0], epilog=EPILOG,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", metavar="FILE",
-                   help="tracker file: .csv (midline or DeepLabCut), .wcon, .h5 (DeepLabCut or SLEAP), .slp")
+                   help="tracker file: .csv (midline, DeepLabCut or LightningPose), .wcon, .h5 (DeepLabCut or SLEAP), "
+                        ".slp")
     p.add_argument("-o", "--output", required=True, metavar="REC.mcap",
                    help="output recording; the model file is written beside it as REC.yaml "
                         "(neither is overwritten without --overwrite)")
     p.add_argument("--links", type=int, required=True, metavar="N", help="links of the fitted chain (≥ 2)")
     p.add_argument("--body-link", type=int, metavar="K",
                    help="link (1-based, head first) carrying the recorded pose (default the middle, ⌈N/2⌉)")
-    p.add_argument("--format", choices=("wcon", "csv", "dlc", "sleap"),
+    p.add_argument("--format", choices=("wcon", "csv", "dlc", "sleap", "lightningpose"),
                    help="file format (default from the file name)")
     p.add_argument("--units", choices=("m", "mm", "um", "px"),
                    help="length unit of the coordinates (required unless the file states it, as WCON does)")

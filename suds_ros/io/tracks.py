@@ -1,6 +1,6 @@
 """Tracker files of filmed animals → per-frame points (``suds import``).
 
-Four formats, each read into one :class:`Tracks` (points per frame, head first;
+Five formats, each read into one :class:`Tracks` (points per frame, head first;
 times or frame numbers; the file's length unit when it states one):
 
 ``csv``
@@ -21,6 +21,11 @@ times or frame numbers; the file's length unit when it states one):
     in the file's order are taken as head to tail.
 ``sleap``
     SLEAP ``.slp`` or analysis ``.h5``, through ``movement`` only.
+``lightningpose``
+    LightningPose's predictions ``.csv`` (DeepLabCut's csv layout, one animal), through
+    ``movement``'s LightningPose reader when it is installed, else the same :mod:`csv` reader
+    as a DeepLabCut ``.csv``.  Only ``--format`` selects it: by its name and first cell the
+    file is a DeepLabCut csv, which reads it the same way.
 
 ``movement`` (and with it pandas, xarray, h5py) is an optional dependency: it is
 imported only when a DeepLabCut ``.h5`` or a SLEAP file is read, and its absence
@@ -40,7 +45,7 @@ import numpy as np
 
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 
-FORMATS = ("csv", "wcon", "dlc", "sleap")
+FORMATS = ("csv", "wcon", "dlc", "sleap", "lightningpose")
 #: metres per unit of length
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "micron": 1e-6,
                 "microns": 1e-6, "nm": 1e-9}
@@ -153,8 +158,8 @@ def read_tracks(path: str | Path, fmt: str | None = None) -> Tracks:
             return read_midline_csv(p)
         if fmt == "wcon":
             return read_wcon(p)
-        if fmt == "dlc" and p.suffix.lower() == ".csv" and not movement_available():
-            return read_dlc_csv(p)
+        if fmt in ("dlc", "lightningpose") and p.suffix.lower() == ".csv" and not movement_available():
+            return read_dlc_csv(p, fmt)
         return read_with_movement(p, fmt)
     except UnicodeDecodeError:
         raise _fail(p, f"not a {fmt} file (not text)") from None
@@ -382,11 +387,12 @@ def read_wcon(path: Path) -> Tracks:
 
 
 # ------------------------------------------------------------------ DeepLabCut csv
-def read_dlc_csv(path: Path) -> Tracks:
+def read_dlc_csv(path: Path, fmt: str = "dlc") -> Tracks:
     """A single-animal DeepLabCut ``.csv`` with the :mod:`csv` module (no ``movement`` needed).
 
     Header rows ``scorer``, ``bodyparts``, ``coords`` (x, y, likelihood per body part); then one
-    row per frame, its frame number first.
+    row per frame, its frame number first.  LightningPose writes the same layout (``fmt``
+    "lightningpose" is recorded in the result).
     """
     with path.open(newline="", encoding="utf-8-sig") as f:
         rows = list(csv.reader(f))
@@ -419,7 +425,7 @@ def read_dlc_csv(path: Path) -> Tracks:
         except (ValueError, IndexError):
             raise _fail(path, f"DeepLabCut csv: data row {i}: expected a frame number and numbers, "
                               f"got {row[:4]!r}...") from None
-    return Tracks(pts, None, frame, None, "dlc", tuple(names))
+    return Tracks(pts, None, frame, None, fmt, tuple(names))
 
 
 # ------------------------------------------------------------------ movement (DLC .h5, SLEAP)
@@ -431,7 +437,7 @@ def movement_available() -> bool:
 
 
 def read_with_movement(path: Path, fmt: str) -> Tracks:
-    """A DeepLabCut or SLEAP file through ``movement.io.load_poses`` (one animal).
+    """A DeepLabCut, SLEAP or LightningPose file through ``movement.io.load_poses`` (one animal).
 
     Raises
     ------
@@ -441,13 +447,15 @@ def read_with_movement(path: Path, fmt: str) -> Tracks:
         (code ``bad_track_file``) ``movement`` cannot read the file, or it holds several animals.
     """
     if not movement_available():
-        kind = "DeepLabCut" if fmt == "dlc" else "SLEAP"
+        kind = {"dlc": "DeepLabCut", "sleap": "SLEAP", "lightningpose": "LightningPose"}[fmt]
         raise SudsConfigError(f"{path}: reading {kind} files needs the `movement` package, which is not "
                               f"installed: {_MOVEMENT_HINT}", code=MISSING_DEPENDENCY)
     from movement.io import load_poses  # optional dependency, imported only here
 
     try:
-        ds = (load_poses.from_dlc_file(path) if fmt == "dlc" else load_poses.from_sleap_file(path))
+        read = {"dlc": load_poses.from_dlc_file, "sleap": load_poses.from_sleap_file,
+                "lightningpose": load_poses.from_lp_file}[fmt]
+        ds = read(path)
     except Exception as exc:  # movement raises its own and pandas'/h5py's errors: name the file
         raise _fail(path, f"movement cannot read it as {fmt}: {type(exc).__name__}: {exc}") from None
     pos = ds["position"]

@@ -259,7 +259,8 @@ def movement_dataset(q: np.ndarray, scale: float):  # type: ignore[no-untyped-de
 
 
 @needs_movement
-@pytest.mark.parametrize("fmt, name", [("dlc", "worm.h5"), ("dlc", "worm.csv"), ("sleap", "worm.h5")])
+@pytest.mark.parametrize("fmt, name", [("dlc", "worm.h5"), ("dlc", "worm.csv"), ("sleap", "worm.h5"),
+                                       ("lightningpose", "worm_lp.csv")])
 def test_movement_formats_round_trip(run, tmp_path, fmt, name) -> None:  # type: ignore[no-untyped-def]
     from movement.io import save_poses
 
@@ -275,6 +276,9 @@ def test_movement_formats_round_trip(run, tmp_path, fmt, name) -> None:  # type:
         save_poses.to_dlc_file(ds, path, split_individuals=False if name.endswith(".h5") else True)
         if name.endswith(".csv"):
             path = tmp_path / "worm_worm.csv"
+    elif fmt == "lightningpose":
+        save_poses.to_lp_file(ds, path)
+        path = tmp_path / "worm_lp_worm.csv"  # one file per animal, its name appended
     else:
         save_poses.to_sleap_analysis_file(ds, path)
     out = tmp_path / "worm8.mcap"

@@ -145,6 +145,15 @@ def test_dlc_csv_without_movement(tmp_path: Path) -> None:
         tr.read_dlc_csv(multi)
 
 
+def test_lightningpose_csv_without_movement_reads_as_its_dlc_layout(tmp_path: Path, monkeypatch) -> None:
+    """LightningPose writes DeepLabCut's csv layout: without ``movement`` the csv reader takes it."""
+    f = write(tmp_path / "lp.csv", DLC_CSV)
+    monkeypatch.setattr(tr, "movement_available", lambda: False)
+    got = read_tracks(f, "lightningpose")
+    assert got.format == "lightningpose" and got.point_names == ("snout", "tail")
+    np.testing.assert_array_equal(got.points[0], [[1.5, 2.5], [3.5, 4.5]])
+
+
 def test_formats_that_need_movement_say_how_to_get_it(  # type: ignore[no-untyped-def]
         tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(tr, "movement_available", lambda: False)
