@@ -226,7 +226,7 @@ def _from_data(args: argparse.Namespace) -> int:
                           "gain_std": res.gain_std},
             "simulated": simulated, "values": res.values, "recorded_values": res.recorded_values,
             "trust": args.trust, "trust_radius": res.trust_radius, "trust_used": res.trust_used,
-            "passive_excursion": res.passive_excursion,
+            "passive_excursion": res.passive_excursion if model.passive else None,
             "message": res.message, "time": res.seconds,
             "limits": {"limit": list(res.limits.limit), "speed_limit": list(res.limits.speed_limit)}}))
         return 0
@@ -245,8 +245,9 @@ def _from_data(args: argparse.Namespace) -> int:
         name = system.name  # type: ignore[union-attr]
         print(f"  simulated {key} on {name}: proposed {simulated['proposed']:.5g} {unit}, "
               f"recorded {simulated['recorded']:.5g} {unit} ({100 * gain:+.2f} %)")
-    print(f"  trust region used {res.trust_used:.2f} of {res.trust_radius:.3g} σ; passive joints up to "
-          f"{res.passive_excursion:.2f} σ of the data's spread")
+    passive = (f"passive joints up to {res.passive_excursion:.2f} σ of the data's spread" if model.passive
+               else "no passive joint (fully actuated)")
+    print(f"  trust region used {res.trust_used:.2f} of {res.trust_radius:.3g} σ; {passive}")
     return 0
 
 

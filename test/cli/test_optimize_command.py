@@ -137,3 +137,29 @@ def test_loop_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("ERROR: ") and message in err[0]
+
+
+def test_optimize_a_fully_actuated_chain_from_data_and_on_its_physics(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """No passive joint (a crawler, a snake robot, an imported animal): no steady state to shoot for,
+    every cycle is periodic; a gait within the bounds, null for the passive excursion in JSON."""
+    robot = str(Path(__file__).resolve().parents[1] / "data" / "robots" / "crawler5.yaml")
+    bag = tmp_path / "crawl.mcap"
+    assert main(["simulate", robot, "-o", str(bag), "--cycles", "8", "--seed", "3"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "step.yaml"
+    assert main(["optimize", str(bag), "--model", robot, "--draws", "4", "-o", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["passive_excursion"] is None and doc["simulated"]["recorded"] > 0
+    assert doc["predicted"]["proposed"] >= doc["predicted"]["recorded"]
+    from suds_ros.core.physics.systems import load_system
+
+    system = load_system(robot)
+    assert constraint_violations(load_gait(out, system), gait_limits(system)) == []
+    assert main(["optimize", str(bag), "--model", robot, "--draws", "0", "-o", str(tmp_path / "t.yaml")]) == 0
+    assert "no passive joint (fully actuated)" in capsys.readouterr().out
+    phys = tmp_path / "phys.yaml"
+    assert main(["optimize", "--physics", "--model", robot, "--order", "1", "--starts", "1", "-o", str(phys),
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["value"] >= doc["nominal_value"] * (1 - 1e-9)

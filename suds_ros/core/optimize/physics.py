@@ -172,6 +172,9 @@ class PeriodicShooting:
         """
         X = np.atleast_2d(X)
         B, m = X.shape[0], self.np
+        if m == 0:  # fully actuated: no passive state, so every cycle is the periodic one
+            P, g, w = self.cycle(X, np.zeros((B, 0)))
+            return CycleResult(g_c=g, work=w, r_p=P), np.zeros((B, 0, 0)), np.zeros((B, 4, 0))
         rp = np.array(rp_guess, dtype=float).reshape(B, m)
         eps = 1e-6
         eye = np.eye(m)
