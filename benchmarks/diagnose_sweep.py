@@ -294,7 +294,7 @@ def draw_cases(args: argparse.Namespace) -> Iterator[tuple[int, str, list[dict],
 
 
 def simulated(row: str) -> bool:
-    """Whether a result row is of a case that was simulated (and so diagnosed and counted)."""
+    """Tell whether a result ``row`` is of a case the simulator ran, so it was diagnosed and counts."""
     return row.split(" | ")[-3] != "—"
 
 
