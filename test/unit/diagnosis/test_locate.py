@@ -19,13 +19,17 @@ def test_excess_improvement_counts_only_the_excess_over_the_floor() -> None:
     assert excess_improvement({"a": 0.9}, {"a": 3.0}, ["a"]) == 0.0  # nothing to improve
 
 
-def test_phase_ranges_find_the_affected_bins() -> None:
-    rng = np.random.default_rng(1)
-    n_cyc, spc = 12, 100
-    phase = 2 * np.pi * np.arange(n_cyc * spc) / spc
-    cycle = np.floor(phase / (2 * np.pi))
+def residual_on_a_quarter(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.random.Generator]:
+    """12 cycles of 100 samples: phase, cycle number and a residual of noise 0.1 plus 1 on phase (π/2, π)."""
+    rng = np.random.default_rng(seed)
+    phase = 2 * np.pi * np.arange(12 * 100) / 100
     ph = np.mod(phase, 2 * np.pi)
     e = 0.1 * rng.standard_normal(phase.size) + np.where((ph > np.pi / 2) & (ph < np.pi), 1.0, 0.0)
+    return phase, np.floor(phase / (2 * np.pi)), e, rng
+
+
+def test_phase_ranges_find_the_affected_bins() -> None:
+    phase, cycle, e, rng = residual_on_a_quarter(1)
     (rng_,) = phase_ranges(phase, e, cycle, 20, 0.01)
     assert rng_[0] == pytest.approx(np.pi / 2, abs=2 * np.pi / 20 + 1e-9)
     assert rng_[1] == pytest.approx(np.pi, abs=2 * np.pi / 20 + 1e-9)
@@ -39,12 +43,8 @@ def test_phase_ranges_skip_bins_seen_in_fewer_than_two_cycles_without_a_warning(
     not tested (no spread to test against), no numpy warning reaches the user, the rest still is."""
     import warnings
 
-    rng = np.random.default_rng(3)
-    n_cyc, spc = 12, 100
-    phase = 2 * np.pi * np.arange(n_cyc * spc) / spc
-    cycle = np.floor(phase / (2 * np.pi))
+    phase, cycle, e, _ = residual_on_a_quarter(3)
     ph = np.mod(phase, 2 * np.pi)
-    e = 0.1 * rng.standard_normal(phase.size) + np.where((ph > np.pi / 2) & (ph < np.pi), 1.0, 0.0)
     lost = (ph > 4.0) & (ph < 5.0) & (cycle > 0)  # one bin range seen in cycle 0 only, one never
     e[lost | ((ph > 5.5) & (ph < 5.8))] = np.nan
     with warnings.catch_warnings():
