@@ -56,9 +56,6 @@ The bouts are reported (count, times, cycles each) and listed in the recording's
 (key `bouts`); `suds identify` then trains and tests on whole bouts.
 """
 
-#: metres per unit of --units (px: --px-size)
-UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6}
-
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``import`` on the ``suds`` subcommand parser."""
@@ -141,9 +138,9 @@ def _metres_per_unit(args: argparse.Namespace, file_units: str | None, source: s
     if file_units is not None:
         if args.units is not None and args.units != file_units:
             raise SudsConfigError(f"--units {args.units}: the {source} file states its unit, {file_units!r}")
-        from suds_ros.io.tracks import LENGTH_UNITS
+        from suds_ros.io.tracks import wcon_unit
 
-        return LENGTH_UNITS[file_units]
+        return wcon_unit(file_units)[0]
     if args.units is None:
         raise SudsConfigError(f"--units: the {source} file does not state its length unit; pass "
                               "--units m|mm|um, or --units px --px-size M")
@@ -151,7 +148,9 @@ def _metres_per_unit(args: argparse.Namespace, file_units: str | None, source: s
         if args.px_size is None or not (math.isfinite(args.px_size) and args.px_size > 0):
             raise SudsConfigError(f"--px-size: expected metres per pixel > 0 with --units px, got {args.px_size}")
         return float(args.px_size)
-    return UNITS[args.units]
+    from suds_ros.io.tracks import wcon_unit
+
+    return wcon_unit(args.units)[0]
 
 
 def _times(args: argparse.Namespace, tracks: Any, path: Path) -> np.ndarray:

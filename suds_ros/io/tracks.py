@@ -46,10 +46,6 @@ import numpy as np
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 
 FORMATS = ("csv", "wcon", "dlc", "sleap", "lightningpose")
-#: metres per unit of length
-LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "micron": 1e-6,
-                "microns": 1e-6, "nm": 1e-9}
-
 
 #: error codes of this module
 BAD_TRACK_FILE = "bad_track_file"
