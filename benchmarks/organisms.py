@@ -71,6 +71,7 @@ import numpy as np  # noqa: E402
 from _common import ROOT, RESULTS, machine, stamp, write  # noqa: E402
 
 from suds_ros.cli.main import main as suds  # noqa: E402
+from suds_ros.report.diagnosis import parameter_text  # noqa: E402
 
 SOURCES = {  # data set → (where it is fetched from, default local path, licence)
     "fishmechr": ("https://github.com/tytell/fishmechr", ROOT / "benchmarks" / "data" / "fishmechr",
@@ -333,10 +334,8 @@ def report(results: list[dict], sources: dict[str, Path]) -> str:
         else:
             parts = []
             for e in d["effects"]:
-                ps = ", ".join(
-                    (f"{k} {'≥' if e['at_bound'][k] == 'upper' else '≤'} {v:.4g} (at the end of its range)"
-                     if k in e.get("at_bound", {}) else f"{k} = {v:.4g} ± {e['stderr'][k]:.2g}")
-                    for k, v in e["parameters"].items())
+                ps = ", ".join(parameter_text(k, v, e["stderr"][k], e["at_bound"].get(k))
+                               for k, v in e["parameters"].items())
                 parts.append(f"`{e['name']}`{' on ' + e['target'] if e['target'] else ''} {ps}")
             found = "; ".join(parts) or "no catalogue effect"
             if d["unexplained"]:

@@ -16,6 +16,18 @@ def _num(v: float, width: int, fmt: str) -> str:
     return f"{v:>{width}{fmt}}" if math.isfinite(v) else f"{'n/a':>{width}}"
 
 
+def parameter_text(name: str, value: float, stderr: float | None, at_bound: str | None = None) -> str:
+    """One fitted parameter as the reports print it: ``d = 0.3 ± 0.01``, or a limit when ``at_bound``.
+
+    ``at_bound`` is ``"upper"`` or ``"lower"`` (:attr:`FittedEffect.at_bound`): the fit stopped at
+    that end of the parameter's admissible range, so the value is a limit and has no stderr.
+    """
+    if at_bound:
+        return (f"{name} {'≥' if at_bound == 'upper' else '≤'} {value:.4g} (at the {at_bound} end of its "
+                "admissible range: a limit, no stderr)")
+    return f"{name} = {value:.4g} ± {stderr:.2g}"
+
+
 def summary_text(rep: DiagnosisReport, source: str = "") -> str:
     """Multi-line terminal summary of a :class:`DiagnosisReport`."""
     lines: list[str] = []
@@ -65,10 +77,7 @@ def summary_text(rep: DiagnosisReport, source: str = "") -> str:
         if rep.unexplained:
             lines.append("  UNEXPLAINED: no catalogue effect accounts for the located mismatch")
         for e in rep.effects:
-            ps = ", ".join(
-                (f"{k} {'≥' if e.at_bound[k] == 'upper' else '≤'} {v:.4g} (at the {e.at_bound[k]} end of its "
-                 "admissible range: a limit, no stderr)") if k in e.at_bound else f"{k} = {v:.4g} ± {rep_se:.2g}"
-                for (k, v), rep_se in zip(e.parameters.items(), e.stderr.values()))
+            ps = ", ".join(parameter_text(k, v, e.stderr[k], e.at_bound.get(k)) for k, v in e.parameters.items())
             tgt = f" on {e.target}" if e.target else ""
             lines.append(f"  effect: {e.name}{tgt}: {ps}")
             for a in e.alternatives:
