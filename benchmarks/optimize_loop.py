@@ -267,8 +267,8 @@ def report() -> None:
               "rotation column is the returned gait's.",
               "- Predictions are optimistic (the model extrapolates beyond the incumbent's data); the loop never "
               "acts on a prediction alone.",
-              "- Not measured here: CMA-ES at the same budget, the turn objective, efficiency (refused: the "
-              "streamed robot records no actuator work), more than one seed on swimmer9, the 'wave reversed' start "
+              "- Not measured here: CMA-ES at the same budget (`optimize_cma.md`), the turn objective, efficiency "
+              "(`optimize_efficiency.md`), more than one seed on swimmer9, the 'wave reversed' start "
               "on swimmer9. The limits were computed by this script (the physics optimiser, order 3, 4 starts; "
               "with `--reuse-limit` taken from the robot's earlier JSON): "
               + ", ".join(f"{k} {v[0]:.5f} m/s in {v[1]:.0f} s" for k, v in limit_info().items()) + ".",

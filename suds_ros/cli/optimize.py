@@ -49,7 +49,10 @@ usual OU perturbation (seeded by --seed) and the optimiser sees only its recorde
 runs the start gait (--start, else the nominal gait), fits the SUDS model to the incumbent
 gait's cycles, takes one trust-region step, runs the proposed gait (one settling cycle, then
 --step-cycles measured cycles), and keeps it only if the *measured* objective is higher (and,
-for speed, the measured rotation ≤ 0.05 rad per cycle); else it shrinks the trust region.  It
+for speed and efficiency, the measured rotation ≤ 0.05 rad per cycle; for turn and efficiency, a
+measured speed no lower than the start gait's, within a standard error); else it shrinks the
+trust region.  For efficiency the simulated robot records its actuator effort, and a gait's work
+per cycle is measured from the phase averages of the effort and the actuated angles.  It
 stops when the next candidate would overrun --budget-cycles (every cycle run counts), when the
 model predicts no gain, or when the trust region has shrunk below its floor, and writes the
 best gait it measured.  The physics optimiser's limit is computed for comparison with
@@ -399,8 +402,11 @@ def _changed_robot(system: object, changes: list[tuple[int, list[dict[str, objec
 
 
 def _measurement(m: Measurement) -> dict[str, object]:
-    return {"speed": m.speed, "speed_se": m.speed_se, "rotation": m.rotation, "rotation_se": m.rotation_se,
-            "turn": m.turn, "cycles": m.cycles}
+    out: dict[str, object] = {"speed": m.speed, "speed_se": m.speed_se, "rotation": m.rotation,
+                              "rotation_se": m.rotation_se, "turn": m.turn, "cycles": m.cycles}
+    if m.work is not None:  # measured from the recorded effort (objective efficiency)
+        out.update(work=m.work, efficiency=m.efficiency, efficiency_se=m.efficiency_se)
+    return out
 
 
 def _iteration_text(it: LoopIteration, key: str) -> str:

@@ -36,11 +36,13 @@ def test_optimizer_node_runs_the_loop_on_the_simulator(start_process, node_comma
     status = probe.listen("/suds/optimizer", String, STATUS_QOS)
     trajectories = probe.listen("/suds/gait_trajectory", JointTrajectory, GAIT_QOS)
     switches = probe.listen("/suds/gait_switch", String, SWITCH_QOS)
-    sim = start_process(node_command("simulator_node", "system:=purcell3", "real_time_factor:=4.0", "seed:=1"),
-                        "simulator")
     # budget 14: the start gait (1 settling + 5 measured cycles) and one candidate (1 + 4), then done
     opt = start_process(node_command("optimizer_node", "system:=purcell3", "budget_cycles:=14", "seed:=0"),
                         "optimizer")
+    # the status is not latched: its subscription must match before the stream (and the start run) begins
+    wait_for(lambda: status.publishers() >= 1, 120, lambda: f"the optimizer's status publisher\n{opt.output()}")
+    sim = start_process(node_command("simulator_node", "system:=purcell3", "real_time_factor:=4.0", "seed:=1"),
+                        "simulator")
 
     def runs() -> list[dict]:
         return [json.loads(m.data) for m in status.messages()]

@@ -26,7 +26,15 @@ import numpy as np
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.gait import Gait, check_gait
-from suds_ros.core.physics.sim import SimConfig, _rest_angles, _still, auto_substeps, integrate, reference_of
+from suds_ros.core.physics.sim import (
+    SimConfig,
+    _effort_at_samples,
+    _rest_angles,
+    _still,
+    auto_substeps,
+    integrate,
+    reference_of,
+)
 from suds_ros.core.physics.system import SudsSystem
 
 
@@ -41,6 +49,8 @@ class Chunk:
     pose : (n, 3) measured pose x, y, yaw (noise added).
     r_true, pose_true : noise-free counterparts.
     phase : (n,) reference gait phase, rad.
+    effort : (n, na) actuator effort averaged over the sample period ending at each sample, N·m
+        (as :func:`~suds_ros.core.physics.sim.simulate` records it), or None when not asked for.
     """
 
     t: FloatArray
@@ -49,17 +59,20 @@ class Chunk:
     r_true: FloatArray
     pose_true: FloatArray
     phase: FloatArray
+    effort: FloatArray | None = None
 
 
 class StreamingSimulator:
     """Simulate a SUDS indefinitely, ``config.samples_per_cycle`` samples per gait cycle.
 
     ``config.cycles`` is ignored (the caller decides when to stop); ``config.warmup``
-    seconds are simulated at construction.  Pose delay is not supported here.
+    seconds are simulated at construction.  Pose delay is not supported here.  With ``effort``
+    every chunk also carries the actuator effort (:attr:`Chunk.effort`).
     """
 
-    def __init__(self, system: SudsSystem, config: SimConfig = SimConfig()) -> None:
+    def __init__(self, system: SudsSystem, config: SimConfig = SimConfig(), *, effort: bool = False) -> None:
         self.system = system
+        self.with_effort = bool(effort)
         self.nominal = system
         self.config = config
         self.effects: tuple[dict[str, object], ...] = ()
@@ -152,24 +165,25 @@ class StreamingSimulator:
         t = k * self._dt * self.config.gait_hz
         return self.reference(np.array([t]))[0] + self._eta
 
-    def _advance(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Integrate n more samples; returns sample indices (n,), r (n, nj), still-fluid pose (n, 3)."""
+    def _advance(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+        """Integrate n more samples: sample indices (n,), r (n, nj), still-fluid pose (n, 3), effort (n, na) or None."""
         ra = np.empty((n + 1, len(self.system.actuated)))
         ra[0] = self._ra_prev
         for i in range(1, n + 1):
             self._eta = self._a * self._eta + self._b * self._rng_ou.standard_normal(self._eta.size)
             ra[i] = self._setpoint(self._k + i)
         tr = integrate(self._still, ra, self._dt, self._rp, pose0=self._pose, substeps=self._substeps)
+        effort = _effort_at_samples(self._still, ra, tr.r, self._dt) if self.with_effort else None
         self._ra_prev = ra[-1]
         self._rp = tr.r[-1, list(self.system.passive)]
         self._pose = tr.pose[-1]
         k = self._k + 1 + np.arange(n)
         self._k += n
-        return k, tr.r[1:], tr.pose[1:]
+        return k, tr.r[1:], tr.pose[1:], effort
 
     def step(self, n: int) -> Chunk:
         """The next ``n`` samples."""
-        k, r, pose = self._advance(n)
+        k, r, pose, effort = self._advance(n)
         tt = k * self._dt
         pose = pose.copy()
         pose[:, 0] += self._flow[0] * tt + self._drift[0]
@@ -185,4 +199,5 @@ class StreamingSimulator:
             r_true=r,
             pose_true=pose,
             phase=2 * np.pi * self.config.gait_hz * tt,
+            effort=effort,
         )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +12,9 @@ from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.optimize.loop import LoopConfig, LoopResult, Measurement, is_better, measure_cycles, optimize_loop
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
-from suds_ros.core.physics.systems import make_system
+from suds_ros.core.physics.systems import load_system, make_system
+
+ROBOTS = Path(__file__).resolve().parents[2] / "data" / "robots"
 
 
 def test_measure_cycles_reads_the_per_cycle_net_motion() -> None:
@@ -44,12 +47,20 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
     turn = LoopConfig(budget_cycles=20, objective="turn")
     assert is_better(_m(0.5, -0.3), _m(0.5, 0.2), turn, speed_floor=0.4)  # |turn| counts
     assert not is_better(_m(0.3, 0.9), _m(0.5, 0.2), turn, speed_floor=0.4)  # below the speed floor
+    # the floor is a measured speed too: a shortfall within floor_sigmas se of the difference is no shortfall
+    assert is_better(_m(0.39, 0.9), _m(0.5, 0.2), turn, speed_floor=0.4, floor_se=0.02)
+    assert not is_better(_m(0.39, 0.9), _m(0.5, 0.2), turn, speed_floor=0.4, floor_se=0.005)
+    eff = LoopConfig(budget_cycles=20, objective="efficiency")
+    fast = dataclasses.replace(_m(0.5, 0.0), efficiency=0.02)
+    frugal = dataclasses.replace(_m(0.45, 0.0), efficiency=0.03)
+    assert is_better(frugal, fast, eff, speed_floor=0.44)
+    assert not is_better(frugal, fast, eff, speed_floor=0.5)  # more efficient, but slower than the start
+    assert not is_better(dataclasses.replace(frugal, rotation=0.06), fast, eff, speed_floor=0.44)  # off course
 
 
 @pytest.mark.parametrize("kwargs, message, code", [
     ({"budget_cycles": 5}, "`budget_cycles`: expected at least settle_cycles \\+ first_cycles = 6", "budget_too_small"),
-    ({"budget_cycles": 20, "objective": "efficiency"}, "efficiency needs the actuator work measured",
-     "unsupported_objective"),
+    ({"budget_cycles": 20, "floor_sigmas": -1.0}, "`floor_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
     ({"budget_cycles": 20, "step_cycles": 3}, "`step_cycles`: expected ≥ 4, got 3", "bad_config"),
     ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
     ({"budget_cycles": 20, "confirm_sigmas": -1.0}, "`confirm_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
@@ -139,3 +150,61 @@ def test_a_marginal_gain_is_run_again_before_it_is_kept() -> None:
         assert again.accepted == is_better(again.measured, incumbent.measured, cfg)
     off = optimize_loop(system, dataclasses.replace(cfg, confirm_sigmas=0.0)).iterations  # the default
     assert not any(it.note.startswith("to be confirmed") for it in off)
+
+
+def test_measure_cycles_reads_the_gaits_work_from_phase_averages() -> None:
+    """The work is that of the cycles' phase-averaged effort and angles: an excitation's effort that
+    averages out over the cycles does not count (here it alternates sign from cycle to cycle)."""
+    spc, hz, m = 40, 2.0, 4
+    i = np.arange(m * spc + 1)
+    t, s = i / (spc * hz), i / spc
+    pose = np.stack([0.3 * t + 0.01 * np.sin(2 * np.pi * s), 0 * t, 0 * t], axis=1)
+    ra = 0.5 * np.sin(2 * np.pi * s)[:, None]
+    rate = np.concatenate([[0.0], np.diff(ra[:, 0])]) * spc * hz
+    sign = np.where((np.maximum(i - 1, 0) // spc) % 2 == 0, 1.0, -1.0)  # the cycle a period ends in
+    tau = (3.0 * rate + sign * 2.0 * np.cos(2 * np.pi * s))[:, None]  # a damper, plus the excitation's part
+    meas = measure_cycles(pose, spc, hz, [(ra, tau)])
+    work = 3.0 * spc * hz * np.sum(np.diff(ra[:spc + 1, 0]) ** 2)  # the damper's alone, by its definition
+    first = np.sum(tau[1:spc + 1, 0] * np.diff(ra[:spc + 1, 0]))  # the first cycle's raw Σ τ·Δr
+    assert meas.work == pytest.approx(work, rel=1e-12) and abs(first - work) > 0.1 * work
+    assert meas.efficiency == pytest.approx(0.3 / hz / work, rel=1e-9)
+    assert 0 < meas.efficiency_se < 0.1 * meas.efficiency  # the jackknife sees the cycles differ
+    assert meas.value("efficiency") == meas.efficiency and meas.value_se("efficiency") == meas.efficiency_se
+    assert measure_cycles(pose, spc, hz).efficiency is None
+    with pytest.raises(SudsConfigError, match="`drive`: expected one row per pose sample"):
+        measure_cycles(pose, spc, hz, [(ra[:-1], tau[:-1])])
+
+
+def test_the_drive_is_read_from_the_recorded_effort() -> None:
+    from suds_ros.core.optimize.loop import actuator_drive
+    from suds_ros.core.recording import Recording
+
+    t = np.arange(5) * 0.1
+    r = np.stack([np.array([0.0, 0.1, 0.3, 0.2, 0.2]), np.zeros(5)], axis=1)
+    effort = np.stack([np.array([9.0, 2.0, 1.0, 4.0, 3.0]), np.full(5, 7.0)], axis=1)  # the passive column unused
+    rec = Recording(t=t, r=r, joint_names=("a", "p"), actuated=("a",), passive=("p",), pose_t=t,
+                    pose=np.zeros((5, 3)), system="x", gait_hz=1.0, effort=effort)
+    ra, tau = actuator_drive(rec)
+    np.testing.assert_array_equal(ra, r[:, :1])
+    np.testing.assert_array_equal(tau, effort[:, :1])
+    with pytest.raises(SudsConfigError, match="no actuator effort") as exc:
+        actuator_drive(dataclasses.replace(rec, effort=None))
+    assert exc.value.code == "unsupported_objective"
+
+
+def test_the_loop_optimises_efficiency_from_the_measured_work() -> None:
+    """The loop measures each gait's work from the recorded effort and steps on the learned
+    torques; every gait it keeps measured better than the one it replaced, within the side bounds
+    (how far it gets is measured in ``benchmarks/optimize_efficiency.py``)."""
+    system = load_system(str(ROBOTS / "eel4.yaml"))
+    cfg = LoopConfig(budget_cycles=26, seed=0, objective="efficiency")
+    res = optimize_loop(system, cfg)
+    its = res.iterations
+    assert all(np.isfinite(it.measured.value("efficiency")) and (it.measured.work or 0) > 0 for it in its)
+    assert all(it.predicted is not None and np.isfinite(it.predicted) for it in its)
+    start = its[0].measured
+    accepted = [it for it in its if it.accepted]
+    assert all(is_better(b.measured, a.measured, cfg, start.speed, start.speed_se)
+               for a, b in zip(accepted, accepted[1:]) if not b.note.startswith("incumbent re-run"))
+    assert constraint_violations(res.gait, gait_limits(system)) == []
+    assert res.gait.objective == "efficiency" and res.measured.efficiency == its[res.index].measured.efficiency
