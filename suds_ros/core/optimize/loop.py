@@ -53,9 +53,9 @@ work ∮ τ̄_a · dθ̄_a of the phase averages of the recorded effort and actu
 (:func:`measure_cycles`; the simulated robot then records its effort, as ``suds simulate --effort``
 does), and predicted by the model's learned torques
 (:class:`~suds_ros.core.optimize.data.LearnedCycle`).  The phase averages keep the gait's work and
-drop the zero-mean part that the excitation drives: the raw Σ τ_a · Δr_a of the perturbed robot
-is 2–3.5× the gait's own on purcell3, snake5 and tail6 at the default drive, and nearly the same
-for every gait, so it hides the differences between gaits.
+drop the zero-mean part that the excitation drives: over 5 cycles of the nominal gait at the
+default drive, the raw Σ τ_a · Δr_a of purcell3 and snake5 is 1.8–2.0× the gait's own work on the
+physics, the phase-averaged one 1.1–1.3× (``docs/results/optimize_efficiency.md``).
 """
 
 from __future__ import annotations
