@@ -28,8 +28,11 @@ ROBOTS = {"purcell3": ("purcell3", 40), "snake5": (SNAKE5, 60)}  # name: (spec, 
 
 
 def work_ratios(system: object, gait: object, seeds: list[int], cycles: int = 5) -> tuple[list[float], list[float]]:
-    """Per seed: the raw Σ τ·Δr per cycle and the phase-averaged work, each over the physics' work, of
-    ``cycles`` cycles of ``gait`` run with the loop robot's default excitation (after one settling cycle)."""
+    """Per seed: the raw Σ τ·Δr per cycle and the phase-averaged work, each over the physics' work.
+
+    Measured on ``cycles`` cycles of ``gait`` run with the loop robot's default excitation, after
+    one settling cycle.
+    """
     cfg = LoopConfig(budget_cycles=cycles + 1)
     true = evaluate_gait(system, gait)  # type: ignore[arg-type]
     w_true = true["distance"] / true["efficiency"]

@@ -83,7 +83,8 @@ class OptimizerNodeConfig:
 
     system: str = setting("purcell3", "robot: built-in system id (purcell3, swimmer9, nlinkN)")
     model_file: str = setting("", "robot model file (suds-robot/1); when set it is the robot and `system` is ignored")
-    objective: str = setting("speed", "what to maximise", choices=("speed", "turn"))
+    objective: str = setting("speed", "what to maximise (efficiency needs the actuator effort on suds/shape, e.g. "
+                                      "the simulator's effort:=true)", choices=("speed", "turn", "efficiency"))
     budget_cycles: int = setting(200, "gait cycles the search may ask for in all", ge=6)
     start_gait: str = setting("", "gait file (suds-gait/1) to start from (empty: the robot's nominal gait)")
     order: int = setting(3, "harmonics of the proposed gaits", ge=1, le=8)
@@ -196,7 +197,7 @@ class OptimizerNode(Node):
         except SudsError:
             self.skipped += 1
             return
-        self.live.on_shape(sample.stamp, sample.position)
+        self.live.on_shape(sample.stamp, sample.position, sample.effort)
 
     def _on_pose(self, msg: Any) -> None:
         try:

@@ -23,10 +23,11 @@ their imports alone take seconds, and at 5× real time the stream would otherwis
 cycles ahead of the estimator).  The recorder gets ``drain_timeout`` = 0.6 × ``--stop-timeout``,
 so it writes what is still queued after SIGINT before the supervisor escalates.
 
-``--optimize OBJECTIVE`` (speed or turn) also starts the ``optimizer`` node
+``--optimize OBJECTIVE`` (speed, turn or efficiency) also starts the ``optimizer`` node
 (:mod:`suds_ros.ros.optimizer_node`, ``-p objective:=OBJECTIVE``, the robot's ``system`` or
 ``model_file``, ``--optimize-budget`` cycles): it commands gaits on ``suds/gait_command``, which the
 simulator switches to at its next cycle boundary, and the estimator starts afresh on each new gait.
+For efficiency the simulator also publishes its actuator effort (``-p effort:=true``).
 
 ``--foxglove PORT`` (default 0: off) also starts ``foxglove_bridge``
 (:mod:`suds_ros.ros.foxglove_node`, ``-p port:=PORT``): the Foxglove app then shows
@@ -232,6 +233,8 @@ def build_commands(args: argparse.Namespace) -> dict[str, list[str]]:
                               + _param("overwrite", "true" if args.overwrite else "false"))
     if args.optimize:
         params["optimizer"] += _param("objective", args.optimize) + _param("budget_cycles", args.optimize_budget)
+        if args.optimize == "efficiency" and "simulator" in params:  # the work is measured from the effort
+            params["simulator"] += _param("effort", "true")
         if "optimizer" not in nodes:
             nodes.append("optimizer")
     if args.foxglove:
@@ -290,8 +293,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--foxglove", type=int, default=0, metavar="PORT",
                    help="also serve the topics to the Foxglove app on ws://127.0.0.1:PORT "
                         "(foxglove_bridge; default 0: off)")
-    p.add_argument("--optimize", choices=("speed", "turn"), metavar="OBJECTIVE",
-                   help="also optimise the gait live for this objective (speed or turn; starts the optimizer)")
+    p.add_argument("--optimize", choices=("speed", "turn", "efficiency"), metavar="OBJECTIVE",
+                   help="also optimise the gait live for this objective (speed, turn or efficiency; starts the "
+                        "optimizer; efficiency has the simulator publish its actuator effort)")
     p.add_argument("--optimize-budget", dest="optimize_budget", type=int, default=200, metavar="CYCLES",
                    help="gait cycles the optimizer may ask for (default 200)")
     p.add_argument("--nodes", default="simulator,estimator,predictor,recorder",

@@ -155,6 +155,9 @@ class SimulatorConfig:
         "description": "JSON list of effects added to the nominal model from the next gait cycle on, e.g. "
                        '[{"name": "joint_coulomb_friction", "joint": "joint_2", "mu": 0.5}] (empty: none)',
         "read_only": False})
+    effort: bool = field(default=False, metadata={
+        "description": "also publish the actuator effort on suds/shape (N·m or N, averaged over each sample "
+                       "period; 0 on passive joints), as a torque or current sensor would"})
     gait_file: str = field(default="", metadata={
         "description": "gait file (suds-gait/1) driving the actuated joints instead of the nominal gait; "
                        "a new value takes over at the next cycle boundary without a jump (empty: nominal)",
@@ -362,7 +365,7 @@ class SimulatorNode(Node):
         target = k0 + int(math.floor((now - w0) * self.config.rate * rtf)) + 1
         return max(0, target - self._sent)
 
-    def _next_sample(self) -> tuple[float, np.ndarray, np.ndarray]:
+    def _next_sample(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray | None]:
         if self._chunk is None or self._chunk_i >= self._chunk.t.size:
             effects, self._pending_effects = self._pending_effects, None
             if effects is not None:
@@ -382,7 +385,11 @@ class SimulatorNode(Node):
                 self.get_logger().info(f"gait {gait[0] or '(nominal)'} on from stamp {self._chunk.t[0]:.6f}")
         c, i = self._chunk, self._chunk_i
         self._chunk_i += 1
-        return float(c.t[i]), c.r[i], c.pose[i]
+        effort = None
+        if c.effort is not None:  # in joint order: the actuated joints' effort, 0 on the passive ones
+            effort = np.zeros(len(self.names))
+            effort[list(self.system.actuated)] = c.effort[i]
+        return float(c.t[i]), c.r[i], c.pose[i], effort
 
     def _waiting(self) -> bool:
         """True while the stream waits for ``wait_for_subscribers`` (at most ``start_timeout`` s)."""
@@ -404,7 +411,7 @@ class SimulatorNode(Node):
     def _restart_at(self, t0: float) -> None:
         """A fresh stream whose first stamp is ``t0``, with the pending effects (nothing published yet)."""
         self.t0 = t0
-        self.sim = StreamingSimulator(self.system, self.config.sim_config(t0, self.gait))
+        self.sim = StreamingSimulator(self.system, self.config.sim_config(t0, self.gait), effort=self.config.effort)
         if self._pending_effects:
             self.sim.set_effects(self._pending_effects)
 
@@ -415,10 +422,10 @@ class SimulatorNode(Node):
         if self._total:
             n = min(n, self._total - self._sent)
         for _ in range(n):
-            t, r, pose = self._next_sample()
+            t, r, pose, effort = self._next_sample()
             if self.config.real_time_factor != 1.0:
                 self._clock_pub.publish(self._clock_cls(clock=float_to_time(t)))
-            self._shape_pub.publish(joint_state_to_msg(t, self.names, r))
+            self._shape_pub.publish(joint_state_to_msg(t, self.names, r, effort=effort))
             self._pose_pub.publish(pose_to_msg(t, pose[0], pose[1], pose[2]))
             self._sent += 1
         if self._total and self._sent >= self._total:

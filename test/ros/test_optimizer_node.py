@@ -80,6 +80,34 @@ def test_optimizer_node_runs_the_loop_on_the_simulator(start_process, node_comma
     assert stop(sim) == 0, sim.output()
 
 
+def test_optimizer_node_optimises_efficiency_from_the_simulators_effort(start_process, node_command, probe):
+    """The simulator publishes its actuator effort (effort:=true); the optimizer measures each run's
+    work from it and reports the efficiency (m/J)."""
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from suds_ros.ros.qos import STATUS_QOS, latched_state_qos
+
+    status = probe.listen("/suds/optimizer", String, STATUS_QOS)
+    shape = probe.listen("/suds/shape", JointState, latched_state_qos(10))
+    opt = start_process(node_command("optimizer_node", "system:=purcell3", "budget_cycles:=11", "seed:=0",
+                                     "objective:=efficiency"), "optimizer")
+    wait_for(lambda: status.publishers() >= 1, 120, lambda: f"the optimizer's status publisher\n{opt.output()}")
+    sim = start_process(node_command("simulator_node", "system:=purcell3", "real_time_factor:=4.0", "seed:=1",
+                                     "effort:=true"), "simulator")
+    wait_for(lambda: any(json.loads(m.data)["done"] for m in status.messages()), 300,
+             lambda: f"the optimizer's last message\n{opt.output()}\n{sim.output()}")
+    runs = [json.loads(m.data) for m in status.messages()]
+    measured = [r for r in runs if not r["done"]]
+    assert [r["kind"] for r in measured] == ["start", "candidate"], opt.output()
+    assert all(r["objective"] == "efficiency" and np.isfinite(r["measured"]) and r["measured"] > 0 for r in measured)
+    assert not runs[-1]["stopped"].startswith("error"), runs[-1]
+    efforts = [m.effort for m in shape.messages() if len(m.effort)]
+    assert efforts and all(e[1] == 0.0 for e in efforts)  # joint_2 is passive: no actuator effort
+    assert stop(opt) == 0, opt.output()
+    assert stop(sim) == 0, sim.output()
+
+
 # ------------------------------------------------------------------ in process
 def test_the_monitors_alarm_says_the_robot_changed_once_per_episode(ros_context):
     from concurrent.futures import Future

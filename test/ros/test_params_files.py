@@ -72,7 +72,7 @@ BAD = {
     "player": ({"rate": "-2.0"}, ("rate", "range")),
     "monitor": ({"warn": "0.5"}, ("warn", "range")),
     "foxglove_bridge": ({"port": "70000"}, ("port", "range")),
-    "optimizer": ({"objective": "efficiency"}, ("objective", "speed")),
+    "optimizer": ({"objective": "fastest"}, ("objective", "efficiency")),
 }
 
 

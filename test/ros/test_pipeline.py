@@ -105,8 +105,12 @@ def test_optimize_adds_the_optimizer_for_the_robot(tmp_path):
     assert "wait_for_subscribers:=3" in cmds["simulator"]  # the optimizer listens to the stream too
     cmds = pipeline.build_commands(pipeline.parse_args(["--model", str(EEL4), "--optimize", "speed"]))
     assert _params(cmds["optimizer"]) == [f"model_file:={EEL4}", "objective:=speed", "budget_cycles:=200"]
+    assert "effort:=true" not in cmds["simulator"]
+    cmds = pipeline.build_commands(pipeline.parse_args(["--system", "purcell3", "--optimize", "efficiency"]))
+    assert "objective:=efficiency" in cmds["optimizer"]
+    assert "effort:=true" in cmds["simulator"]  # the work is measured from the simulator's actuator effort
     with pytest.raises(SystemExit):
-        pipeline.parse_args(["--optimize", "efficiency"])  # the live robot records no actuator work
+        pipeline.parse_args(["--optimize", "nosuch"])
 
 
 @pytest.mark.ros

@@ -77,16 +77,23 @@ class LiveGaitSearch:
         self.newest_shape = -math.inf
         self.newest_pose = -math.inf
         self._shape: dict[float, np.ndarray] = {}
+        self._effort: dict[float, np.ndarray] = {}
         self._pose: dict[float, tuple[float, float, float]] = {}
 
     # ------------------------------------------------------------ samples
-    def on_shape(self, stamp: float, r: np.ndarray) -> None:
-        """A shape sample: joint values in ``joint_names`` order (finite; checked by the caller)."""
+    def on_shape(self, stamp: float, r: np.ndarray, effort: np.ndarray | None = None) -> None:
+        """A shape sample: joint values in ``joint_names`` order (finite; checked by the caller).
+
+        ``effort``: the joints' efforts over the sample period, if the robot reports them (needed for
+        the ``efficiency`` objective).
+        """
         if self.first_stamp is None:
             self.first_stamp = stamp
         self.newest_shape = max(self.newest_shape, stamp)
         if self.commanded is not None and stamp > self.commanded_at:
             self._shape[stamp] = np.asarray(r, dtype=float)
+            if effort is not None:
+                self._effort[stamp] = np.asarray(effort, dtype=float)
 
     def on_pose(self, stamp: float, x: float, y: float, yaw: float) -> None:
         """A pose sample of the body frame (m, m, rad)."""
@@ -108,6 +115,7 @@ class LiveGaitSearch:
         self.commanded_at = self.newest_shape
         self.window = None
         self._shape.clear()
+        self._effort.clear()
         self._pose.clear()
 
     def on_switch(self, stamp: float, gait: Gait) -> Window | None:
@@ -153,9 +161,11 @@ class LiveGaitSearch:
         ts = np.array(sorted(t for t in self._shape if w.start <= t <= w.end), dtype=float)
         ps = np.array(sorted(t for t in self._pose if w.start <= t <= w.end), dtype=float)
         r = np.stack([self._shape[t] for t in ts]) if ts.size else np.zeros((0, len(self.joint_names)))
+        effort = np.stack([self._effort[t] for t in ts]) if ts.size and all(t in self._effort for t in ts) else None
         pose = np.array([self._pose[t] for t in ps], dtype=float).reshape(-1, 3)
         self.commanded, self.window = None, None
         self._shape.clear()
+        self._effort.clear()
         self._pose.clear()
         need = 8
         if ts.size < need or ps.size < need:
@@ -163,4 +173,4 @@ class LiveGaitSearch:
                                 f"samples, got {ts.size} and {ps.size}", code=TOO_FEW_SAMPLES)
         pose[:, 2] = np.unwrap(pose[:, 2])
         return Recording(t=ts, r=r, joint_names=self.joint_names, actuated=self.actuated, passive=self.passive,
-                         pose_t=ps, pose=pose, system=self.system, gait_hz=w.request.gait.gait_hz)
+                         pose_t=ps, pose=pose, system=self.system, gait_hz=w.request.gait.gait_hz, effort=effort)
