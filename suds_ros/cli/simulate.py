@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
-
 from suds_ros.cli.common import progress_bar
 from suds_ros.core.errors import SudsConfigError
 
@@ -146,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     so memory does not grow with ``--cycles``; the bag is the one the whole run written at once
     would give.  A run that fails midway leaves no file behind.
     """
-    from suds_ros.core.physics.sim import SimConfig, simulate_blocks
+    from suds_ros.core.physics.sim import SimConfig, effort_by_joint, simulate_blocks
     from suds_ros.core.physics.systems import load_system
     from suds_ros.io.recording_bag import RecordingWriter
 
@@ -203,10 +201,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with writer:
             for b in blocks:
-                eff = None
-                if args.effort:
-                    eff = np.zeros_like(b.r)
-                    eff[:, act] = b.truth["effort"]
+                eff = effort_by_joint(system, b.truth["effort"]) if args.effort else None
                 writer.write(b.t, b.r, b.pose_t, b.pose, eff)
     except BaseException:
         out.unlink(missing_ok=True)  # half a run is not the recording asked for

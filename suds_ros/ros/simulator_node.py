@@ -85,7 +85,7 @@ from rclpy.task import Future
 from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError, SudsError
 from suds_ros.core.physics.gait import Gait, check_gait, load_gait, nominal_gait
-from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.sim import SimConfig, effort_by_joint
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.systems import load_system
 from suds_ros.core.recording import samples_per_cycle
@@ -385,10 +385,7 @@ class SimulatorNode(Node):
                 self.get_logger().info(f"gait {gait[0] or '(nominal)'} on from stamp {self._chunk.t[0]:.6f}")
         c, i = self._chunk, self._chunk_i
         self._chunk_i += 1
-        effort = None
-        if c.effort is not None:  # in joint order: the actuated joints' effort, 0 on the passive ones
-            effort = np.zeros(len(self.names))
-            effort[list(self.system.actuated)] = c.effort[i]
+        effort = None if c.effort is None else effort_by_joint(self.system, c.effort[i])
         return float(c.t[i]), c.r[i], c.pose[i], effort
 
     def _waiting(self) -> bool:

@@ -92,7 +92,7 @@ from suds_ros.core.physics.gait import (
     nominal_gait,
     with_predicted,
 )
-from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.sim import SimConfig, effort_by_joint
 from suds_ros.core.physics.stream import StreamingSimulator
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording
@@ -511,9 +511,8 @@ class _Robot:
         pose = np.concatenate([c.pose for c in chunks])
         r = np.concatenate([c.r for c in chunks])
         effort = None
-        if self.sim.with_effort:  # as `suds simulate --effort` records it: the actuated columns, 0 elsewhere
-            effort = np.zeros_like(r)
-            effort[:, list(self.system.actuated)] = np.concatenate([c.effort for c in chunks])
+        if self.sim.with_effort:  # as `suds simulate --effort` records it
+            effort = effort_by_joint(self.system, np.concatenate([c.effort for c in chunks]))
         rec = Recording(t=t, r=r, joint_names=self.system.joint_names, actuated=self.actuated, passive=self.passive,
                         pose_t=t, pose=pose, system=self.system.name, gait_hz=gait.gait_hz, effort=effort)
         return rec, same

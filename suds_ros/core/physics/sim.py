@@ -776,6 +776,14 @@ def _rest_angles(system: SudsSystem) -> FloatArray:
     return np.asarray(rest, dtype=float)[list(system.passive)]
 
 
+def effort_by_joint(system: SudsSystem, effort: FloatArray) -> FloatArray:
+    """Actuator effort (…, na) spread over all joints (…, nj) in joint order, 0 on the passive ones."""
+    effort = np.asarray(effort, dtype=float)
+    out = np.zeros(effort.shape[:-1] + (len(system.joint_names),))
+    out[..., list(system.actuated)] = effort
+    return out
+
+
 def _effort_at_samples(system: SudsSystem, r_a: FloatArray, r: FloatArray, dt: float) -> FloatArray:
     """Actuator effort (n, na) at each sample: the effort over the sample period that ends there.
 
