@@ -112,5 +112,9 @@ def run(args: argparse.Namespace) -> int:
     for c in record.channels:
         print(f"  {c.channel:<{width}}  {c.worst_name:<5}  {when(c.first_warn):>10}  {when(c.first_error):>11}  "
               f"{c.max_statistic:8.3g}")
+    if record.lag_s is not None and record.lag_score > config.warn:
+        print(f"the body channels' misfit has the shape a pose stream {1e3 * record.lag_s:+.2f} ms late on the shape "
+              f"stream leaves (score {record.lag_score:.3g}); if the streams' stamps may be off, check them "
+              f"(`suds diagnose` tells a lag from other causes)")
     print(f"worst: {record.to_dict()['worst']}")
     return 0

@@ -29,13 +29,16 @@ def no_nan(text: str) -> object:
 @pytest.fixture(scope="module")
 def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("monitor")
-    out = {"nominal": d / "nominal.mcap", "current": d / "current.mcap", "short": d / "short.mcap"}
+    out = {"nominal": d / "nominal.mcap", "current": d / "current.mcap", "short": d / "short.mcap",
+           "late": d / "late.mcap"}
     assert main(["simulate", "purcell3", "-o", str(out["nominal"]), "--cycles", "6", "--seed", "2"]) == 0
     # a current from the first sample, recorded the lab way (pose 50 Hz from another start, jitter, drops)
     assert main(["simulate", "purcell3", "-o", str(out["current"]), "--cycles", "6", "--seed", "3",
                  "--effect", "background_flow:vx=0.15,vy=0", "--pose-rate", "50", "--pose-phase-ms", "3.7",
                  "--jitter-ms", "0.4", "--drop", "0.01"]) == 0
     assert main(["simulate", "purcell3", "-o", str(out["short"]), "--cycles", "2", "--seed", "4"]) == 0
+    assert main(["simulate", "swimmer9", "-o", str(out["late"]), "--cycles", "7", "--seed", "5",
+                 "--effect", "sensor_time_offset:dt=0.01"]) == 0
     return out
 
 
@@ -70,6 +73,17 @@ def test_text_names_the_first_error(bags: dict[str, Path], capsys: pytest.Captur
     xi_x = next(ln.split() for ln in out if ln.strip().startswith("xi_x"))
     assert xi_x[1] == "ERROR" and xi_x[3] == xi_x[5] == "s" and 3.0 <= float(xi_x[2]) <= float(xi_x[4]) <= 6.0
     assert out[-1] == "worst: ERROR"
+
+
+def test_text_says_the_lag_of_a_late_pose_stream(bags: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["monitor", str(bags["late"])]) == 0
+    out = capsys.readouterr().out.splitlines()
+    body = {ln.split()[0]: ln.split()[1] for ln in out if ln.strip().startswith("xi_")}
+    assert body == {"xi_x": "ERROR", "xi_y": "ERROR", "xi_theta": "ERROR"}, out
+    lag = [ln for ln in out if "ms late" in ln]
+    assert len(lag) == 1 and abs(float(lag[0].split("pose stream ")[1].split()[0]) - 10.0) < 1.5, lag
+    assert main(["monitor", str(bags["nominal"])]) == 0
+    assert "ms late" not in capsys.readouterr().out
 
 
 def test_model_file_names_the_robot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

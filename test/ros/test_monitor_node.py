@@ -139,7 +139,7 @@ def test_monitor_node_publishes_per_channel_statuses(ros_context):
     node = MonitorNode(context=ros_context, parameter_overrides=[Parameter("diagnose", value=False)])
     try:
         sim = StreamingSimulator(node.system, SimConfig(seed=0))
-        for _ in range(4):
+        for _ in range(5):
             ch = sim.step(100)
             for k in range(100):
                 node._on_pose(pose_to_msg(ch.t[k], *ch.pose[k]))
@@ -148,6 +148,10 @@ def test_monitor_node_publishes_per_channel_statuses(ros_context):
         assert [r.name for r in reports] == [f"suds_monitor/{c}" for c in ("joint_2", "xi_x", "xi_y", "xi_theta")]
         assert all(r.level == 0 and float(r.values["statistic"]) < 4.0 for r in reports)
         assert reports[0].stamp == pytest.approx(ch.t[-1]) and float(reports[0].values["since"]) <= ch.t[-1]
+        # the body channels carry the pose-lag fit (from 4 whole cycles on): about 0 for the nominal streams
+        assert "pose_lag_s" not in reports[0].values
+        assert all(abs(float(r.values["pose_lag_s"])) < 1e-3 and float(r.values["pose_lag_score"]) < 4.0
+                   for r in reports[1:]), [r.values for r in reports]
     finally:
         node.close()
         node.destroy_node()

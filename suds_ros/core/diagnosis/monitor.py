@@ -68,7 +68,13 @@ gait but is small next to one cycle's noise (a pose stream a few ms late) is see
 several cycles: from ``MIN_COHERENT`` whole cycles on, the channel's F is the larger of that and
 the phase-coherent score over the last ``coherent_cycles`` cycles (:func:`coherent_statistic`:
 the residual's power at the first ``harmonics`` gait harmonics against the power between them,
-scored by its tail probability under noise: WARN at 1e-5, ERROR at 1e-6 per update).  Level OK (F ≤ ``warn``), WARN
+scored by its tail probability under noise: WARN at 1e-5, ERROR at 1e-6 per update).  The body
+channels take at least the score of one misfit of known shape over them all: a pose stream τ late
+on the shape stream leaves −τ times the derivative of the predicted body velocity, so τ is fitted
+to every body channel and harmonic at once and scored the same way (:func:`lag_statistic`, one
+degree of freedom: a lag far too small for any one channel's statistic; :attr:`MonitorRecord.lag_s`
+keeps the lag read at its largest score, and ``suds monitor`` says it when that score passes WARN).
+Level OK (F ≤ ``warn``), WARN
 (``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
 entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
 of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
@@ -106,7 +112,7 @@ import numpy as np
 
 from suds_ros.core import json_text
 from suds_ros.core import se2
-from suds_ros.core._typing import BoolArray, FloatArray
+from suds_ros.core._typing import BoolArray, ComplexArray, FloatArray, IntArray
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
@@ -279,13 +285,17 @@ class MonitorRecord:
     """What the monitor reported over a run: per channel :class:`ChannelRecord`, the first and last report.
 
     ``first_report`` / ``last_report``: stamps (s) of the first and last statistics update, None
-    before the first.  ``updates``: how many there were.
+    before the first.  ``updates``: how many there were.  ``lag_score``: the largest
+    :func:`lag_statistic` score so far, ``lag_s`` the pose stream's lag behind the shape stream
+    estimated with it (s; None before the first score).
     """
 
     channels: tuple[ChannelRecord, ...]
     first_report: float | None = None
     last_report: float | None = None
     updates: int = 0
+    lag_score: float = 0.0
+    lag_s: float | None = None
 
     @property
     def worst(self) -> int:
@@ -549,39 +559,75 @@ def residual_floor(system: SudsSystem, t: FloatArray, r: FloatArray, pose: Float
     return e, noise_power(t, e1, w)
 
 
+class _Spectrum(NamedTuple):
+    """Fourier coefficients of series over the last N whole gait cycles (:func:`_cycle_spectrum`)."""
+
+    N: int  # whole cycles spanned
+    span: float  # N · period, s
+    j: IntArray  # bins 1 … N(H + 1) − 1 (bin j: j / span Hz)
+    harm: BoolArray  # bins on a gait harmonic (j = N, 2N, …, HN)
+    coef: tuple[ComplexArray, ...]  # per series (bins, columns)
+    local: FloatArray  # (H, columns) mean power of the first series in the bins next to each harmonic
+    noise_bins: int  # bins not on a harmonic
+
+
+def _cycle_spectrum(t: FloatArray, valid: BoolArray, period: float, cycles: int, harmonics: int,
+                    *series: FloatArray) -> _Spectrum | None:
+    """Each series' coefficients c_j = Σ_i x_i Δt_i exp(−2πi j τ_i / L) over the last N whole cycles.
+
+    ``series`` (n − 1, columns) values per interval over the stamps ``t`` (n,); ``valid`` (n − 1,)
+    the intervals to use.  N = ``cycles`` or as many as ``t`` spans, give or take a sample (None
+    below ``MIN_COHERENT``), L = N·period, τ_i the interval's middle from the span's start, bins
+    j = 1 … N(H + 1) − 1 with H = ``harmonics``.  ``local``: the first series' mean power in the
+    bins next to each harmonic (|j − kN| < N, harmonics left out): the noise there, where the noise
+    of a differenced signal rises steeply with frequency.
+    """
+    N = min(int(cycles), int(math.floor((t[-1] - t[0] + np.median(np.diff(t))) / period)))  # jitter: ± a sample
+    if N < MIN_COHERENT:
+        return None
+    L = N * period
+    start = t[-1] - L
+    tm = 0.5 * (t[1:] + t[:-1])
+    use = np.asarray(valid, dtype=bool) & (tm >= start)
+    j = np.arange(1, N * (harmonics + 1))
+    basis = np.exp(-2j * np.pi * np.outer(j, (tm[use] - start) / L))
+    dt = np.diff(t)[use, None]
+    coef = tuple(basis @ (x[use] * dt) for x in series)
+    harm = j % N == 0
+    k = np.arange(1, harmonics + 1)
+    near = (np.abs(j[None, :] - N * k[:, None]) < N) & ~harm  # (H, bins): the bins next to harmonic k
+    local = near.astype(float) @ (np.abs(coef[0]) ** 2) / near.sum(axis=1)[:, None]
+    return _Spectrum(N, L, j, harm, coef, local, int((~harm).sum()))
+
+
+def _tail_score(logsf: FloatArray) -> FloatArray:
+    """A statistic's natural-log tail probability under noise as a score.
+
+    0 down to a ``SCORE_ZERO`` tail, then ``SCORE_PER_DECADE`` per decade below it.
+    """
+    decades = -np.asarray(logsf) / math.log(10.0)
+    return SCORE_PER_DECADE * np.maximum(decades + math.log10(SCORE_ZERO), 0.0)
+
+
 def harmonic_ratio(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
                    harmonics: int) -> tuple[FloatArray, int]:
     """The residual's power at the gait's harmonics over the power next to them, per channel; its noise bins.
 
     ``e1`` (n − 1, channels) the one-interval residuals over the stamps ``t`` (n,), ``valid``
     (n − 1,) the intervals to use, ``period`` the gait period, s.  Over the last N whole cycles
-    (N = ``cycles`` or as many as ``t`` spans, give or take a sample; at least ``MIN_COHERENT``,
-    else NaN), a span L = N·period, the residual's Fourier coefficients
-    c_j = Σ_i e1_i Δt_i exp(−2πi j τ_i / L) (τ_i the interval's middle from the span's start) for
-    j = 1 … N(H + 1) − 1, H = ``harmonics``.  What repeats with the gait falls on j = N, 2N, …, HN;
-    noise of any smooth spectrum spreads over every j.  ρ = the mean over the harmonics k of
-    |c_kN|² / the mean |c_j|² of the bins next to it (|j − kN| < N: the noise of a differenced
-    signal rises steeply with frequency) is ≈ 1 under noise, about an F(2H, 2K) variable with K the
-    other bins (returned), and 1 + N × the power ratio of a periodic misfit.  A misfit that does not
-    repeat with the gait (or a gait far from ``period``) goes to the other bins and lowers ρ.
+    (:func:`_cycle_spectrum`; at least ``MIN_COHERENT``, else NaN) what repeats with the gait falls
+    on the bins j = N, 2N, …, HN; noise of any smooth spectrum spreads over every j.  ρ = the mean
+    over the harmonics k of |c_kN|² / the mean |c_j|² of the bins next to it is ≈ 1 under noise,
+    about an F(2H, 2K) variable with K the other bins (returned), and 1 + N × the power ratio of a
+    periodic misfit.  A misfit that does not repeat with the gait (or a gait far from ``period``)
+    goes to the other bins and lowers ρ.
     """
-    N = min(int(cycles), int(math.floor((t[-1] - t[0] + np.median(np.diff(t))) / period)))  # jitter: ± a sample
-    if N < MIN_COHERENT:
+    sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1)
+    if sp is None:
         return np.full(e1.shape[1], np.nan), 0
-    L = N * period
-    start = t[-1] - L
-    tm = 0.5 * (t[1:] + t[:-1])
-    use = np.asarray(valid, dtype=bool) & (tm >= start)
-    j = np.arange(1, N * (harmonics + 1))
-    c = np.exp(-2j * np.pi * np.outer(j, (tm[use] - start) / L)) @ (e1[use] * np.diff(t)[use, None])
-    power = np.abs(c) ** 2
-    harm = j % N == 0
-    k = np.arange(1, harmonics + 1)
-    near = (np.abs(j[None, :] - N * k[:, None]) < N) & ~harm  # (H, bins): the bins next to harmonic k
-    local = near.astype(float) @ power / near.sum(axis=1)[:, None]  # (H, channels): the noise there
     with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.mean(power[harm] / local, axis=0)
-    return np.where(np.all(local > 0, axis=0), rho, np.nan), int((~harm).sum())
+        rho = np.mean(np.abs(sp.coef[0][sp.harm]) ** 2 / sp.local, axis=0)
+    return np.where(np.all(sp.local > 0, axis=0), rho, np.nan), sp.noise_bins
 
 
 def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
@@ -601,9 +647,39 @@ def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: 
     rho, K = harmonic_ratio(t, e1, valid, period, cycles, harmonics)
     if K == 0:
         return rho
-    decades = -fisher.logsf(rho, 2 * harmonics, 2 * K) / math.log(10.0)
-    score = SCORE_PER_DECADE * np.maximum(decades + math.log10(SCORE_ZERO), 0.0)
-    return np.where(np.isfinite(rho), score, np.nan)
+    return np.where(np.isfinite(rho), _tail_score(fisher.logsf(rho, 2 * harmonics, 2 * K)), np.nan)
+
+
+def lag_statistic(t: FloatArray, e1: FloatArray, xi: FloatArray, valid: BoolArray, period: float, cycles: int,
+                  harmonics: int) -> tuple[float, float]:
+    """Is the pose stream late (or early) on the shape stream?  A score and the lag, s.
+
+    ``e1`` (n − 1, b) the body channels' one-interval residuals (measured − predicted), ``xi``
+    (n − 1, b) the predicted body velocity on the same intervals, the other arguments as in
+    :func:`harmonic_ratio`.  A pose stamped τ late measures ξ(t − τ) ≈ ξ − τ ξ̇: its residual is
+    −τ times the derivative of the prediction, the same τ in every body channel and at every
+    harmonic.  At the harmonic bins, where ξ̇'s coefficient is a = 2πi j/L · X (X the prediction's),
+    weighted least squares with the :func:`_cycle_spectrum` noise (P the power next to each
+    harmonic, per channel) gives τ̂ = −Σ Re(ā c)/P / Σ |a|²/P, and its square against its noise,
+    T = (Σ Re(ā c)/P)² / (Σ |a|²/2P), is χ²(1) under noise (taken as F(1, 2K), K the noise
+    bins: P is estimated).  One degree of freedom for the misfit of every body channel and
+    harmonic: a lag far too small to stand out in any one channel's :func:`coherent_statistic`
+    does here.  The score is T's tail probability scored as there; NaN (both) with too few cycles
+    or no motion.
+    """
+    from scipy.stats import f as fisher
+
+    sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1, xi)
+    if sp is None or not np.all(sp.local > 0):
+        return math.nan, math.nan
+    c, X = sp.coef[0][sp.harm], sp.coef[1][sp.harm]
+    a = 2j * np.pi * sp.j[sp.harm, None] / sp.span * X
+    weight = float(np.sum(np.abs(a) ** 2 / sp.local))
+    if not weight > 0:
+        return math.nan, math.nan
+    proj = float(np.sum(np.real(np.conj(a) * c) / sp.local))
+    T = proj**2 / (0.5 * weight)
+    return float(_tail_score(fisher.logsf(T, 1, 2 * sp.noise_bins))), -proj / weight
 
 
 # ------------------------------------------------------------------ the monitor
@@ -732,6 +808,7 @@ class MismatchMonitor:
                                        for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
         self._since_update = 0
         self._floor: FloatArray | None = None  # the channels' noise floors, renewed every FLOOR_EVERY updates
+        self.lag: tuple[float, float] = (math.nan, math.nan)  # the last lag_statistic: score, lag (s)
         self.statuses: tuple[ChannelStatus, ...] = ()
         self.record = MonitorRecord(tuple(ChannelRecord(c) for c in self.channels))
         self.updated = 0  # number of statistic updates
@@ -1003,12 +1080,22 @@ class MismatchMonitor:
         return t, R, P, (rates[..., :3], rates[..., 3:]), shape_ok, pose_ok
 
     def _coherent(self, ready: int) -> FloatArray:
-        """:func:`coherent_statistic` of the data over the last ``coherent_cycles`` cycles at hand."""
+        """The phase-coherent scores over the last ``coherent_cycles`` cycles at hand, per channel.
+
+        Each channel's :func:`coherent_statistic`; on the body channels at least the
+        :func:`lag_statistic` of them together (kept, with its lag, in :attr:`lag`).
+        """
         cfg = self.config
         t, R, P, split, shape_ok, pose_ok = self._series(ready, cfg.coherent_cycles * self._spc + 1, False)
         e1 = equation_residuals(self.system, t, R, P, 1, split)[0]
-        return coherent_statistic(t, e1, shape_ok & pose_ok[:-1] & pose_ok[1:], 1.0 / cfg.gait_hz,
-                                  cfg.coherent_cycles, cfg.harmonics)
+        valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
+        period = 1.0 / cfg.gait_hz
+        score = coherent_statistic(t, e1, valid, period, cfg.coherent_cycles, cfg.harmonics)
+        nb = len(self.channels) - len(self.system.passive)
+        self.lag = lag_statistic(t, e1[:, -nb:], split[0][0][:, :nb], valid, period, cfg.coherent_cycles,
+                                 cfg.harmonics)
+        score[-nb:] = np.fmax(score[-nb:], self.lag[0])
+        return score
 
     def _set_levels(self, stamp: float, F: FloatArray) -> None:
         cfg = self.config
@@ -1022,8 +1109,12 @@ class MismatchMonitor:
         self.statuses = tuple(out)
         self.updated += 1
         rec = self.record
+        lag_score, lag_s = rec.lag_score, rec.lag_s
+        if np.isfinite(self.lag[0]) and (lag_s is None or self.lag[0] >= lag_score):
+            lag_score, lag_s = self.lag[0], self.lag[1]
         self.record = MonitorRecord(tuple(c.seen(s, stamp) for c, s in zip(rec.channels, out)),
-                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated)
+                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated,
+                                    lag_score, lag_s)
         if all(s.level == OK for s in out):
             self._armed = True
         self._maybe_request(stamp)

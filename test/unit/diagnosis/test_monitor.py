@@ -20,6 +20,7 @@ from suds_ros.core.diagnosis.monitor import (
     drive_kinks,
     equation_residuals,
     harmonic_ratio,
+    lag_statistic,
     monitor_recording,
     recording_config,
 )
@@ -92,11 +93,11 @@ def test_nominal_60_cycles_never_alarm(purcell3):
     assert mon.channels == ("joint_2", "xi_x", "xi_y", "xi_theta")
 
 
-def _differenced_noise(rng, cycles, spc=100, period=1.0, jitter=0.0):
+def _differenced_noise(rng, cycles, spc=100, period=1.0, jitter=0.0, channels=2):
     """Stamps and one-interval residuals that are a first difference of white noise (as a pose's are)."""
     n = cycles * spc + 1
     t = np.arange(n) * period / spc + jitter * period / spc * rng.uniform(-0.4, 0.4, n)
-    m = 1e-3 * rng.standard_normal((n, 2))
+    m = 1e-3 * rng.standard_normal((n, channels))
     return t, np.diff(m, axis=0) / np.diff(t)[:, None]
 
 
@@ -139,13 +140,53 @@ def test_coherent_statistic_sees_what_repeats_with_the_gait_and_nothing_else():
     assert np.all(np.isnan(coherent_statistic(t[:301], e1[:300], valid[:300], 1.0, 8, 2)))
 
 
-def test_a_pose_stream_9_ms_late_errs_within_3_cycles_of_the_first_report(swimmer9):
-    """Three times the diagnosis' detection limit: too small for one cycle's noise, seen over several."""
-    effect = {"name": "sensor_time_offset", "dt": 0.009}
-    rec = recording(swimmer9, [effect], seed=3, lab=LabConditions(pose_hz=50.0, jitter=0.0004, drop=0.01))
+def _gait_velocity(t):
+    """A body velocity (intervals, 3) at the gait's first two harmonics, and its derivative."""
+    tm = 0.5 * (t[1:] + t[:-1])
+    w = 2 * np.pi
+    xi = np.stack([0.02 + 0.02 * np.cos(2 * w * tm), 0.05 * np.sin(w * tm + 0.3), 0.05 * np.cos(w * tm)], axis=1)
+    dxi = np.stack([-0.04 * w * np.sin(2 * w * tm), 0.05 * w * np.cos(w * tm + 0.3), -0.05 * w * np.sin(w * tm)],
+                   axis=1)
+    return xi, dxi
+
+
+def test_lag_statistic_under_noise_has_its_law_and_finds_a_lag_the_channels_alone_miss():
+    """Under noise: lags read off noise are normal about 0, the score stays 0; a lagging pose is measured and scored."""
+    rng = np.random.default_rng(2)
+    valid = np.ones(800, bool)
+    scores, noise_lags, lags = [], [], []
+    for _ in range(300):
+        t, e1 = _differenced_noise(rng, 8, jitter=0.5, channels=3)
+        xi, dxi = _gait_velocity(t)
+        score, lag = lag_statistic(t, e1, xi, valid, 1.0, 8, 2)
+        scores.append(score)
+        noise_lags.append(lag)
+        lags.append(lag_statistic(t, e1 - 0.002 * dxi, xi, valid, 1.0, 8, 2)[1])  # the pose 2 ms late
+    assert np.max(scores) < MonitorConfig().warn and np.mean(np.array(scores) > 0) < 0.01
+    z = np.array(noise_lags) / np.std(noise_lags)
+    assert abs(np.mean(z)) < 0.2 and 0.02 < np.mean(np.abs(z) > 1.96) < 0.09
+    lags = np.array(lags)  # unbiased, with the spread that noise alone gives
+    assert abs(np.mean(lags) - 0.002) < 3 * np.std(lags) / np.sqrt(lags.size)
+    assert abs(np.std(lags) / np.std(noise_lags) - 1.0) < 0.15
+    # a 6 ms lag: far above the noise for the lag statistic, below WARN in every channel's own statistic
+    t, e1 = _differenced_noise(np.random.default_rng(3), 8, channels=3)
+    xi, dxi = _gait_velocity(t)
+    score, lag = lag_statistic(t, e1 - 0.006 * dxi, xi, valid, 1.0, 8, 2)
+    assert score > 2 * MonitorConfig().error and abs(lag - 0.006) < 3 * np.std(noise_lags), (score, lag)
+    assert np.all(coherent_statistic(t, e1 - 0.006 * dxi, valid, 1.0, 8, 2) < MonitorConfig().warn)
+    assert np.isnan(lag_statistic(t[:301], e1[:300], xi[:300], valid[:300], 1.0, 8, 2)[0])  # 3 cycles: too few
+
+
+@pytest.mark.parametrize("pose_hz, seed", [(50.0, 3), (120.0, 8)])  # (seed 8: each channel's own statistic, alone,
+def test_a_pose_stream_3_ms_late_errs_within_3_cycles_of_the_first_report(swimmer9, pose_hz, seed):  # never errs)
+    """Three times the diagnosis' detection limit: too small for one cycle's noise, seen over several, lag measured."""
+    effect = {"name": "sensor_time_offset", "dt": 0.003}
+    rec = recording(swimmer9, [effect], seed=seed, lab=LabConditions(pose_hz=pose_hz, jitter=0.0004, drop=0.01))
     record = monitor_recording(rec, swimmer9)
     errors = [c.first_error for c in record.channels if c.first_error is not None]
     assert errors and min(errors) - record.first_report <= 3.0, [(c.channel, c.max_statistic) for c in record.channels]
+    assert abs(record.lag_s - 0.003) < 0.001, record.lag_s
+    assert {c.channel for c in record.channels if c.first_error is not None} <= {"xi_x", "xi_y", "xi_theta"}
     single = monitor_recording(rec, swimmer9, recording_config(rec, coherent_cycles=0))
     assert single.worst < ERROR  # one cycle's window statistic alone does not see it
 
