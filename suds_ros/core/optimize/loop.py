@@ -620,7 +620,8 @@ class RunRequest:
     gait : Gait, the gait to switch to (at a cycle boundary) and run.
     cycles : int, cycles to run it: ``settle_cycles`` to discard, then the cycles to measure.
     kind : str, ``start``, ``candidate`` (a trust-region step), ``confirm`` (a candidate whose
-        measured gain was within ``confirm_sigmas``, again) or ``rerun`` (the incumbent again).
+        measured gain was within ``confirm_sigmas``, again), ``rerun`` (the incumbent again) or
+        ``floor`` (the start gait again after a change: turn and efficiency keep its speed).
     """
 
     gait: Gait
@@ -646,7 +647,10 @@ class GaitSearch:
     measures more than ``change_sigmas`` standard errors away from the standing measurement (or
     any rerun after :meth:`robot_changed`) *replaces* the incumbent's data: the old stretches are
     dropped, and the model and the search start afresh on the changed robot.  Otherwise the
-    stretches are pooled.
+    stretches are pooled.  For ``turn`` and ``efficiency``, whose floor is the start gait's speed,
+    a change also has the start gait run again (a ``floor`` run, when the incumbent is another
+    gait): the floor is its speed on the changed robot, and it becomes the incumbent again if it
+    now measures better.
 
     Parameters
     ----------
@@ -786,6 +790,8 @@ class GaitSearch:
                                accepted=True, trust=None, trust_used=None, note=req.note)
         elif req.kind == "rerun":
             it = self._rerun_done(req, meas, data)
+        elif req.kind == "floor":
+            it = self._floor_done(req, meas, data)
         elif req.kind == "confirm":
             stretches = [*self._confirming, data]
             self._confirming = []
@@ -813,6 +819,14 @@ class GaitSearch:
             note = f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, measured again"
         if self._best_gait is self._start:  # the floor is the start gait's speed: measured again
             self._speed_floor, self._floor_se = self._best_meas.speed, self._best_meas.speed_se
+        elif (self._fresh or moved) and cfg.objective != "speed":
+            # the floor is the start gait's speed on the robot as it was: measure it on the changed one
+            n = self._step_cycles
+            if self.cycles_used + n <= cfg.budget_cycles:
+                self._pending = RunRequest(self._start, n, "floor", "the start gait on the changed robot: "
+                                                                    "its speed is the floor")
+            else:
+                self.stopped = "the robot changed and the budget cannot measure the speed floor on it again"
         self._fresh, self._low_streak = False, 0
         self._model, self._kappa, self._rejected = None, cfg.trust, []
         it = LoopIteration(index=len(self.iterations), gait=self._best_gait, cycles=req.cycles,
@@ -821,6 +835,22 @@ class GaitSearch:
                            trust_used=None, note=f"{note}, model refitted, trust → {self._kappa:.3g}")
         self._best_index = it.index
         return it
+
+    def _floor_done(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
+        """The start gait measured on a changed robot: the new speed floor; the incumbent if it now measures better."""
+        cfg, old = self.config, self._best_meas
+        assert old is not None
+        self._speed_floor, self._floor_se = meas.speed, meas.speed_se
+        taken = is_better(meas, old, cfg, self._speed_floor, self._floor_se)
+        note = f"{req.note}: floor → {meas.speed:.4g} m/s"
+        if taken:
+            self._best_gait, self._best_meas, self._best_data, self._best_pred = self._start, meas, [data], None
+            self._best_index, self._model, self._kappa, self._rejected = len(self.iterations), None, cfg.trust, []
+            note += "; it measures better than the incumbent, and is the incumbent again"
+        return LoopIteration(index=len(self.iterations), gait=self._start, cycles=req.cycles,
+                             cycles_used=self.cycles_used, predicted=None, predicted_std=None,
+                             predicted_incumbent=None, measured=meas, accepted=taken, trust=None, trust_used=None,
+                             note=note)
 
     def _measure(self, data: Recording | list[Recording], gait: Gait) -> Measurement:
         return measure_recording(data, self.config.samples_per_cycle, gait.gait_hz, work=self._work)

@@ -198,6 +198,22 @@ def test_a_robot_that_changes_mid_run_is_noticed_and_measured_afresh(purcell3) -
     assert not [it for it in same.iterations if "the robot changed" in it.note]
 
 
+def test_after_a_change_the_speed_floor_is_measured_on_the_changed_robot(purcell3) -> None:  # type: ignore
+    """Efficiency keeps the start gait's speed as its floor.  After the change is taken (the incumbent is then another
+    gait) the start gait is run again on the changed robot, and its speed there is the floor from then on."""
+    change = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
+    cfg = LoopConfig(budget_cycles=60, seed=1, objective="efficiency", watch=True)
+    its = optimize_loop(purcell3, cfg, changes=[(30, change)]).iterations
+    taken = [i for i, it in enumerate(its) if "the robot changed" in it.note]
+    assert taken and its[taken[0]].gait is not its[0].gait, [it.note for it in its]
+    floor = its[taken[0] + 1]
+    assert floor.note.startswith("the start gait on the changed robot") and floor.gait is its[0].gait
+    assert floor.measured.speed < 0.06 < its[0].measured.speed  # measured on the changed robot
+    quoted = [float(it.note.split("under the start gait's ")[1].split()[0]) for it in its[taken[0] + 2:]
+              if "under the start gait's" in it.note]
+    assert all(q == pytest.approx(floor.measured.speed, rel=1e-3) for q in quoted)
+
+
 def test_robot_changed_drops_the_incumbents_data_at_its_next_rerun(purcell3) -> None:  # type: ignore[no-untyped-def]
     cfg = LoopConfig(budget_cycles=40, seed=0)
     search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
