@@ -119,9 +119,9 @@ def to_error(mon: MonitorRecord, gait: float) -> float | None:
 
 def lag_text(effect: dict[str, object], mon: MonitorRecord) -> str:
     """The pose lag the monitor read, ms, on a pose-delay case ("—" otherwise)."""
-    if effect["name"] != "sensor_time_offset" or mon.lag_s is None:
+    if effect["name"] != "sensor_time_offset" or mon.lag is None:
         return "—"
-    return f"{1e3 * mon.lag_s:.2f}"
+    return f"{1e3 * mon.lag.seconds:.2f} ({100 * mon.lag.share:.0f} %)"
 
 
 def seed_rows(name: str, system: SudsSystem, effect: dict[str, object], seeds: range) -> list[str]:
@@ -133,7 +133,7 @@ def seed_rows(name: str, system: SudsSystem, effect: dict[str, object], seeds: r
         for seed in seeds:
             _, mon, _ = record(system, [effect], 7, LAB.get(lab or ""), seed=seed)
             delays.append(to_error(mon, gait))
-            lags.append(math.nan if mon.lag_s is None else 1e3 * mon.lag_s)
+            lags.append(math.nan if mon.lag is None else 1e3 * mon.lag.seconds)
         late = sum(d is None or d > 3.0 for d in delays)
         done = [d for d in delays if d is not None]
         worst = "never (some)" if len(done) < len(delays) else f"{max(done):.2f}"
@@ -258,7 +258,7 @@ def report(cases: list[tuple[str, float | None, str]], srows: list[str], nrows: 
         "detection limits are not measured).  *first report*: cycles from the first stamp; "
         "*to ERROR*: cycles from the first report to the first ERROR on any channel (target: ≤ 3); "
         "*largest F*: the channel with the largest F and that F; *lag read*: on a pose delay, the lag the "
-        "monitor fitted at its largest lag score, ms.",
+        "monitor fitted at its largest lag score, ms, and the share of the body channels' misfit it explains.",
         "",
         "| robot | streams | effect | target | parameter | first report (cycles) | to ERROR (cycles) | "
         "channels in ERROR first | largest F | lag read (ms) |",

@@ -86,7 +86,7 @@ def check_joints(rec: Recording, system: SudsSystem) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``suds monitor``; returns the exit code."""
-    from suds_ros.core.diagnosis.monitor import monitor_recording, recording_config
+    from suds_ros.core.diagnosis.monitor import LAG_SHARE, monitor_recording, recording_config
 
     rec, model = load_recording_and_model(args.bag, args)
     system = nominal_system(rec, args, model)
@@ -112,9 +112,10 @@ def run(args: argparse.Namespace) -> int:
     for c in record.channels:
         print(f"  {c.channel:<{width}}  {c.worst_name:<5}  {when(c.first_warn):>10}  {when(c.first_error):>11}  "
               f"{c.max_statistic:8.3g}")
-    if record.lag_s is not None and record.lag_score > config.warn:
-        print(f"the body channels' misfit has the shape a pose stream {1e3 * record.lag_s:+.2f} ms late on the shape "
-              f"stream leaves (score {record.lag_score:.3g}); if the streams' stamps may be off, check them "
-              f"(`suds diagnose` tells a lag from other causes)")
+    lag = record.lag
+    if lag is not None and lag.score > config.warn and lag.share >= LAG_SHARE:
+        print(f"the body channels' misfit is mostly ({100 * lag.share:.0f} %) what a pose stream "
+              f"{1e3 * lag.seconds:+.2f} ms late on the shape stream leaves (score {lag.score:.3g}): check the "
+              f"streams' stamps (`suds diagnose` tells a lag from other causes)")
     print(f"worst: {record.to_dict()['worst']}")
     return 0

@@ -161,15 +161,16 @@ class MonitorNode(Node):
         """The DiagnosticArray of the current channel statuses (stamp: the newest sample's)."""
         cfg = self.monitor.config
         stamp = self.monitor.last_stamp
-        score, lag = self.monitor.lag
+        lag = self.monitor.lag
         body = set(self.monitor.channels[len(self.system.passive):])
         msgs = []
         for s in self.monitor.statuses:
             text = f"F = {s.statistic:.3g} since {s.since:.3f} s"
             values = {"statistic": f"{s.statistic:.6g}", "since": f"{s.since:.6f}", "warn": f"{cfg.warn:g}",
                       "error": f"{cfg.error:g}"}
-            if s.channel in body and math.isfinite(score):  # the body channels' pose-lag fit (core lag_statistic)
-                values.update(pose_lag_s=f"{lag:.6g}", pose_lag_score=f"{score:.6g}")
+            if s.channel in body and math.isfinite(lag.score):  # the body channels' pose-lag fit (lag_statistic)
+                values.update(pose_lag_s=f"{lag.seconds:.6g}", pose_lag_score=f"{lag.score:.6g}",
+                              pose_lag_share=f"{lag.share:.6g}")
             msgs.append(diagnostics_to_msg(stamp, f"suds_monitor/{s.channel}", values, level=LEVEL_NAMES[s.level],
                                            message=text, hardware_id=self.system.name))
         out = msgs[0]

@@ -151,6 +151,7 @@ def test_monitor_node_publishes_per_channel_statuses(ros_context):
         # the body channels carry the pose-lag fit (from 4 whole cycles on): about 0 for the nominal streams
         assert "pose_lag_s" not in reports[0].values
         assert all(abs(float(r.values["pose_lag_s"])) < 1e-3 and float(r.values["pose_lag_score"]) < 4.0
+                   and 0.0 <= float(r.values["pose_lag_share"]) <= 1.0
                    for r in reports[1:]), [r.values for r in reports]
     finally:
         node.close()

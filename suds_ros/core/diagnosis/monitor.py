@@ -72,8 +72,9 @@ scored by its tail probability under noise: WARN at 1e-5, ERROR at 1e-6 per upda
 channels take at least the score of one misfit of known shape over them all: a pose stream τ late
 on the shape stream leaves −τ times the derivative of the predicted body velocity, so τ is fitted
 to every body channel and harmonic at once and scored the same way (:func:`lag_statistic`, one
-degree of freedom: a lag far too small for any one channel's statistic; :attr:`MonitorRecord.lag_s`
-keeps the lag read at its largest score, and ``suds monitor`` says it when that score passes WARN).
+degree of freedom: a lag far too small for any one channel's statistic; :attr:`MonitorRecord.lag`
+keeps it at its largest score, and ``suds monitor`` says the lag when that score passes WARN and the lag
+explains most of the body channels' misfit).
 Level OK (F ≤ ``warn``), WARN
 (``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
 entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
@@ -151,6 +152,9 @@ MIN_COHERENT = 4
 #: decade below it (with the default levels WARN at a 1e-5 tail, ERROR at 1e-6)
 SCORE_ZERO = 1e-4
 SCORE_PER_DECADE = 4.0
+#: a pose lag is named (``suds monitor``) only when its fit explains at least this share of the body channels'
+#: weighted misfit at the gait harmonics (:func:`lag_statistic`; friction or damping lean the same way, partly)
+LAG_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -285,17 +289,15 @@ class MonitorRecord:
     """What the monitor reported over a run: per channel :class:`ChannelRecord`, the first and last report.
 
     ``first_report`` / ``last_report``: stamps (s) of the first and last statistics update, None
-    before the first.  ``updates``: how many there were.  ``lag_score``: the largest
-    :func:`lag_statistic` score so far, ``lag_s`` the pose stream's lag behind the shape stream
-    estimated with it (s; None before the first score).
+    before the first.  ``updates``: how many there were.  ``lag``: the :func:`lag_statistic` at its
+    largest score so far (None before the first).
     """
 
     channels: tuple[ChannelRecord, ...]
     first_report: float | None = None
     last_report: float | None = None
     updates: int = 0
-    lag_score: float = 0.0
-    lag_s: float | None = None
+    lag: Lag | None = None
 
     @property
     def worst(self) -> int:
@@ -650,9 +652,20 @@ def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: 
     return np.where(np.isfinite(rho), _tail_score(fisher.logsf(rho, 2 * harmonics, 2 * K)), np.nan)
 
 
+class Lag(NamedTuple):
+    """:func:`lag_statistic`'s answer (all NaN with too few cycles or no motion)."""
+
+    score: float  # scored like coherent_statistic (WARN 4, ERROR 8 with the default levels)
+    seconds: float  # the pose stream's lag behind the shape stream, s
+    share: float  # the part of the body channels' noise-weighted misfit at the harmonics that the lag explains
+
+
+NO_LAG = Lag(math.nan, math.nan, math.nan)
+
+
 def lag_statistic(t: FloatArray, e1: FloatArray, xi: FloatArray, valid: BoolArray, period: float, cycles: int,
-                  harmonics: int) -> tuple[float, float]:
-    """Is the pose stream late (or early) on the shape stream?  A score and the lag, s.
+                  harmonics: int) -> Lag:
+    """Is the pose stream late (or early) on the shape stream?  A score, the lag (s) and how much it explains.
 
     ``e1`` (n − 1, b) the body channels' one-interval residuals (measured − predicted), ``xi``
     (n − 1, b) the predicted body velocity on the same intervals, the other arguments as in
@@ -664,22 +677,25 @@ def lag_statistic(t: FloatArray, e1: FloatArray, xi: FloatArray, valid: BoolArra
     T = (Σ Re(ā c)/P)² / (Σ |a|²/2P), is χ²(1) under noise (taken as F(1, 2K), K the noise
     bins: P is estimated).  One degree of freedom for the misfit of every body channel and
     harmonic: a lag far too small to stand out in any one channel's :func:`coherent_statistic`
-    does here.  The score is T's tail probability scored as there; NaN (both) with too few cycles
-    or no motion.
+    does here.  The score is T's tail probability scored as there.  The share is the fit's part of
+    the whole weighted misfit, (Σ Re(ā c)/P)² / Σ |a|²/P / Σ |c|²/P: near 1 for a lag alone, small
+    for a misfit of another shape that merely leans the same way (friction, damping): a large score
+    with a small share says "not a lag alone".
     """
     from scipy.stats import f as fisher
 
     sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1, xi)
     if sp is None or not np.all(sp.local > 0):
-        return math.nan, math.nan
+        return NO_LAG
     c, X = sp.coef[0][sp.harm], sp.coef[1][sp.harm]
     a = 2j * np.pi * sp.j[sp.harm, None] / sp.span * X
     weight = float(np.sum(np.abs(a) ** 2 / sp.local))
     if not weight > 0:
-        return math.nan, math.nan
+        return NO_LAG
     proj = float(np.sum(np.real(np.conj(a) * c) / sp.local))
     T = proj**2 / (0.5 * weight)
-    return float(_tail_score(fisher.logsf(T, 1, 2 * sp.noise_bins))), -proj / weight
+    share = proj**2 / weight / float(np.sum(np.abs(c) ** 2 / sp.local))
+    return Lag(float(_tail_score(fisher.logsf(T, 1, 2 * sp.noise_bins))), -proj / weight, share)
 
 
 # ------------------------------------------------------------------ the monitor
@@ -808,7 +824,7 @@ class MismatchMonitor:
                                        for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
         self._since_update = 0
         self._floor: FloatArray | None = None  # the channels' noise floors, renewed every FLOOR_EVERY updates
-        self.lag: tuple[float, float] = (math.nan, math.nan)  # the last lag_statistic: score, lag (s)
+        self.lag = NO_LAG  # the last lag_statistic
         self.statuses: tuple[ChannelStatus, ...] = ()
         self.record = MonitorRecord(tuple(ChannelRecord(c) for c in self.channels))
         self.updated = 0  # number of statistic updates
@@ -1094,7 +1110,7 @@ class MismatchMonitor:
         nb = len(self.channels) - len(self.system.passive)
         self.lag = lag_statistic(t, e1[:, -nb:], split[0][0][:, :nb], valid, period, cfg.coherent_cycles,
                                  cfg.harmonics)
-        score[-nb:] = np.fmax(score[-nb:], self.lag[0])
+        score[-nb:] = np.fmax(score[-nb:], self.lag.score)
         return score
 
     def _set_levels(self, stamp: float, F: FloatArray) -> None:
@@ -1109,12 +1125,11 @@ class MismatchMonitor:
         self.statuses = tuple(out)
         self.updated += 1
         rec = self.record
-        lag_score, lag_s = rec.lag_score, rec.lag_s
-        if np.isfinite(self.lag[0]) and (lag_s is None or self.lag[0] >= lag_score):
-            lag_score, lag_s = self.lag[0], self.lag[1]
+        lag = rec.lag
+        if np.isfinite(self.lag.score) and (lag is None or self.lag.score >= lag.score):
+            lag = self.lag
         self.record = MonitorRecord(tuple(c.seen(s, stamp) for c, s in zip(rec.channels, out)),
-                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated,
-                                    lag_score, lag_s)
+                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated, lag)
         if all(s.level == OK for s in out):
             self._armed = True
         self._maybe_request(stamp)
