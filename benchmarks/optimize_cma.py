@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 from _common import RESULTS, machine, run_report_cli, stamp, write
-from optimize_loop import ROBOTS, starts
+from optimize_loop import ABLATIONS, ROBOTS, starts
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, _Robot, _trim, measure_cycles
@@ -142,12 +142,13 @@ def report() -> None:
                   "|---" * (2 + len(cps)) + "|"]
         rows, ahead, total = _cells(doc, loop, cps)
         lines += rows + ["", f"The loop is ahead or level at {ahead} of {total} (seed, budget) cells.", ""]
-        confirm = RESULTS / f"optimize_loop_{name}_confirm.json"
-        if confirm.exists():  # the loop's confirmation ablation (benchmarks/optimize_loop.py --confirm-sigmas)
-            c_doc = json.loads(confirm.read_text())
-            _, c_ahead, c_total = _cells(doc, c_doc, cps)
-            lines += [f"With the loop's `confirm_sigmas` = {c_doc.get('confirm_sigmas')} "
-                      f"(`optimize_loop_{name}_confirm.json`): ahead or level at {c_ahead} of {c_total}.", ""]
+        for key, (field_name, value, *_) in ABLATIONS.items():  # the loop's ablations (optimize_loop.py --ablation)
+            other = RESULTS / f"optimize_loop_{name}_{key}.json"
+            if other.exists():
+                a_doc = json.loads(other.read_text())
+                _, a_ahead, a_total = _cells(doc, a_doc, cps)
+                lines += [f"With the loop's `{field_name}` = {a_doc.get(field_name, value)} "
+                          f"(`{other.name}`): ahead or level at {a_ahead} of {a_total}.", ""]
     write("optimize_cma.md", "\n".join(lines) + "\n")
 
 

@@ -43,18 +43,33 @@ def starts(nom: Gait) -> dict[str, Gait]:
             "wave reversed": back}
 
 
-def _path(name: str, confirm: float) -> Path:
-    """The JSON of a robot's runs: the loop's defaults, or with ``confirm_sigmas`` (the ablation)."""
-    return RESULTS / (f"optimize_loop_{name}.json" if confirm == 0 else f"optimize_loop_{name}_confirm.json")
+#: the ablations: name → (the LoopConfig field changed from its default, its value, the section's title and text)
+ABLATIONS = {
+    "confirm": ("confirm_sigmas", 1.0, "confirm a marginal gain before keeping it",
+                "`LoopConfig.confirm_sigmas` = 1 (`--ablation confirm`): a candidate whose measured gain is within "
+                "that many standard errors of the difference is run again (1 + 4 cycles) and judged on both "
+                "stretches pooled.", "confirmations"),
+    "no-pool": ("pool_rejected", 0, "the model of the incumbent's cycles alone",
+                "`LoopConfig.pool_rejected` = 0 (`--ablation no-pool`; the default pools the newest 2 stretches "
+                "of the candidates rejected since the incumbent was set into the incumbent's model, refitted "
+                "after each rejection): each step's model is fitted to the incumbent's own cycles only, as before "
+                "2026-11-27.", "rejections"),
+}
 
 
-def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False, confirm: float = 0.0) -> None:
+def _path(name: str, ablation: str | None) -> Path:
+    """The JSON of a robot's runs: the loop's defaults, or an ablation's."""
+    return RESULTS / (f"optimize_loop_{name}.json" if ablation is None else f"optimize_loop_{name}_{ablation}.json")
+
+
+def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False, ablation: str | None = None) -> None:
     spec, budget, target = ROBOTS[name]
     system = load_system(spec)
     nom = nominal_gait(system)
     limits = gait_limits(system)
-    path = _path(name, confirm)
-    src = _path(name, 0.0)  # the limit is the robot's, whatever the loop's settings
+    path = _path(name, ablation)
+    src = _path(name, None)  # the limit is the robot's, whatever the loop's settings
+    change = {} if ablation is None else {ABLATIONS[ablation][0]: ABLATIONS[ablation][1]}
     old = json.loads(src.read_text()) if src.exists() else {}
     if reuse_limit and old.get("limit"):  # the physics limit does not depend on the loop: reuse it
         limit, secs = old["limit"], old["limit_seconds"]
@@ -63,14 +78,14 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
         limit = optimize_gait(system, OptimizeConfig(order=3, starts=4)).value
         secs = time.perf_counter() - t0
     doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs,
-           "confirm_sigmas": confirm, "runs": []}
+           "ablation": ablation, **change, "runs": []}
     print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
     for kind, start in starts(nom).items():
         if kind not in kinds:
             continue
         for seed in (seeds if kind != "wave reversed" else seeds[:1]):
             t1 = time.perf_counter()
-            res = optimize_loop(system, LoopConfig(budget_cycles=budget, seed=seed, confirm_sigmas=confirm),
+            res = optimize_loop(system, LoopConfig(budget_cycles=budget, seed=seed, **change),
                                 start=start, limits=limits)
             secs = time.perf_counter() - t1
             rows, incumbent = [], None
@@ -139,38 +154,41 @@ def aggregates() -> list[str]:
 
 
 def ablation() -> list[str]:
-    """The default loop against the loop with confirmation (``confirm_sigmas``), run by run."""
+    """Tables of the default loop against each of the ABLATIONS that was run, run by run."""
     out = []
-    for name in ROBOTS:
-        base, conf = _path(name, 0.0), _path(name, 1.0)
-        if not (base.exists() and conf.exists()):
-            continue
-        a, b = json.loads(base.read_text()), json.loads(conf.read_text())
-        limit, target = a["limit"], a["target"]
-        runs_b = {(r["start"], r["seed"]): r for r in b["runs"]}
-        if not out:
-            out += ["## Ablation: confirm a marginal gain before keeping it", "",
-                    "`LoopConfig.confirm_sigmas` (run with `--confirm-sigmas`): a candidate whose measured gain is "
-                    "within that many standard errors of the difference is run again (1 + 4 cycles) and judged on "
-                    "both stretches pooled.  % of the limit of the incumbent at the target and at the budget, "
-                    "default (off) / with confirmation; the same seeds, so the two differ only from the first "
-                    "marginal gain on.", "",
-                    "| robot | start | seed | confirm σ | at the target: off / on | at the budget: off / on | "
-                    "confirmations |", "|" + "---|" * 7]
-        sums = [0.0, 0.0]
-        for ra in a["runs"]:
-            rb = runs_b.get((ra["start"], ra["seed"]))
-            if rb is None:
+    for key, (field_name, value, title, text, counted) in ABLATIONS.items():
+        section = []
+        for name in ROBOTS:
+            base, other = _path(name, None), _path(name, key)
+            if not (base.exists() and other.exists()):
                 continue
-            ta, tb = (_at(r["rows"], target) or r["rows"][0] for r in (ra, rb))
-            ba, bb = ra["rows"][-1]["incumbent_true"] / limit, rb["rows"][-1]["incumbent_true"] / limit
-            sums[0] += ba
-            sums[1] += bb
-            out.append(f"| {name} | {ra['start']} | {ra['seed']} | {b.get('confirm_sigmas', '—')} | "
-                       f"{100 * ta['incumbent_true'] / limit:.1f} / {100 * tb['incumbent_true'] / limit:.1f} | "
-                       f"{100 * ba:.1f} / {100 * bb:.1f} | {sum(bool(x.get('confirming')) for x in rb['rows'])} |")
-        out.append(f"| {name} | **sum at the budget** | | | | {100 * sums[0]:.1f} / {100 * sums[1]:.1f} | |")
-    return out + [""] if out else []
+            a, b = json.loads(base.read_text()), json.loads(other.read_text())
+            limit, target = a["limit"], a["target"]
+            runs_b = {(r["start"], r["seed"]): r for r in b["runs"]}
+            if not section:
+                section += [f"## Ablation: {title}", "",
+                            f"{text}  % of the limit of the incumbent at the target and at the budget, default / "
+                            f"ablation; the same seeds, so the two differ only from the first decision the "
+                            "setting changes on.", "",
+                            f"| robot | start | seed | {field_name} | at the target: default / ablation | "
+                            f"at the budget: default / ablation | {counted} (ablation) |", "|" + "---|" * 7]
+            sums = [0.0, 0.0]
+            for ra in a["runs"]:
+                rb = runs_b.get((ra["start"], ra["seed"]))
+                if rb is None:
+                    continue
+                ta, tb = (_at(r["rows"], target) or r["rows"][0] for r in (ra, rb))
+                ba, bb = ra["rows"][-1]["incumbent_true"] / limit, rb["rows"][-1]["incumbent_true"] / limit
+                sums[0] += ba
+                sums[1] += bb
+                n = (sum(bool(x.get("confirming")) for x in rb["rows"]) if key == "confirm"
+                     else sum(not x["accepted"] for x in rb["rows"]))
+                section.append(f"| {name} | {ra['start']} | {ra['seed']} | {b.get(field_name, '—')} | "
+                               f"{100 * ta['incumbent_true'] / limit:.1f} / {100 * tb['incumbent_true'] / limit:.1f} | "
+                               f"{100 * ba:.1f} / {100 * bb:.1f} | {n} |")
+            section.append(f"| {name} | **sum at the budget** | | | | {100 * sums[0]:.1f} / {100 * sums[1]:.1f} | |")
+        out += section + [""] if section else []
+    return out
 
 
 def limit_info() -> dict[str, tuple[float, float]]:
@@ -284,13 +302,13 @@ def main() -> None:
     r.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     r.add_argument("--starts", nargs="+", default=["nominal", "half amplitude", "wave reversed"])
     r.add_argument("--reuse-limit", action="store_true", help="take the limit from an earlier run's JSON")
-    r.add_argument("--confirm-sigmas", type=float, default=0.0,
-                   help="LoopConfig.confirm_sigmas; > 0 writes the ablation's optimize_loop_<robot>_confirm.json")
+    r.add_argument("--ablation", choices=list(ABLATIONS),
+                   help="run an ablation (ABLATIONS) instead of the defaults: writes optimize_loop_<robot>_<name>.json")
     sub.add_parser("report")
     args = ap.parse_args()
     if args.cmd == "run":
         for name in args.robots:
-            run(name, args.seeds, args.starts, args.reuse_limit, args.confirm_sigmas)
+            run(name, args.seeds, args.starts, args.reuse_limit, args.ablation)
     else:
         report()
 

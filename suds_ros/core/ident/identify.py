@@ -255,7 +255,12 @@ class SudsIdentifier(BaseEstimator):
             names += [f"tau_{j}" for j in rec.actuated]
         return tuple(names)
 
-    def _samples(self, rec: Recording, phase: FloatArray) -> _Samples:
+    def _samples(self, rec: Recording, phase: FloatArray, pose_rows: bool = False) -> _Samples:
+        """The regression data of one recording.
+
+        ``pose_rows``: with the pose-interval rows even when they are the shape intervals
+        themselves (a bout fitted beside bouts with a pose stream of their own needs them).
+        """
         w = self.config.window
         iv = make_intervals(rec, w)
         ph = 0.5 * (phase[:-w] + phase[w:])
@@ -265,7 +270,7 @@ class SudsIdentifier(BaseEstimator):
                 raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
             Y = np.concatenate([Y, iv.effort], axis=1)
         pv = pose_intervals(rec, rec.t[:-w], rec.t[w:], w)
-        if pv.is_identity(iv.t):
+        if pv.is_identity(iv.t) and not pose_rows:
             return _Samples(iv, ph, Y, None)
         k = pv.seg_k
         frac = (pv.seg_t - rec.t[k]) / (rec.t[k + w] - rec.t[k])
@@ -355,6 +360,8 @@ class SudsIdentifier(BaseEstimator):
                 (self.regressor_.partial_fit if a else self.regressor_.fit)(Xb, Yb)
         else:
             parts = [self._samples(r, p) for r, p in zip(recs, phases)]
+            if len(parts) > 1 and any(p.pose is not None for p in parts):  # every bout on its pose intervals
+                parts = [self._samples(r, p, pose_rows=True) for r, p in zip(recs, phases)]
             X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
             s = parts[0] if len(parts) == 1 else _merged(parts)
             self.output_template_coef_ = self._fit_output_template(s)
@@ -559,7 +566,7 @@ class SudsIdentifier(BaseEstimator):
         return self.regressor_.n_parameters
 
 
-_POSE_STAMPS_MSG = ("bouts: identification on several bouts needs the pose sampled at the shape stamps "
+_POSE_STAMPS_MSG = ("bouts: predictions over several bouts need the pose sampled at the shape stamps "
                     "(as `suds import` writes it); this recording's pose stream has stamps of its own")
 
 
@@ -588,16 +595,36 @@ def _joined(recs: list[Recording]) -> Recording:
 
 
 def _merged(parts: list[_Samples]) -> _Samples:
-    """The regression data of several bouts, one after the other (``iv.k`` indexes each bout's own samples)."""
-    if any(p.pose is not None for p in parts):
-        raise SudsDataError(_POSE_STAMPS_MSG)
+    """The regression data of several bouts, one after the other (``iv.k`` indexes each bout's own samples).
+
+    With pose intervals (every part has them, or none): their segments point into the merged
+    shape intervals, and their weights are the bouts' weights block by block.
+    """
+    import scipy.sparse
+
     ivs = [p.iv for p in parts]
     effort = None if ivs[0].effort is None else np.concatenate([iv.effort for iv in ivs])  # type: ignore[misc]
     iv = Intervals(t=np.concatenate([iv.t for iv in ivs]), k=np.concatenate([iv.k for iv in ivs]),
                    r=np.concatenate([iv.r for iv in ivs]), rdot=np.concatenate([iv.rdot for iv in ivs]),
                    xi=np.concatenate([iv.xi for iv in ivs]), effort=effort,
                    dt=np.concatenate([iv.dt for iv in ivs]))
-    return _Samples(iv, np.concatenate([p.ph for p in parts]), np.concatenate([p.Y for p in parts]), None)
+    ph, Y = np.concatenate([p.ph for p in parts]), np.concatenate([p.Y for p in parts])
+    if all(p.pose is None for p in parts):
+        return _Samples(iv, ph, Y, None)
+    poses = [p.pose for p in parts]
+    if any(pv is None for pv in poses):
+        raise SudsDataError("bouts: expected pose intervals in every bout or in none")
+    offsets = np.cumsum([0] + [p.iv.t.size for p in parts[:-1]])
+    pose = PoseIntervals(t0=np.concatenate([pv.t0 for pv in poses]), t1=np.concatenate([pv.t1 for pv in poses]),
+                         xi=np.concatenate([pv.xi for pv in poses]),
+                         seg_k=np.concatenate([pv.seg_k + off for pv, off in zip(poses, offsets)]),
+                         seg_t=np.concatenate([pv.seg_t for pv in poses]),
+                         weights=scipy.sparse.block_diag([pv.weights for pv in poses], format="csr"))
+
+    def cat(name: str) -> FloatArray:
+        return np.concatenate([getattr(p, name) for p in parts])
+
+    return _Samples(iv, ph, Y, pose, cat("seg_ph"), cat("seg_r"), cat("seg_rdot"), cat("row_ph"), cat("row_r"))
 
 
 def _ranges(n: int, step: int) -> list[tuple[int, int]]:

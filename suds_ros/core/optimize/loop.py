@@ -8,10 +8,11 @@ recording holds (shape and pose samples with their noise); the physics is never 
 One iteration
 -------------
 1. **Fit**: the SUDS model of the incumbent gait (the best gait measured so far) is fitted to
-   the incumbent's own cycles (:func:`~suds_ros.core.optimize.data.learn_model`).  Data of other
-   gaits are not pooled: the gait template and the model are local to one gait.  When the
-   incumbent was run in several stretches (re-runs, below), they are fitted together (no
-   interval spans two stretches).
+   the incumbent's own cycles (:func:`~suds_ros.core.optimize.data.learn_model`) and, after a
+   rejected step, to the newest ``pool_rejected`` stretches of the candidates rejected since it
+   became the incumbent: they lie inside its trust region, so the model stays local while its
+   data spread wider.  Gaits further back are not pooled: the gait template and the model are
+   local.  Stretches are fitted together (no interval spans two stretches).
 2. **Step**: one trust-region step on that model
    (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
    data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
@@ -32,7 +33,8 @@ One iteration
    candidate becomes the incumbent and its cycles the next model's data; the radius grows
    (× ``grow``, up to ``trust_max``) when the measured gain is at least half the predicted gain
    and the step reached the region's edge.
-   Rejected: back to the incumbent's model, radius × ``shrink``.  Below ``trust_min`` the incumbent
+   Rejected: the incumbent's model refitted with the rejected cycles (``pool_rejected``; else the
+   same model), radius × ``shrink``.  Below ``trust_min`` the incumbent
    is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
    also undoes a lucky first one) and a new model, and the radius starts afresh.
 
@@ -158,6 +160,12 @@ class LoopConfig:
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
         (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
         step planned at the bound often breaks it on the robot.
+    pool_rejected : int
+        The step's model is fitted to the incumbent's stretches and to the newest this many stretches
+        of the candidates rejected since it became the incumbent (0: the incumbent's alone), refitted
+        after each rejection.  The rejected gaits lie inside the incumbent's trust region: their cycles
+        widen the data the next step is planned from, where the incumbent's few cycles alone leave
+        the model guessing (``docs/results/optimize_loop.md``, ablation).
     watch : bool
         When the model predicts no gain (converged), run the incumbent again (its stretches pooled,
         the change test above applied) instead of stopping, until the budget is spent: a deployed
@@ -193,6 +201,7 @@ class LoopConfig:
     floor_sigmas: float = 1.0
     accept_sigmas: float = 0.0
     confirm_sigmas: float = 0.0
+    pool_rejected: int = 2
     watch: bool = False
     change_sigmas: float = 2.5
     samples_per_cycle: int = 100
@@ -219,6 +228,7 @@ class LoopConfig:
                   ("floor_sigmas", math.isfinite(self.floor_sigmas) and self.floor_sigmas >= 0, "≥ 0"),
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
                   ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
+                  ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
                   ("change_sigmas", self.change_sigmas > 0, "> 0"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
@@ -679,6 +689,7 @@ class GaitSearch:
         self._kappa = config.trust
         self._model: LearnedModel | None = None
         self._rejected: list[Gait] = []
+        self._near: list[Recording] = []  # stretches of candidates rejected since the incumbent was set
         self._low_streak = 0  # rejected candidates in a row that measured far below the incumbent
         self._fresh = False  # the next rerun replaces the incumbent's data (robot_changed)
         self._change_reason = ""
@@ -733,7 +744,8 @@ class GaitSearch:
                             f"{cfg.budget_cycles - self.cycles_used} left")
             return None
         if self._model is None:
-            self._model = learn_model(self._best_data, torque=self._work)
+            near = self._near[len(self._near) - cfg.pool_rejected:] if cfg.pool_rejected else []
+            self._model = learn_model([*self._best_data, *near], torque=self._work)
         kappa = self._kappa
         dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
                                   min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(self.iterations),
@@ -810,7 +822,7 @@ class GaitSearch:
         moved = _moved(meas, old, cfg)
         if self._fresh or moved:
             why = f"said changed: {self._change_reason}" if self._fresh else f"measured {moved} from its standing value"
-            self._best_data, self._best_meas, self._best_pred = [data], meas, None
+            self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
             self.changes.append(len(self.iterations))
             note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
         else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
@@ -845,6 +857,7 @@ class GaitSearch:
         note = f"{req.note}: floor → {meas.speed:.4g} m/s"
         if taken:
             self._best_gait, self._best_meas, self._best_data, self._best_pred = self._start, meas, [data], None
+            self._near = []
             self._best_index, self._model, self._kappa, self._rejected = len(self.iterations), None, cfg.trust, []
             note += "; it measures better than the incumbent, and is the incumbent again"
         return LoopIteration(index=len(self.iterations), gait=self._start, cycles=req.cycles,
@@ -895,10 +908,13 @@ class GaitSearch:
             self._best_gait, self._best_meas, self._best_data = cand, meas, list(stretches)
             self._fresh = False  # measured on the robot as it is now
             self._best_index, self._best_pred = len(self.iterations), step.value
-            self._model, self._rejected, self._low_streak = None, [], 0
+            self._model, self._rejected, self._low_streak, self._near = None, [], 0, []
         else:
             self._kappa *= cfg.shrink
             self._rejected.append(cand)
+            if cfg.pool_rejected:  # its cycles join the incumbent's model: refitted for the next step
+                self._near = [*self._near, *stretches][-cfg.pool_rejected:]
+                self._model = None
             why = (confirm or "measured objective not higher" if self._feasible(meas)
                    else _infeasible_text(meas, cfg, self._speed_floor, self._floor_se))
             note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "

@@ -119,3 +119,19 @@ def test_a_recorded_gait_off_the_straight_course_is_brought_back_first() -> None
     assert abs(res.values["rotation"]) < abs(res.recorded_values["rotation"])
     # and on the bent robot itself the proposed gait curves less than the recorded one
     assert abs(evaluate_gait(bent, res.gait)["rotation"]) < abs(evaluate_gait(bent, start)["rotation"])
+
+
+def test_stretches_with_a_pose_stream_of_their_own_are_learnt_together() -> None:
+    """A live robot's pose comes at its own rate: several stretches of it (re-runs, rejected candidates) are
+    fitted together, each on its own pose intervals, and the model predicts as that of one stretch does."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+
+    system = make_system("purcell3")
+    gait = nominal_gait(system)
+    for hz in (50.0, 120.0):
+        rec = simulate_lab(system, SimConfig(cycles=12, seed=2), LabConditions(pose_hz=hz, pose_phase=0.0037))
+        half = rec.n_samples // 2
+        both = learn_model([rec.slice(0, half), rec.slice(half, rec.n_samples)])
+        speeds = [float(np.hypot(*LearnedCycle(m, 1.0, 1).steady_of(align_to_model(m, gait).to_vector()).g_c[0, :2]))
+                  for m in (both, learn_model(rec))]
+        assert speeds[0] == pytest.approx(speeds[1], rel=0.03), (hz, speeds)
