@@ -218,8 +218,8 @@ def report() -> None:
              "The loop (`suds_ros/core/optimize/loop.py`, defaults): the start gait runs 1 settling + 5 measured "
              "cycles; each candidate 1 settling + 4 measured cycles (every cycle counted); the SUDS model is fitted "
              "to the incumbent gait's measured cycles and to the newest 2 stretches of the candidates rejected "
-             "since it became the incumbent (refitted after each rejection); one trust-region step (κ = 2 σ, doubled after a "
-             "confirmed full step up to 8, halved after a rejection); a step is kept only if the *measured* speed "
+             "since it became the incumbent (refitted after each rejection); one trust-region step (κ = 2 σ, "
+             "doubled after a confirmed full step up to 8, halved after a rejection); a step is kept only if the *measured* speed "
              "is higher and the measured |rotation| ≤ 0.05 rad/cycle (the step itself asks the model for ≤ 0.025). "
              "Robot: the simulator with its default OU perturbation (0.175 rad, κ = 8 /s), 100 Hz, 1 mm / 1 mrad "
              "noise, seeded. 'true' = a gait on the physics at its passive periodic steady state, computed after "
@@ -288,8 +288,8 @@ def report() -> None:
               "acts on a prediction alone.",
               "- Not measured here: CMA-ES at the same budget (`optimize_cma.md`), the turn objective, efficiency "
               "(`optimize_efficiency.md`), the 'wave reversed' start on swimmer9 (swimmer9: seeds 0–2, "
-              "nominal and half amplitude). The limits were computed by this script (the physics optimiser, order 3, 4 starts; "
-              "with `--reuse-limit` taken from the robot's earlier JSON): "
+              "nominal and half amplitude). The limits were computed by this script (the physics optimiser, "
+              "order 3, 4 starts; with `--reuse-limit` taken from the robot's earlier JSON): "
               + ", ".join(f"{k} {v[0]:.5f} m/s in {v[1]:.0f} s" for k, v in limit_info().items()) + ".",
               "", *ablation(), "## Per run", "", *details]
     write("optimize_loop.md", "\n".join(lines) + "\n")
