@@ -220,7 +220,8 @@ def report() -> None:
              "to the incumbent gait's measured cycles and to the newest 2 stretches of the candidates rejected "
              "since it became the incumbent (refitted after each rejection); one trust-region step (κ = 2 σ, "
              "doubled after a confirmed full step up to 8, halved after a rejection); a step is kept only if the "
-             "*measured* speed is higher and the measured |rotation| ≤ 0.05 rad/cycle (the step itself asks the model for ≤ 0.025). "
+             "*measured* speed is higher and the measured |rotation| ≤ 0.05 rad/cycle (the step itself asks the "
+             "model for ≤ 0.025). "
              "Robot: the simulator with its default OU perturbation (0.175 rad, κ = 8 /s), 100 Hz, 1 mm / 1 mrad "
              "noise, seeded. 'true' = a gait on the physics at its passive periodic steady state, computed after "
              "the run; the loop never sees it. The gait returned at a budget is the incumbent at that point.", ""]
