@@ -226,8 +226,9 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
     ----------
     rec : Recording or sequence of Recording
         One steady gait (its bouts, if any, are not split: pass a steady recording); or several
-        separate stretches of the same gait, fitted together as the identifier fits bouts
-        (no interval spans two stretches).
+        separate stretches, fitted together as the identifier fits bouts (no interval spans two
+        stretches; each on its own pose intervals): of one gait, or of gaits close to it (the
+        loop's rejected candidates, inside the incumbent's trust region).
     torque : bool
         Also learn the actuator torques (needs ``rec.effort``); required for ``efficiency``.
     config : IdentifyConfig, optional
