@@ -53,6 +53,7 @@ ISSUE = [("swimmer9", {"name": "joint_viscous_damping", "joint": "joint_7", "d":
          ("swimmer9", {"name": "sensor_time_offset", "dt": 0.03}),
          ("purcell3", {"name": "background_flow", "vx": 0.15, "vy": 0.0})]
 SEED = 11
+DELAY_SEEDS = {False: range(1, 11), True: range(1, 4)}  # the pose delays over seeds (full, --quick)
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,11 @@ def detection_limits() -> list[Limit]:
     return [Limit(m[1], m[2], m[3], float(m[4])) for m in matches if m]
 
 
+def _gait_hz(system: SudsSystem) -> float:
+    """The gait frequency of a model-file or built-in RFT robot (1 Hz for the others)."""
+    return getattr(getattr(system, "model", None), "gait_hz", 1.0)
+
+
 def record(system: SudsSystem, effects: list[dict[str, object]], cycles: int, lab: LabConditions | None,
            warmup: float = 1.0, seed: int = SEED) -> tuple[Recording, MonitorRecord, float]:
     """Simulate ``system`` with ``effects`` from the first sample, monitor it against the nominal; seconds taken."""
@@ -105,7 +111,7 @@ def record(system: SudsSystem, effects: list[dict[str, object]], cycles: int, la
     if effects:
         model, delay = apply_effects(system.model, effects)  # type: ignore[attr-defined]
         sim = RFTChain(model)
-    gait = getattr(getattr(system, "model", None), "gait_hz", 1.0)
+    gait = _gait_hz(system)
     cfg = SimConfig(cycles=cycles, seed=seed, warmup=warmup, pose_delay=delay, gait_hz=gait)
     rec = simulate(sim, cfg) if lab is None else simulate_lab(sim, cfg, lab)
     return rec, monitor_recording(rec, system), time.perf_counter() - t0
@@ -126,7 +132,7 @@ def lag_text(effect: dict[str, object], mon: MonitorRecord) -> str:
 
 def seed_rows(name: str, system: SudsSystem, effect: dict[str, object], seeds: range) -> list[str]:
     """Rows of the pose-delay case over ``seeds``, aligned and the lab ways: cycles to ERROR and the lag read."""
-    gait = getattr(getattr(system, "model", None), "gait_hz", 1.0)
+    gait = _gait_hz(system)
     out = []
     for lab in (None, *LAB):
         delays, lags = [], []
@@ -148,7 +154,7 @@ def mismatch_row(name: str, system: SudsSystem, effect: dict[str, object], lab: 
                  ) -> tuple[str, float | None, str]:
     """The table row of one case, the cycles from the first report to ERROR (None: never) and a label."""
     rec, mon, secs = record(system, [effect], 7, LAB.get(lab or ""))
-    gait = getattr(getattr(system, "model", None), "gait_hz", 1.0)
+    gait = _gait_hz(system)
     first = (mon.first_report - rec.t[0]) * gait
     errors = [(c.first_error, c.channel) for c in mon.channels if c.first_error is not None]
     cycles = to_error(mon, gait)
@@ -201,7 +207,7 @@ def main() -> None:
     srows = []
     for lim in limits:  # the pose delays, which only the phase-coherent statistics see, over seeds
         if lim.effect == "sensor_time_offset":
-            srows += seed_rows(lim.system, systems[lim.system], lim.at(3.0), range(1, 4 if args.quick else 11))
+            srows += seed_rows(lim.system, systems[lim.system], lim.at(3.0), DELAY_SEEDS[args.quick])
 
     cycles = 20 if args.quick else 60
     nominal = [("purcell3", (None, "lab 120 Hz")), ("swimmer9", (None, "lab 50 Hz")), ("linear_passive", (None,)),
@@ -272,7 +278,7 @@ def report(cases: list[tuple[str, float | None, str]], srows: list[str], nrows: 
         "### The pose delays over seeds",
         "",
         "Only the phase-coherent statistics see a pose delay at 3× its detection limit, so one seed says little: "
-        "the same cases over seeds 1 to " + str(len(range(1, 4 if quick else 11))) + ".  *to ERROR*: cycles from "
+        f"the same cases over seeds {DELAY_SEEDS[quick][0]} to {DELAY_SEEDS[quick][-1]}.  *to ERROR*: cycles from "
         "the first report to the first ERROR (median, largest); *over 3*: seeds later than 3 cycles or never; "
         "*lag read*: mean ± std over the seeds.",
         "",

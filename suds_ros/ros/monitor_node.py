@@ -162,7 +162,7 @@ class MonitorNode(Node):
         cfg = self.monitor.config
         stamp = self.monitor.last_stamp
         lag = self.monitor.lag
-        body = set(self.monitor.channels[len(self.system.passive):])
+        body = set(self.monitor.body_channels)
         msgs = []
         for s in self.monitor.statuses:
             text = f"F = {s.statistic:.3g} since {s.since:.3f} s"

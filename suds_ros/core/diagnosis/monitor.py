@@ -627,9 +627,23 @@ def harmonic_ratio(t: FloatArray, e1: FloatArray, valid: BoolArray, period: floa
     sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1)
     if sp is None:
         return np.full(e1.shape[1], np.nan), 0
+    return _ratio(sp), sp.noise_bins
+
+
+def _ratio(sp: _Spectrum) -> FloatArray:
+    """:func:`harmonic_ratio`'s ρ per column of the spectrum's first series (NaN where a neighbourhood is empty)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = np.mean(np.abs(sp.coef[0][sp.harm]) ** 2 / sp.local, axis=0)
-    return np.where(np.all(sp.local > 0, axis=0), rho, np.nan), sp.noise_bins
+    return np.where(np.all(sp.local > 0, axis=0), rho, np.nan)
+
+
+def _ratio_score(rho: FloatArray, noise_bins: int, harmonics: int) -> FloatArray:
+    """:func:`coherent_statistic`'s score of ρ (an F(2H, 2K) variable under noise)."""
+    from scipy.stats import f as fisher
+
+    if noise_bins == 0:
+        return rho
+    return np.where(np.isfinite(rho), _tail_score(fisher.logsf(rho, 2 * harmonics, 2 * noise_bins)), np.nan)
 
 
 def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: float, cycles: int,
@@ -644,12 +658,7 @@ def coherent_statistic(t: FloatArray, e1: FloatArray, valid: BoolArray, period: 
     most nominal 60-cycle runs, whose updates are ~100 nearly independent looks per channel.
     This score can miss a misfit that does not repeat with the gait, never invent one.
     """
-    from scipy.stats import f as fisher
-
-    rho, K = harmonic_ratio(t, e1, valid, period, cycles, harmonics)
-    if K == 0:
-        return rho
-    return np.where(np.isfinite(rho), _tail_score(fisher.logsf(rho, 2 * harmonics, 2 * K)), np.nan)
+    return _ratio_score(*harmonic_ratio(t, e1, valid, period, cycles, harmonics), harmonics)
 
 
 class Lag(NamedTuple):
@@ -682,19 +691,28 @@ def lag_statistic(t: FloatArray, e1: FloatArray, xi: FloatArray, valid: BoolArra
     for a misfit of another shape that merely leans the same way (friction, damping): a large score
     with a small share says "not a lag alone".
     """
+    sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1, xi)
+    return NO_LAG if sp is None else _lag(sp, slice(None))
+
+
+def _lag(sp: _Spectrum, body: slice) -> Lag:
+    """:func:`lag_statistic` from a spectrum.
+
+    Its first series the residuals (the ``body`` columns used), its second the predicted body velocity.
+    """
     from scipy.stats import f as fisher
 
-    sp = _cycle_spectrum(t, valid, period, cycles, harmonics, e1, xi)
-    if sp is None or not np.all(sp.local > 0):
+    local = sp.local[:, body]
+    if not np.all(local > 0):
         return NO_LAG
-    c, X = sp.coef[0][sp.harm], sp.coef[1][sp.harm]
+    c, X = sp.coef[0][sp.harm][:, body], sp.coef[1][sp.harm]
     a = 2j * np.pi * sp.j[sp.harm, None] / sp.span * X
-    weight = float(np.sum(np.abs(a) ** 2 / sp.local))
+    weight = float(np.sum(np.abs(a) ** 2 / local))
     if not weight > 0:
         return NO_LAG
-    proj = float(np.sum(np.real(np.conj(a) * c) / sp.local))
+    proj = float(np.sum(np.real(np.conj(a) * c) / local))
     T = proj**2 / (0.5 * weight)
-    share = proj**2 / weight / float(np.sum(np.abs(c) ** 2 / sp.local))
+    share = proj**2 / weight / float(np.sum(np.abs(c) ** 2 / local))
     return Lag(float(_tail_score(fisher.logsf(T, 1, 2 * sp.noise_bins))), -proj / weight, share)
 
 
@@ -1104,14 +1122,23 @@ class MismatchMonitor:
         cfg = self.config
         t, R, P, split, shape_ok, pose_ok = self._series(ready, cfg.coherent_cycles * self._spc + 1, False)
         e1 = equation_residuals(self.system, t, R, P, 1, split)[0]
-        valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
-        period = 1.0 / cfg.gait_hz
-        score = coherent_statistic(t, e1, valid, period, cfg.coherent_cycles, cfg.harmonics)
-        nb = len(self.channels) - len(self.system.passive)
-        self.lag = lag_statistic(t, e1[:, -nb:], split[0][0][:, :nb], valid, period, cfg.coherent_cycles,
-                                 cfg.harmonics)
-        score[-nb:] = np.fmax(score[-nb:], self.lag.score)
+        nb = len(self.body_channels)
+        # one spectrum for both: the residuals of every channel, the predicted body velocity
+        sp = _cycle_spectrum(t, shape_ok & pose_ok[:-1] & pose_ok[1:], 1.0 / cfg.gait_hz, cfg.coherent_cycles,
+                             cfg.harmonics, e1, split[0][0][:, :nb])
+        if sp is None:
+            self.lag = NO_LAG
+            return np.full(e1.shape[1], np.nan)
+        score = _ratio_score(_ratio(sp), sp.noise_bins, cfg.harmonics)
+        body = slice(e1.shape[1] - nb, None)
+        self.lag = _lag(sp, body)
+        score[body] = np.fmax(score[body], self.lag.score)
         return score
+
+    @property
+    def body_channels(self) -> tuple[str, ...]:
+        """The body-velocity channels (the last ones), which the lag fit scores together."""
+        return self.channels[len(self.system.passive):]
 
     def _set_levels(self, stamp: float, F: FloatArray) -> None:
         cfg = self.config

@@ -361,7 +361,8 @@ class SudsIdentifier(BaseEstimator):
         else:
             parts = [self._samples(r, p) for r, p in zip(recs, phases)]
             if len(parts) > 1 and any(p.pose is not None for p in parts):  # every bout on its pose intervals
-                parts = [self._samples(r, p, pose_rows=True) for r, p in zip(recs, phases)]
+                parts = [p if p.pose is not None else self._samples(r, ph, pose_rows=True)
+                         for r, ph, p in zip(recs, phases, parts)]
             X = np.concatenate([self.features(r, p.iv, p.ph) for r, p in zip(recs, parts)])
             s = parts[0] if len(parts) == 1 else _merged(parts)
             self.output_template_coef_ = self._fit_output_template(s)

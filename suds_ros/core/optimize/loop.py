@@ -744,8 +744,7 @@ class GaitSearch:
                             f"{cfg.budget_cycles - self.cycles_used} left")
             return None
         if self._model is None:
-            near = self._near[len(self._near) - cfg.pool_rejected:] if cfg.pool_rejected else []
-            self._model = learn_model([*self._best_data, *near], torque=self._work)
+            self._model = learn_model([*self._best_data, *self._near], torque=self._work)
         kappa = self._kappa
         dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
                                   min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(self.iterations),
@@ -856,14 +855,19 @@ class GaitSearch:
         taken = is_better(meas, old, cfg, self._speed_floor, self._floor_se)
         note = f"{req.note}: floor → {meas.speed:.4g} m/s"
         if taken:
-            self._best_gait, self._best_meas, self._best_data, self._best_pred = self._start, meas, [data], None
-            self._near = []
-            self._best_index, self._model, self._kappa, self._rejected = len(self.iterations), None, cfg.trust, []
+            self._take(self._start, meas, [data], None)
+            self._kappa = cfg.trust
             note += "; it measures better than the incumbent, and is the incumbent again"
         return LoopIteration(index=len(self.iterations), gait=self._start, cycles=req.cycles,
                              cycles_used=self.cycles_used, predicted=None, predicted_std=None,
                              predicted_incumbent=None, measured=meas, accepted=taken, trust=None, trust_used=None,
                              note=note)
+
+    def _take(self, gait: Gait, meas: Measurement, data: list[Recording], predicted: float | None) -> None:
+        """``gait`` becomes the incumbent (the iteration about to be logged): its data, a model to fit afresh."""
+        self._best_gait, self._best_meas, self._best_data, self._best_pred = gait, meas, data, predicted
+        self._best_index = len(self.iterations)
+        self._model, self._rejected, self._near, self._low_streak = None, [], [], 0
 
     def _measure(self, data: Recording | list[Recording], gait: Gait) -> Measurement:
         return measure_recording(data, self.config.samples_per_cycle, gait.gait_hz, work=self._work)
@@ -905,10 +909,8 @@ class GaitSearch:
             if grew:
                 self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {self._kappa:.3g}"
-            self._best_gait, self._best_meas, self._best_data = cand, meas, list(stretches)
+            self._take(cand, meas, list(stretches), step.value)
             self._fresh = False  # measured on the robot as it is now
-            self._best_index, self._best_pred = len(self.iterations), step.value
-            self._model, self._rejected, self._low_streak, self._near = None, [], 0, []
         else:
             self._kappa *= cfg.shrink
             self._rejected.append(cand)
