@@ -21,11 +21,13 @@ import time
 from _common import RESULTS, SNAKE5, machine, run_report_cli, stamp, write
 
 from suds_ros.core.json_text import dumps
+from suds_ros.core.optimize.data import learn_model, motion_miss
 from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.effects import apply_effects
-from suds_ros.core.physics.gait import gait_limits, nominal_gait
+from suds_ros.core.physics.gait import Gait, gait_limits, nominal_gait
 from suds_ros.core.physics.rft import RFTChain
+from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import load_system
 
 #: case: (robot spec, cycle of the change, effects, budget, what the change stands for)
@@ -36,6 +38,7 @@ CASES = {
                "joint_3's spring rest bent by 0.7 rad (damage): the old gait curves off the straight course"),
 }
 AFTER = (5, 10, 15, 20, 30, 40)  # cycles after the change at which the incumbent is read
+MISS_TRAIN, MISS_SEEDS = (100, 101, 102), tuple(range(6))  # the change test's calibration: model and stretch seeds
 
 
 def _true(system, gait):  # type: ignore[no-untyped-def]
@@ -43,17 +46,49 @@ def _true(system, gait):  # type: ignore[no-untyped-def]
     return {"speed": e["speed"], "rotation": e["rotation"]}
 
 
+def _scaled(gait: Gait, k: float) -> Gait:
+    """The gait with its harmonics' amplitudes times ``k`` (offsets kept)."""
+    off, c, s = gait.arrays()
+    return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
+                cos=tuple(map(tuple, c * k)), sin=tuple(map(tuple, s * k)))
+
+
+def miss_calibration(nominal, changed) -> dict:  # type: ignore[no-untyped-def]
+    """The loop's change test (``motion_miss``) where it must stay quiet and where it must speak.
+
+    Models of the nominal gait's 5 cycles (training seeds 100–102) predict 4-cycle stretches (seeds 0–5)
+    of: the same gait, the gait at 0.85× and 1.15× amplitude (a step off the model's data), all on the
+    unchanged robot; and the same gait on the changed robot.
+    """
+    gait = nominal_gait(nominal)
+    kinds = {"same gait": (nominal, gait), "0.85× amplitude": (nominal, _scaled(gait, 0.85)),
+             "1.15× amplitude": (nominal, _scaled(gait, 1.15)), "changed robot": (changed, gait)}
+    out: dict = {k: [] for k in kinds}
+    for train_seed in MISS_TRAIN:
+        model = learn_model(simulate(nominal, SimConfig(cycles=5, seed=train_seed, gait=gait, gait_hz=gait.gait_hz)))
+        for kind, (system, g) in kinds.items():
+            for seed in MISS_SEEDS:
+                m = motion_miss(model, simulate(system, SimConfig(cycles=4, seed=seed, gait=g, gait_hz=g.gait_hz)))
+                out[kind].append({"train_seed": train_seed, "seed": seed, "translation": m.translation,
+                                  "rotation": m.rotation, "size": m.size(1.0)})
+    return out
+
+
 def run(name: str, seeds: list[int]) -> None:
     spec, change, effects, budget, _ = CASES[name]
     nominal = load_system(spec)
     changed = RFTChain(apply_effects(nominal.model, effects)[0])  # type: ignore[attr-defined]
     t0 = time.perf_counter()
+    calibration = miss_calibration(nominal, changed)
+    for kind, rows in calibration.items():
+        print(f"{name}: model miss, {kind}: largest {max(r['size'] for r in rows):.3f}, "
+              f"smallest {min(r['size'] for r in rows):.3f}", flush=True)
     limit_old = optimize_gait(nominal, OptimizeConfig(order=3, starts=4))
     limit_new = optimize_gait(changed, OptimizeConfig(order=3, starts=4))
     doc = {"case": name, "robot": spec, "change": change, "effects": effects, "budget": budget,
            "limit_old": limit_old.value, "limit_new": limit_new.value,
            "old_best_on_new": _true(changed, limit_old.gait), "limit_seconds": time.perf_counter() - t0,
-           "runs": []}
+           "miss_calibration": calibration, "runs": []}
     print(f"{name}: limits {limit_old.value:.5f} → {limit_new.value:.5f}; the old best gait on the changed robot "
           f"{doc['old_best_on_new']['speed']:.5f} (rotation {doc['old_best_on_new']['rotation']:+.3f})", flush=True)
     limits = gait_limits(nominal)
@@ -130,6 +165,18 @@ def report() -> None:
             cells.append(str(taken[0]["cycles_used"] - c) if taken else "never")
             cells.append(r["stopped"])
             lines.append("| " + " | ".join(cells) + " |")
+        cal = doc.get("miss_calibration")
+        if cal:
+            lines += ["", f"The model's miss (`motion_miss`, the loop's change test at `model_miss` = "
+                      f"{LoopConfig(budget_cycles=10).model_miss:g}): models of the nominal gait's 5 cycles "
+                      f"(training seeds {', '.join(map(str, MISS_TRAIN))}) predicting 4-cycle stretches (seeds "
+                      f"{MISS_SEEDS[0]}–{MISS_SEEDS[-1]}) along their own shapes; the miss is the larger of the "
+                      "translation missed (fraction of the measured) and the rotation missed (rad/cycle), of those "
+                      "over one standard error.", "",
+                      "| stretch | smallest | median | largest |", "|---|---|---|---|"]
+            for kind, rows in cal.items():
+                v = sorted(r["size"] for r in rows)
+                lines.append(f"| {kind} | {v[0]:.3f} | {v[len(v) // 2]:.3f} | {v[-1]:.3f} |")
         lines += ["", "Runs (seed 0):", "", "| run | cycles | accepted | measured speed | measured rotation | note |",
                   "|---|---|---|---|---|---|"]
         for row in doc["runs"][0]["rows"]:

@@ -26,7 +26,8 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   commanded and left running.
 
 A changed robot: with ``watch`` (default) the node keeps re-measuring its incumbent after it
-converged, and a re-measurement ``change_sigmas`` standard errors off its standing value drops
+converged, and a re-measurement ``change_sigmas`` standard errors off its standing value, or one
+whose motion the model of the standing data cannot explain (``model_miss``), drops
 the old data and starts the search afresh on the robot as it is now (see
 :class:`~suds_ros.core.optimize.loop.GaitSearch`); with ``listen_monitor`` a ``suds/mismatch``
 channel of the monitor node entering ERROR says so directly.
@@ -97,6 +98,9 @@ class OptimizerNodeConfig:
                                 "changed robot is noticed")
     change_sigmas: float = setting(2.5, "a re-measured incumbent this many standard errors off its standing value "
                                         "means the robot changed", gt=0.0)
+    model_miss: float = setting(0.15, "a run whose motion misses the model's prediction along its own shapes by this "
+                                     "much (fraction of its translation, or rad of yaw per cycle) means the robot "
+                                     "changed", gt=0.0)
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -122,7 +126,7 @@ class OptimizerNodeConfig:
                           first_cycles=self.first_cycles, step_cycles=self.step_cycles,
                           settle_cycles=self.settle_cycles, order=self.order,
                           samples_per_cycle=self.samples_per_cycle, watch=self.watch,
-                          change_sigmas=self.change_sigmas)
+                          change_sigmas=self.change_sigmas, model_miss=self.model_miss)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

@@ -166,6 +166,8 @@ class LearnedModel:
     spread_delta, spread_rate : (na,) std of δ_a (rad) and δ̇_a (rad/s) over the recording.
     spread_passive : (np,) std of δ_p (rad).
     cycles : float, gait cycles in the recording.
+    identifier : SudsIdentifier or None, the fitted identifier itself (phaser, template, regression):
+        :func:`motion_miss` predicts other recordings with it.
     """
 
     system: str
@@ -189,6 +191,7 @@ class LearnedModel:
     spread_rate: FloatArray
     spread_passive: FloatArray
     cycles: float
+    identifier: Any = field(default=None, repr=False, compare=False)
 
     def theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
         """θ(φ) and dθ/dφ, each (n, nj), at phases (n,) rad."""
@@ -287,7 +290,85 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
         omega=float(ident.omega_), dt=float(rec.dt), gait_hz=float(hz), suds=reg.config,
         kernel_scale=ident.kernel_scale_, coef=np.asarray(reg.coef_), torque=bool(torque), chol=chol,
         resid_std=resid, spread_delta=delta[:, act].std(axis=0), spread_rate=rate[:, act].std(axis=0),
-        spread_passive=delta[:, pas].std(axis=0), cycles=cycles)
+        spread_passive=delta[:, pas].std(axis=0), cycles=cycles, identifier=ident)
+
+
+@dataclass(frozen=True)
+class MotionMiss:
+    """How far a recording's measured body motion lies from the model's prediction along its own shapes.
+
+    The model predicts the body velocity of every sampling interval from the shapes the robot
+    actually ran (its perturbations included), so most of what makes a few cycles' speed noisy is
+    predicted too: on a robot the model describes, the residual's cycle mean is a few per cent of
+    the motion, also for gaits some way off the model's data (``optimize_loop``'s ``model_miss``).
+
+    Attributes
+    ----------
+    translation : float, |cycle-mean residual of (ξx, ξy)| over |cycle-mean measured (ξx, ξy)|.
+    rotation : float, |cycle-mean residual of ξθ| / f, rad per cycle.
+    translation_sigmas, rotation_sigmas : float, those cycle means over their standard errors across
+        the whole cycles (the translation's along its own direction).
+    cycles : int, whole cycles compared.
+    per_cycle : (cycles,) float, each cycle's own miss: the larger of its translation residual over the
+        mean measured translation and its rotation residual in rad (where in a stretch a change began).
+    """
+
+    translation: float
+    rotation: float
+    translation_sigmas: float
+    rotation_sigmas: float
+    cycles: int
+    per_cycle: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def size(self, sigmas: float) -> float:
+        """The larger miss (translation fraction, rotation rad/cycle) of those over ``sigmas`` se; 0 if none."""
+        parts = [m for m, z in ((self.translation, self.translation_sigmas), (self.rotation, self.rotation_sigmas))
+                 if z > sigmas]
+        return max(parts, default=0.0)
+
+
+def motion_miss(model: LearnedModel, rec: Recording) -> MotionMiss:
+    """Compare ``rec``'s measured body velocity with ``model``'s prediction on its own shapes, cycle by cycle.
+
+    Raises
+    ------
+    SudsConfigError
+        The model carries no identifier.
+    SudsDataError
+        Fewer than 2 whole gait cycles, or a recording the identifier refuses (other joints).
+    """
+    if model.identifier is None:
+        raise SudsConfigError("`model`: expected a model from learn_model (with its identifier), got one without")
+    hz = float(rec.gait_hz or model.gait_hz)
+    whole = int(math.floor((rec.t[-1] - rec.t[0]) * hz + 1e-9))
+    if whole < 2:
+        raise SudsDataError(f"`rec`: expected at least 2 whole gait cycles to compare, got {whole}",
+                            code=TOO_LITTLE_DATA)
+    pred = model.identifier.predict(rec)
+    k = np.floor((pred.t - rec.t[0]) * hz).astype(int)
+    keep = (k >= 0) & (k < whole)
+    k = k[keep]
+    n = np.bincount(k, minlength=whole).astype(float)
+    if np.any(n == 0):
+        raise SudsDataError(f"`rec`: a gait cycle without intervals to compare (per cycle: {n.astype(int).tolist()})",
+                            code=TOO_LITTLE_DATA)
+    meas = pred.truth[keep, :3]
+    resid = meas - pred.model[keep, :3]
+    cyc_res = np.column_stack([np.bincount(k, resid[:, c], whole) for c in range(3)]) / n[:, None]
+    cyc_meas = np.column_stack([np.bincount(k, meas[:, 0], whole), np.bincount(k, meas[:, 1], whole)]) / n[:, None]
+    mean_res, v = cyc_res.mean(axis=0), float(np.hypot(*cyc_meas.mean(axis=0)))
+    dv = float(np.hypot(mean_res[0], mean_res[1]))
+    along = cyc_res[:, :2] @ (mean_res[:2] / dv) if dv > 0 else np.zeros(whole)
+
+    def _z(x: FloatArray) -> float:
+        se = float(np.std(x, ddof=1)) / math.sqrt(x.size)
+        return abs(float(np.mean(x))) / se if se > 0 else (math.inf if np.mean(x) != 0 else 0.0)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_cycle = np.maximum(np.hypot(cyc_res[:, 0], cyc_res[:, 1]) / v, np.abs(cyc_res[:, 2]) / hz)
+    return MotionMiss(translation=dv / v if v > 0 else math.inf, rotation=abs(float(mean_res[2])) / hz,
+                      translation_sigmas=_z(along), rotation_sigmas=_z(cyc_res[:, 2]), cycles=whole,
+                      per_cycle=np.nan_to_num(per_cycle, nan=math.inf))
 
 
 class LearnedCycle(PeriodicShooting):

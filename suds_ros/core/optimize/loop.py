@@ -77,8 +77,10 @@ from suds_ros.core.optimize.data import (
     DataOptimizeConfig,
     LearnedCycle,
     LearnedModel,
+    MotionMiss,
     align_to_model,
     learn_model,
+    motion_miss,
     optimize_from_data,
 )
 from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values
@@ -103,6 +105,10 @@ BUDGET_TOO_SMALL = "budget_too_small"
 NO_REQUEST = "no_request"
 #: stretches of the incumbent pooled at most (the newest)
 MAX_STRETCHES = 8
+#: a rejected candidate is checked against its model's prediction (``model_miss``) only when its step's
+#: trust region was at most this many σ of the data's spread: further out the model extrapolates
+#: (swimmer9's first steps at 2 σ missed its rotation by 0.3 rad/cycle on the unchanged robot)
+MISS_TRUST = 1.0
 
 
 @dataclass(frozen=True)
@@ -175,6 +181,23 @@ class LoopConfig:
         many standard errors of the difference away from its standing measurement; and the
         incumbent is run again at once after two rejected candidates in a row that each measured
         more than this many standard errors below it (see :class:`GaitSearch`).  ``inf``: never.
+    model_miss : float
+        A run whose measured body motion misses the model's prediction along the run's own measured
+        shapes (:func:`~suds_ros.core.optimize.data.motion_miss`) by more than this (a fraction of the
+        measured translation per cycle, or radians of yaw per cycle), and by more than its own
+        standard error over the run's cycles (not noise on a robot that barely moves), is a robot
+        the model no longer describes: after a rejected candidate (judged on the model its step was
+        planned on, if the step's trust region was at most ``MISS_TRUST`` = 1 σ) the
+        incumbent is run again at once, and a rerun that misses the model of the incumbent's
+        standing data (its last cycle too) counts as changed; its own cycles from before the change (those up to the
+        last one within ``model_miss``) are dropped too, and a stretch left shorter than
+        ``step_cycles`` has the incumbent run again for more.  The speed over a few cycles
+        scatters with the perturbations the robot ran; the model predicts that scatter, so a
+        changed robot shows here long before its speed does.  On purcell3 and snake5 as modelled
+        the miss stayed at or under 0.08, also for gaits with 15 % more or less amplitude than
+        the model's data; purcell3 with its spring 3× stiffer missed by 0.19–0.99, snake5 with a
+        spring rest bent by 0.7 rad by 1.4–1.7 (``docs/results/optimize_adapt.md``, the model's
+        miss).  ``inf``: never.
     samples_per_cycle : int
         Samples per gait cycle of the simulated robot's recording.
     ou_std, kappa, noise_std : float
@@ -204,6 +227,7 @@ class LoopConfig:
     pool_rejected: int = 2
     watch: bool = False
     change_sigmas: float = 2.5
+    model_miss: float = 0.15
     samples_per_cycle: int = 100
     ou_std: float = 0.175
     kappa: float = 8.0
@@ -230,6 +254,7 @@ class LoopConfig:
                   ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
                   ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
                   ("change_sigmas", self.change_sigmas > 0, "> 0"),
+                  ("model_miss", self.model_miss > 0, "> 0"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
                   ("noise_std", self.noise_std >= 0, "≥ 0")]
@@ -534,6 +559,20 @@ def _trim(rec: Recording, skip: int, spc: int) -> Recording:
     return rec.slice(start, rec.n_samples)
 
 
+def _changed_from(miss: MotionMiss, limit: float) -> int:
+    """The first cycle of a stretch from which on every cycle misses the model by more than ``limit`` (0: all)."""
+    over = np.asarray(miss.per_cycle) > limit
+    if over.size == 0 or not over[-1]:
+        return 0
+    return int(over.size - np.argmin(over[::-1])) if not over.all() else 0
+
+
+def _from_cycle(rec: Recording, first: int) -> Recording:
+    """The stretch from the start of its cycle ``first`` (it starts at a cycle boundary)."""
+    t0 = rec.t[0] + first / float(rec.gait_hz or 1.0)
+    return rec.slice(int(np.searchsorted(rec.t, t0 - 1e-9 * max(1.0, abs(t0)))), rec.n_samples)
+
+
 def _slow(m: Measurement, cfg: LoopConfig, speed_floor: float, floor_se: float) -> float:
     """How far a measured speed is under the floor, relative to it (0 within ``floor_sigmas`` se of the difference)."""
     if speed_floor <= 0 or m.speed >= speed_floor:
@@ -653,10 +692,13 @@ class GaitSearch:
     candidate is then judged against a value the robot no longer reaches.  So the incumbent is
     run again (a ``rerun``) when the trust region collapses, when the model predicts no gain, after
     two rejected candidates in a row that each measured more than ``change_sigmas`` standard errors
-    below it, and when :meth:`robot_changed` is called (the live monitor's alarm).  A rerun that
-    measures more than ``change_sigmas`` standard errors away from the standing measurement (or
-    any rerun after :meth:`robot_changed`) *replaces* the incumbent's data: the old stretches are
-    dropped, and the model and the search start afresh on the changed robot.  Otherwise the
+    below it, after a rejected candidate whose measured motion the model cannot explain along the
+    candidate's own shapes (``model_miss``), and when :meth:`robot_changed` is called (the live
+    monitor's alarm).  A rerun that measures more than ``change_sigmas`` standard errors away from
+    the standing measurement, or whose motion misses the model of the standing data by
+    ``model_miss`` (or any rerun after :meth:`robot_changed`), *replaces* the incumbent's data:
+    the old stretches are dropped (and the rerun's own cycles from before the change), and the
+    model and the search start afresh on the changed robot.  Otherwise the
     stretches are pooled.  For ``turn`` and ``efficiency``, whose floor is the start gait's speed,
     a change also has the start gait run again (a ``floor`` run, when the incumbent is another
     gait): the floor is its speed on the changed robot, and it becomes the incumbent again if it
@@ -819,18 +861,32 @@ class GaitSearch:
         cfg, old = self.config, self._best_meas
         assert old is not None
         moved = _moved(meas, old, cfg)
-        if self._fresh or moved:
-            why = f"said changed: {self._change_reason}" if self._fresh else f"measured {moved} from its standing value"
+        why = f"said changed: {self._change_reason}" if self._fresh else (
+            f"measured {moved} from its standing value" if moved else "")
+        miss = None
+        if not why and math.isfinite(cfg.model_miss):
+            try:  # the model of the standing data, on the new stretch of the same gait
+                why, miss = self._miss(learn_model(self._best_data), data)
+            except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+                why = ""
+            if why and not miss.per_cycle[-1] > cfg.model_miss:  # a change persists: the last cycle misses too
+                why = ""
+        if why:
+            note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
+            first = _changed_from(miss, cfg.model_miss) if miss is not None else 0
+            if first > 0:  # the change came inside this stretch: its cycles before it are the old robot's
+                data = _from_cycle(data, first)
+                meas = self._measure(data, req.gait)
+                note += f", and its own first {first} cycle{'s' if first > 1 else ''} (the robot before the change)"
             self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
             self.changes.append(len(self.iterations))
-            note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
         else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
             self._best_data = [*self._best_data, data][-MAX_STRETCHES:]
             self._best_meas = self._measure(self._best_data, req.gait)
             note = f"incumbent re-run ({req.note}): its {len(self._best_data)} stretches pooled, measured again"
         if self._best_gait is self._start:  # the floor is the start gait's speed: measured again
             self._speed_floor, self._floor_se = self._best_meas.speed, self._best_meas.speed_se
-        elif (self._fresh or moved) and cfg.objective != "speed":
+        elif why and cfg.objective != "speed":
             # the floor is the start gait's speed on the robot as it was: measure it on the changed one
             n = self._step_cycles
             if self.cycles_used + n <= cfg.budget_cycles:
@@ -840,6 +896,8 @@ class GaitSearch:
                 self.stopped = "the robot changed and the budget cannot measure the speed floor on it again"
         self._fresh, self._low_streak = False, 0
         self._model, self._kappa, self._rejected = None, cfg.trust, []
+        if why and self._pending is None and self._best_meas.cycles < cfg.step_cycles:
+            self._pending = self._rerun(f"the changed robot measured for {self._best_meas.cycles} cycles only")
         it = LoopIteration(index=len(self.iterations), gait=self._best_gait, cycles=req.cycles,
                            cycles_used=self.cycles_used, predicted=self._best_pred, predicted_std=None,
                            predicted_incumbent=None, measured=self._best_meas, accepted=True, trust=None,
@@ -862,6 +920,18 @@ class GaitSearch:
                              cycles_used=self.cycles_used, predicted=None, predicted_std=None,
                              predicted_incumbent=None, measured=meas, accepted=taken, trust=None, trust_used=None,
                              note=note)
+
+    def _miss(self, model: LearnedModel, data: Recording) -> tuple[str, MotionMiss]:
+        """('' or in words how ``data``'s motion misses ``model`` along its own shapes beyond ``model_miss``; it)."""
+        m = motion_miss(model, data)
+        size = m.size(1.0)
+        if size <= self.config.model_miss:
+            return "", m
+        if m.translation == size:
+            return (f"moved {100 * m.translation:.0f} % of its translation away from the model's prediction along "
+                    f"its own shapes ({m.translation_sigmas:.1f} se)"), m
+        return (f"turned {m.rotation:.3g} rad/cycle away from the model's prediction along its own shapes "
+                f"({m.rotation_sigmas:.1f} se)"), m
 
     def _take(self, gait: Gait, meas: Measurement, data: list[Recording], predicted: float | None) -> None:
         """``gait`` becomes the incumbent (the iteration about to be logged): its data, a model to fit afresh."""
@@ -912,6 +982,13 @@ class GaitSearch:
             self._take(cand, meas, list(stretches), step.value)
             self._fresh = False  # measured on the robot as it is now
         else:
+            miss = ""
+            if self._model is not None and math.isfinite(cfg.model_miss) and not self._fresh \
+                    and step.trust_radius <= MISS_TRUST:
+                try:  # judged on the model the step was planned on (inside its data's spread)
+                    miss = self._miss(self._model, stretches[-1])[0]
+                except (SudsDataError, SudsConfigError):
+                    miss = ""
             self._kappa *= cfg.shrink
             self._rejected.append(cand)
             if cfg.pool_rejected:  # its cycles join the incumbent's model: refitted for the next step
@@ -926,6 +1003,8 @@ class GaitSearch:
             rerun = None
             if self._fresh:
                 rerun = f"robot changed: {self._change_reason}"
+            elif miss:
+                rerun = f"the candidate {miss}: is the robot still the one modelled?"
             elif self._low_streak >= 2:
                 rerun = (f"two candidates in a row measured over {cfg.change_sigmas:g} se below the incumbent: "
                          "is it still as good?")

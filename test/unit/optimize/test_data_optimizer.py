@@ -2,22 +2,27 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.optimize.data import (
     DataOptimizeConfig,
     LearnedCycle,
     LearnedModel,
     align_to_model,
     learn_model,
+    motion_miss,
     optimize_from_data,
     shifted,
     trust_used,
 )
 from suds_ros.core.optimize.physics import evaluate_gait
+from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import make_system
 
@@ -135,3 +140,21 @@ def test_stretches_with_a_pose_stream_of_their_own_are_learnt_together() -> None
         speeds = [float(np.hypot(*LearnedCycle(m, 1.0, 1).steady_of(align_to_model(m, gait).to_vector()).g_c[0, :2]))
                   for m in (both, learn_model(rec))]
         assert speeds[0] == pytest.approx(speeds[1], rel=0.03), (hz, speeds)
+
+
+def test_motion_miss_tells_the_modelled_robot_from_a_changed_one(purcell: tuple[object, LearnedModel]) -> None:
+    """Held-out cycles of the robot the model was fitted on (another seed of the perturbation) are predicted along
+    their own shapes to a few per cent; the same gait on the robot with its spring 3× stiffer is not."""
+    system, model = purcell
+    same = motion_miss(model, simulate(system, SimConfig(cycles=5, seed=7)))  # type: ignore[arg-type]
+    assert same.cycles >= 4 and same.translation < 0.1 and same.rotation < 0.05
+    effects = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
+    stiff = RFTChain(apply_effects(system.model, effects)[0])  # type: ignore[attr-defined]
+    changed = motion_miss(model, simulate(stiff, SimConfig(cycles=5, seed=7)))
+    assert changed.translation > 0.5 and changed.translation_sigmas > 1.0
+    assert same.size(1.0) < 0.1 < 0.5 < changed.size(1.0)
+    assert changed.size(1e9) == 0.0  # nothing counts when no miss is over that many standard errors
+    with pytest.raises(SudsDataError, match="at least 2 whole gait cycles"):
+        motion_miss(model, simulate(system, SimConfig(cycles=5, seed=7)).slice(0, 150))  # type: ignore[arg-type]
+    with pytest.raises(SudsConfigError, match="`model`"):
+        motion_miss(dataclasses.replace(model, identifier=None), simulate(system, SimConfig(cycles=3, seed=7)))

@@ -237,6 +237,55 @@ def test_after_a_change_the_speed_floor_is_measured_on_the_changed_robot(purcell
     assert floor.accepted == (search.best is start)
 
 
+@pytest.mark.parametrize("case", ["whole", "straddle", "off"])
+def test_a_candidate_the_model_cannot_explain_has_the_incumbent_run_again(purcell3, case) -> None:  # type: ignore
+    """The start's cycles come from the nominal robot, the candidate's from the robot with its spring 3× stiffer:
+    its motion misses the model's prediction along its own shapes by far more than the perturbations do, so the
+    incumbent is run again at once, and that rerun on the changed robot misses the model of its standing data: its
+    old data are dropped.  When the change comes inside the rerun (``straddle``: its first 2 measured cycles
+    still nominal), those cycles go too, and the 2 left have the incumbent run again for more.  With
+    ``model_miss`` = inf (``off``) no miss is looked for.  The measured speeds' own change test is switched off
+    (``change_sigmas``), so only the model's miss decides."""
+    stiff = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
+    cfg = LoopConfig(budget_cycles=40, model_miss=float("inf") if case == "off" else 0.15, change_sigmas=1e9,
+                     trust=1.0)  # the candidate within 1 σ of the model's data, where a miss is looked for
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
+    sim = StreamingSimulator(purcell3, _stream(purcell3).config)
+    names = purcell3.joint_names
+
+    def run(req, effects, nominal_first: int = 0):  # type: ignore[no-untyped-def]
+        chunks = []
+        if nominal_first:
+            sim.set_effects([])
+            chunks.append(sim.step(nominal_first * SPC))
+        sim.set_effects(effects)
+        chunks.append(sim.step((req.cycles - nominal_first) * SPC))
+        t, r, pose = (np.concatenate([getattr(c, k) for c in chunks]) for k in ("t", "r", "pose"))
+        return Recording(t=t, r=r, joint_names=names, actuated=(names[0],), passive=(names[1],), pose_t=t,
+                         pose=pose, system="purcell3", gait_hz=1.0).slice(SPC - 1, req.cycles * SPC)
+
+    search.observe(run(search.request(), []))
+    req = search.request()
+    assert req.kind == "candidate"
+    cand = search.observe(run(req, stiff))
+    assert not cand.accepted
+    req = search.request()
+    if case == "off":
+        assert "model's prediction" not in (req.note if req is not None else ""), req.note
+        return
+    assert req.kind == "rerun" and "away from the model's prediction along its own shapes" in req.note, req.note
+    it = search.observe(run(req, stiff, nominal_first=3 if case == "straddle" else 0))  # settle + 2 measured
+    assert "the robot changed (moved" in it.note and search.changes == [2], it.note
+    if case == "whole":
+        assert it.measured.cycles == 4 and search.request().kind == "candidate"
+        return
+    assert it.measured.cycles == 2 and "its own first 2 cycles (the robot before the change)" in it.note, it.note
+    req = search.request()
+    assert req.kind == "rerun" and "the changed robot measured for 2 cycles only" in req.note
+    again = search.observe(run(req, stiff))
+    assert "2 stretches pooled" in again.note and again.measured.cycles == 6 and search.changes == [2], again.note
+
+
 def test_robot_changed_drops_the_incumbents_data_at_its_next_rerun(purcell3) -> None:  # type: ignore[no-untyped-def]
     cfg = LoopConfig(budget_cycles=40, seed=0)
     search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)

@@ -64,6 +64,7 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
     ({"budget_cycles": 20, "step_cycles": 3}, "`step_cycles`: expected ≥ 4, got 3", "bad_config"),
     ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
     ({"budget_cycles": 20, "confirm_sigmas": -1.0}, "`confirm_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
+    ({"budget_cycles": 20, "model_miss": 0.0}, "`model_miss`: expected > 0, got 0.0", "bad_config"),
 ])
 def test_config_refusals(kwargs: dict[str, object], message: str, code: str) -> None:
     with pytest.raises(SudsConfigError, match=message) as exc:
