@@ -98,9 +98,9 @@ class OptimizerNodeConfig:
                                 "changed robot is noticed")
     change_sigmas: float = setting(2.5, "a re-measured incumbent this many standard errors off its standing value "
                                         "means the robot changed", gt=0.0)
-    model_miss: float = setting(0.15, "a run whose motion misses the model's prediction along its own shapes by this "
-                                     "much (fraction of its translation, or rad of yaw per cycle) means the robot "
-                                     "changed", gt=0.0)
+    model_miss: float = setting(0.15, "a run whose motion misses the model's prediction along its own shapes by "
+                                      "this much (fraction of its translation, or rad of yaw per cycle) means the "
+                                      "robot changed", gt=0.0)
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
