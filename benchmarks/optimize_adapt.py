@@ -4,10 +4,11 @@ The simulated robot (default OU perturbation, 100 Hz, 1 mm / 1 mrad noise, seede
 its nominal gait; after ``change`` cycles it becomes the nominal system with catalogue effects
 (``optimize_loop(..., changes=...)``: the loop is not told).  The loop runs with ``watch`` on
 (at convergence it keeps re-measuring its incumbent, as a deployed robot would) and its default
-change test (``change_sigmas`` = 2.5).  After the run every incumbent is evaluated on the physics
-in force at that cycle (before the change the nominal, after it the changed one) at its passive
-periodic steady state; the limits are the physics optimiser's best gaits (order 3, 4 starts) on
-the nominal and the changed physics.
+change tests (``change_sigmas`` = 2.5 on the measured speed and rotation, ``model_miss`` on the
+model's prediction along the run's own shapes, calibrated here on both robots).  After the run
+every incumbent is evaluated on the physics in force at that cycle (before the change the
+nominal, after it the changed one) at its passive periodic steady state; the limits are the
+physics optimiser's best gaits (order 3, 4 starts) on the nominal and the changed physics.
 
     python benchmarks/optimize_adapt.py run purcell3 snake5     # → docs/results/optimize_adapt_<case>.json
     python benchmarks/optimize_adapt.py report                  # → docs/results/optimize_adapt.md
@@ -128,9 +129,11 @@ def _pct(v: float, limit: float) -> str:
 def report() -> None:
     lines = ["# Adaptation: the loop on a robot that changes mid-run", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_adapt.py`.", "",
-             "The robot changes unannounced after the given cycle; the loop (`optimize_loop`, defaults, `watch` on, "
-             "change test at 2.5 se) must notice from its own measurements.  Percentages are of the limit of the "
-             "physics in force: a gait's true speed at its passive periodic steady state over the physics "
+             "The robot changes unannounced after the given cycle; the loop (`optimize_loop`, defaults, `watch` on; "
+             "its change tests: a re-measured incumbent 2.5 se off its standing value, or a run whose motion the "
+             "model misses by more than `model_miss`, table below) must notice from its own measurements.  "
+             "Percentages are of the limit of the physics in force: a gait's true speed at its passive periodic "
+             "steady state over the physics "
              "optimiser's best (order 3, 4 starts).  'rotation' is the true net rotation per cycle of the "
              "incumbent on the changed robot (the speed objective's straight-course bound is 0.05 rad/cycle).", ""]
     for name in CASES:

@@ -106,9 +106,10 @@ NO_REQUEST = "no_request"
 #: stretches of the incumbent pooled at most (the newest)
 MAX_STRETCHES = 8
 #: a rejected candidate is checked against its model's prediction (``model_miss``) only when its step's
-#: trust region was at most this many σ of the data's spread: further out the model extrapolates
-#: (swimmer9's first steps at 2 σ missed its rotation by 0.3 rad/cycle on the unchanged robot)
-MISS_TRUST = 1.0
+#: trust region was at most this many σ of the data's spread, where the candidate is nearly the incumbent:
+#: further out the model extrapolates (on the unchanged swimmer9 a step at 2 σ missed its rotation by
+#: 0.31 rad/cycle, one at 1 σ by 0.21)
+MISS_TRUST = 0.5
 
 
 @dataclass(frozen=True)
@@ -187,7 +188,7 @@ class LoopConfig:
         measured translation per cycle, or radians of yaw per cycle), and by more than its own
         standard error over the run's cycles (not noise on a robot that barely moves), is a robot
         the model no longer describes: after a rejected candidate (judged on the model its step was
-        planned on, if the step's trust region was at most ``MISS_TRUST`` = 1 σ) the
+        planned on, if the step's trust region was at most ``MISS_TRUST`` = 0.5 σ) the
         incumbent is run again at once, and a rerun that misses the model of the incumbent's
         standing data (its last cycle too) counts as changed; its own cycles from before the change (those up to the
         last one within ``model_miss``) are dropped too, and a stretch left shorter than

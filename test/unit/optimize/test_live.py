@@ -248,7 +248,7 @@ def test_a_candidate_the_model_cannot_explain_has_the_incumbent_run_again(purcel
     (``change_sigmas``), so only the model's miss decides."""
     stiff = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
     cfg = LoopConfig(budget_cycles=40, model_miss=float("inf") if case == "off" else 0.15, change_sigmas=1e9,
-                     trust=1.0)  # the candidate within 1 σ of the model's data, where a miss is looked for
+                     trust=0.5)  # the candidate within 0.5 σ of the model's data, where a miss is looked for
     search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
     sim = StreamingSimulator(purcell3, _stream(purcell3).config)
     names = purcell3.joint_names
