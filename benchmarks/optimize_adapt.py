@@ -71,7 +71,7 @@ def miss_calibration(nominal, changed) -> dict:  # type: ignore[no-untyped-def]
             for seed in MISS_SEEDS:
                 m = motion_miss(model, simulate(system, SimConfig(cycles=4, seed=seed, gait=g, gait_hz=g.gait_hz)))
                 out[kind].append({"train_seed": train_seed, "seed": seed, "translation": m.translation,
-                                  "rotation": m.rotation, "size": m.size(1.0)})
+                                  "rotation": m.rotation, "size": m.size()})
     return out
 
 

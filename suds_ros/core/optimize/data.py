@@ -320,8 +320,11 @@ class MotionMiss:
     cycles: int
     per_cycle: FloatArray = field(default_factory=lambda: np.zeros(0))
 
-    def size(self, sigmas: float) -> float:
-        """The larger miss (translation fraction, rotation rad/cycle) of those over ``sigmas`` se; 0 if none."""
+    def size(self, sigmas: float = 1.0) -> float:
+        """The larger miss (translation fraction, rotation rad/cycle) of those over ``sigmas`` se; 0 if none.
+
+        The default of one standard error keeps noise on a robot that barely moves from counting.
+        """
         parts = [m for m, z in ((self.translation, self.translation_sigmas), (self.rotation, self.rotation_sigmas))
                  if z > sigmas]
         return max(parts, default=0.0)

@@ -925,7 +925,7 @@ class GaitSearch:
     def _miss(self, model: LearnedModel, data: Recording) -> tuple[str, MotionMiss]:
         """('' or in words how ``data``'s motion misses ``model`` along its own shapes beyond ``model_miss``; it)."""
         m = motion_miss(model, data)
-        size = m.size(1.0)
+        size = m.size()
         if size <= self.config.model_miss:
             return "", m
         if m.translation == size:
