@@ -81,10 +81,10 @@ def test_killed_estimator_resumes_from_checkpoint(start_process, node_command, t
     assert est.wait(10) == -signal.SIGKILL
     killed_at = load_estimator(ckpt).n_shape
     est2 = start_process(est_cmd, "estimator-restarted")
-    wait_for(lambda: "cycles); done" in sim.output(), 120, lambda: f"the simulator's end\n{sim.output()}")
+    wait_for(lambda: "cycles); done" in sim.output(), 300, lambda: f"the simulator's end\n{sim.output()}")
     wait_for(lambda: "resumed from checkpoint" in est2.output(), 60, "the resume message")
     # idle flush: the last partial chunk is fitted and the complete model published
-    wait_for(lambda: f"published the model ({ref.n_samples} rows)" in est2.output(), 120,
+    wait_for(lambda: f"published the model ({ref.n_samples} rows)" in est2.output(), 300,
              f"the final model\n{est2.output()}")
     assert stop(est2) == 0, est2.output()
     assert stop(sim) == 0, sim.output()
