@@ -318,7 +318,7 @@ class MotionMiss:
     translation_sigmas: float
     rotation_sigmas: float
     cycles: int
-    per_cycle: FloatArray = field(default_factory=lambda: np.zeros(0))
+    per_cycle: FloatArray
 
     def size(self, sigmas: float = 1.0) -> float:
         """The larger miss (translation fraction, rotation rad/cycle) of those over ``sigmas`` se; 0 if none.
@@ -355,10 +355,13 @@ def motion_miss(model: LearnedModel, rec: Recording) -> MotionMiss:
     if np.any(n == 0):
         raise SudsDataError(f"`rec`: a gait cycle without intervals to compare (per cycle: {n.astype(int).tolist()})",
                             code=TOO_LITTLE_DATA)
+
+    def cycle_means(x: FloatArray) -> FloatArray:  # (whole, columns): each column's mean over each cycle
+        return np.column_stack([np.bincount(k, x[:, c], whole) for c in range(x.shape[1])]) / n[:, None]
+
     meas = pred.truth[keep, :3]
-    resid = meas - pred.model[keep, :3]
-    cyc_res = np.column_stack([np.bincount(k, resid[:, c], whole) for c in range(3)]) / n[:, None]
-    cyc_meas = np.column_stack([np.bincount(k, meas[:, 0], whole), np.bincount(k, meas[:, 1], whole)]) / n[:, None]
+    cyc_res = cycle_means(meas - pred.model[keep, :3])
+    cyc_meas = cycle_means(meas[:, :2])
     mean_res, v = cyc_res.mean(axis=0), float(np.hypot(*cyc_meas.mean(axis=0)))
     dv = float(np.hypot(mean_res[0], mean_res[1]))
     along = cyc_res[:, :2] @ (mean_res[:2] / dv) if dv > 0 else np.zeros(whole)

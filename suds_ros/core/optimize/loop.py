@@ -560,17 +560,20 @@ def _trim(rec: Recording, skip: int, spc: int) -> Recording:
     return rec.slice(start, rec.n_samples)
 
 
-def _changed_from(miss: MotionMiss, limit: float) -> int:
-    """The first cycle of a stretch from which on every cycle misses the model by more than ``limit`` (0: all)."""
+def _change_start(miss: MotionMiss, limit: float) -> int | None:
+    """Where a change began in a stretch: the first of its trailing cycles that each miss by more than ``limit``.
+
+    None when its last cycle does not miss (a change persists: the stretch did not end on a changed robot).
+    """
     over = np.asarray(miss.per_cycle) > limit
     if over.size == 0 or not over[-1]:
-        return 0
-    return int(over.size - np.argmin(over[::-1])) if not over.all() else 0
+        return None
+    return 0 if over.all() else int(over.size - np.argmin(over[::-1]))
 
 
-def _from_cycle(rec: Recording, first: int) -> Recording:
+def _from_cycle(rec: Recording, first: int, gait_hz: float) -> Recording:
     """The stretch from the start of its cycle ``first`` (it starts at a cycle boundary)."""
-    t0 = rec.t[0] + first / float(rec.gait_hz or 1.0)
+    t0 = rec.t[0] + first / gait_hz
     return rec.slice(int(np.searchsorted(rec.t, t0 - 1e-9 * max(1.0, abs(t0)))), rec.n_samples)
 
 
@@ -864,19 +867,19 @@ class GaitSearch:
         moved = _moved(meas, old, cfg)
         why = f"said changed: {self._change_reason}" if self._fresh else (
             f"measured {moved} from its standing value" if moved else "")
-        miss = None
+        first = 0  # the stretch's first cycle on the changed robot
         if not why and math.isfinite(cfg.model_miss):
             try:  # the model of the standing data, on the new stretch of the same gait
-                why, miss = self._miss(learn_model(self._best_data), data)
+                text, miss = self._miss(learn_model(self._best_data), data)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
-                why = ""
-            if why and not miss.per_cycle[-1] > cfg.model_miss:  # a change persists: the last cycle misses too
-                why = ""
+                text = ""
+            start = _change_start(miss, cfg.model_miss) if text else None
+            if start is not None:
+                why, first = text, start
         if why:
             note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
-            first = _changed_from(miss, cfg.model_miss) if miss is not None else 0
             if first > 0:  # the change came inside this stretch: its cycles before it are the old robot's
-                data = _from_cycle(data, first)
+                data = _from_cycle(data, first, req.gait.gait_hz)
                 meas = self._measure(data, req.gait)
                 note += f", and its own first {first} cycle{'s' if first > 1 else ''} (the robot before the change)"
             self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
