@@ -38,12 +38,17 @@ One iteration
    is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
    also undoes a lucky first one) and a new model, and the radius starts afresh.
 
-When the model predicts no gain inside a shrunken region, the incumbent is re-run likewise.  The
-loop stops when the model predicts no gain inside a region at least the initial radius, when it
-would propose a gait already rejected (possible only with ``trust_centre`` = ``template``: the
-radius cannot shrink below the incumbent's own offset from the template), or when the next
-gait's cycles would overrun ``budget_cycles``.  Every cycle the robot runs is counted, the
-settling cycles and the rejected candidates' cycles included (``shared/spec/gait.md``).
+When the model predicts no gain inside a shrunken region, the incumbent is re-run likewise; so too
+when a model of the incumbent's single stretch predicts no gain inside a region at least the
+initial radius (a few cycles' model that sees no gain anywhere is no evidence of an optimum: in
+the oracle ablation of ``docs/results/optimize_loop.md`` one saw none at 94 % of snake5's limit
+after 16 cycles, and the search stopped there with 44 cycles of budget left).
+The loop stops when the model of two or more of the incumbent's stretches predicts no gain
+inside such a region, when it would propose a gait already rejected (possible only with
+``trust_centre`` = ``template``: the radius cannot shrink below the incumbent's own offset from
+the template), or when the next gait's cycles would overrun ``budget_cycles``.  Every cycle the
+robot runs is counted, the settling cycles and the rejected candidates' cycles included
+(``shared/spec/gait.md``).
 It returns the best gait it measured.
 
 The OU perturbation acts on top of the gait's set-points (that is what makes the data
@@ -174,9 +179,9 @@ class LoopConfig:
         widen the data the next step is planned from, where the incumbent's few cycles alone leave
         the model guessing (``docs/results/optimize_loop.md``, ablation).
     watch : bool
-        When the model predicts no gain (converged), run the incumbent again (its stretches pooled,
-        the change test above applied) instead of stopping, until the budget is spent: a deployed
-        robot keeps checking that its gait still is what it measured.
+        When the model of the incumbent's pooled stretches predicts no gain (converged), run the
+        incumbent again (its stretches pooled, the change test above applied) instead of stopping,
+        until the budget is spent: a deployed robot keeps checking that its gait still is what it measured.
     change_sigmas : float
         The robot is taken to have changed when the incumbent, run again, measures more than this
         many standard errors of the difference away from its standing measurement; and the
@@ -806,6 +811,11 @@ class GaitSearch:
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
                                                                  step.recorded_value, step.recorded_std)
         if not step.step_taken:
+            if kappa >= cfg.trust and len(self._best_data) < 2:
+                # a model of one short stretch that sees no gain anywhere is no evidence of an optimum
+                return self._rerun(f"the model of the incumbent's {self._best_meas.cycles} cycles predicts no gain "
+                                   f"inside the trust region (κ = {kappa:.3g}): more of its cycles before calling "
+                                   "it converged")
             if kappa >= cfg.trust:
                 converged = f"converged: the model predicts no gain inside the trust region (κ = {kappa:.3g})"
                 if cfg.watch:

@@ -336,3 +336,36 @@ def test_a_model_without_a_steady_state_asks_for_more_data(purcell3, monkeypatch
     monkeypatch.setattr(loop_mod, "optimize_from_data", refuses)
     req = search.request()
     assert req.kind == "rerun" and "the incumbent's model cannot be used" in req.note
+
+
+def test_a_first_model_that_sees_no_gain_asks_for_more_data_first(purcell3, monkeypatch) -> None:  # type: ignore
+    """A model of one short stretch that predicts no gain anywhere in the trust region is not taken as an
+    optimum: the incumbent is run again, and only the model of its pooled stretches may call it converged."""
+    import dataclasses
+
+    import suds_ros.core.optimize.loop as loop_mod
+
+    real = loop_mod.optimize_from_data
+    calls = []
+
+    def no_gain(model, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(model.cycles)
+        return dataclasses.replace(real(model, *args, **kwargs), step_taken=False)
+
+    monkeypatch.setattr(loop_mod, "optimize_from_data", no_gain)
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), LoopConfig(budget_cycles=20))
+    sim = _stream(purcell3)
+    names = purcell3.joint_names
+
+    def run(n: int) -> Recording:
+        c = sim.step(n * SPC)
+        return Recording(t=c.t, r=c.r, joint_names=names, actuated=(names[0],), passive=(names[1],), pose_t=c.t,
+                         pose=c.pose, system="purcell3", gait_hz=1.0).slice(SPC - 1, n * SPC)
+
+    search.observe(run(search.request().cycles))
+    req = search.request()
+    assert req.kind == "rerun" and "before calling it converged" in req.note and search.stopped is None
+    it = search.observe(run(req.cycles))
+    assert "2 stretches pooled" in it.note and it.measured.cycles == 5 + 4
+    assert search.request() is None and search.stopped.startswith("converged")
+    assert calls == [pytest.approx(5, abs=0.05), pytest.approx(9, abs=0.05)]  # the second model has both stretches
