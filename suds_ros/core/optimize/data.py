@@ -24,7 +24,10 @@ range and speed bounds (the same bounds and code as the physics optimiser,
 recording, moved onto the model's phase (:func:`align_to_model`), or else the template's actuated
 part truncated to K harmonics; it is scaled into the bounds if it leaves them.  The returned
 gait meets the bounds on a 4096-point grid (the step is shortened towards the start until it
-does); a step that is not predicted to be better is not taken.
+does); a step that is not predicted to be better is not taken.  SLSQP can break down (its
+linearised constraints incompatible) after it has visited better gaits that meet every bound:
+it is then restarted once from the best of them, and that gait is kept if the restart breaks
+down too.
 
 Uncertainty
 -----------
@@ -703,10 +706,28 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     cons = [{"type": "ineq", "fun": lambda z: lb - L @ z, "jac": lambda z: -L},
             {"type": "ineq", "fun": lambda z: prob.values(z)[1:],
              "jac": lambda z: np.ascontiguousarray(prob.grads(z)[:, 1:].T)}]
+    best: dict[str, Any] = {}  # the best point SLSQP evaluated that meets every bound: f, x
+
+    def fun(z: FloatArray) -> float:
+        v = prob.values(z)
+        if v[0] < best.get("f", math.inf) and np.all(v[1:] >= -MARGIN) and np.all(L @ z <= lb + 1e-9):
+            best.update(f=float(v[0]), x=np.array(z, dtype=float))
+        return float(v[0])
+
+    def slsqp(z0: FloatArray) -> Any:
+        return minimize(fun, z0, jac=lambda z: np.ascontiguousarray(prob.grads(z)[:, 0]), method="SLSQP",
+                        constraints=cons, options={"maxiter": cfg.maxiter, "ftol": cfg.ftol})
+
     try:
-        sol = minimize(lambda z: float(prob.values(z)[0]), x0, jac=lambda z: np.ascontiguousarray(prob.grads(z)[:, 0]),
-                       method="SLSQP", constraints=cons, options={"maxiter": cfg.maxiter, "ftol": cfg.ftol})
+        sol = slsqp(x0)
         x_end, msg = np.asarray(sol.x), f"SLSQP: {sol.message} ({sol.nit} iterations)"
+        if not sol.success and "x" in best and not np.array_equal(best["x"], x0):
+            # it broke down (e.g. its linearised constraints became incompatible) after finding better
+            # feasible points: once more from the best of them, else that point itself
+            again = slsqp(best["x"])
+            x_end = np.asarray(again.x) if again.success else best["x"]
+            msg += (f"; restarted from the best feasible point it visited: {again.message} ({again.nit} "
+                    f"iterations){'' if again.success else ', that point taken'}")
     except FloatingPointError as exc:
         x_end, msg = x0, f"no step: {exc}"
     # meet the bounds on the fine grid: shorten the step towards the (feasible) start

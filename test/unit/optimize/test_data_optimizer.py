@@ -158,3 +158,38 @@ def test_motion_miss_tells_the_modelled_robot_from_a_changed_one(purcell: tuple[
         motion_miss(model, simulate(system, SimConfig(cycles=5, seed=7)).slice(0, 150))  # type: ignore[arg-type]
     with pytest.raises(SudsConfigError, match="`model`"):
         motion_miss(dataclasses.replace(model, identifier=None), simulate(system, SimConfig(cycles=3, seed=7)))
+
+
+def test_a_broken_down_slsqp_restarts_from_the_best_feasible_point_it_visited(
+        purcell: tuple[object, LearnedModel], monkeypatch: pytest.MonkeyPatch) -> None:
+    """SLSQP can stop with "Inequality constraints incompatible" after it has found better feasible gaits
+    (swimmer9, a pooled model at 72 % of the limit): its last iterate is not the answer, and "no gain" is
+    wrong; the step restarts from the best feasible point visited, and keeps that point if the restart
+    breaks down too."""
+    import scipy.optimize
+
+    import suds_ros.core.optimize.data as data_mod
+
+    system, model = purcell
+    limits, start = gait_limits(system), nominal_gait(system)  # type: ignore[arg-type]
+    cfg = DataOptimizeConfig(draws=0)
+    good = optimize_from_data(model, cfg, limits=limits, start=start)
+    assert good.step_taken
+    x_good = good.gait.to_vector(cfg.order)
+    starts = []
+
+    def broken(fun, z0, **kwargs):  # type: ignore[no-untyped-def]
+        starts.append(np.array(z0))
+        fun(z0)
+        fun(x_good)  # a better feasible gait on the way ...
+        fun(z0 + 5.0)  # ... then far outside, where it breaks down
+        return scipy.optimize.OptimizeResult(x=z0 + 5.0, success=False, nit=3,
+                                             message="Inequality constraints incompatible")
+
+    monkeypatch.setattr(data_mod, "minimize", broken)
+    res = optimize_from_data(model, cfg, limits=limits, start=start)
+    assert len(starts) == 2 and np.array_equal(starts[1], x_good)
+    assert res.step_taken and "restarted from the best feasible point" in res.message
+    assert "that point taken" in res.message
+    np.testing.assert_allclose(res.gait.to_vector(cfg.order), x_good, atol=1e-12)
+    assert res.value == pytest.approx(good.value, rel=1e-9)
