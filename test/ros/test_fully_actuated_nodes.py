@@ -47,15 +47,21 @@ def test_nodes_run_a_fully_actuated_robot(start_process, node_command, probe):
              lambda: f"the predictor\n{pred.output()}")
     sim = start_process(node_command("simulator_node", f"model_file:={CRAWLER}", "real_time_factor:=4.0",
                                      "seed:=5", f"cycles:={CYCLES}"), "simulator")
-    assert sim.wait(120) == 0, sim.output()
-    wait_for(lambda: len(models) >= 1 and len(body) >= 100, 90,
-             lambda: f"a model and predictions ({len(models)}, {len(body)})\n{est.output()}\n{pred.output()}")
+    assert sim.wait(300) == 0, sim.output()
+    wait_for(lambda: len(models) >= 1, 300, lambda: f"a model\n{est.output()}")
+    # on a busy machine the whole first run can reach the predictor before the model does (it predicts
+    # only samples that come after its first model): a second run of the robot is predicted for certain
+    more = start_process(node_command("simulator_node", f"model_file:={CRAWLER}", "real_time_factor:=4.0",
+                                      "seed:=6", "cycles:=4", f"t0:={1.7e9 + CYCLES + 10.0}"), "simulator2")
+    assert more.wait(300) == 0, more.output()
+    wait_for(lambda: len(body) >= 100, 300,
+             lambda: f"predictions ({len(models)} models, {len(body)} predictions)\n{est.output()}\n{pred.output()}")
     model = model_from_msg(models.messages()[-1])
     assert tuple(model.passive) == () and model.n_samples > 0
     assert len(passive) >= 100 and all(len(m.name) == 0 and len(m.velocity) == 0 for m in passive.messages())
     last = body.messages()[-1].twist
     assert all(abs(v) < 1e3 for v in (last.linear.x, last.linear.y, last.angular.z))  # finite, not NaN
-    wait_for(lambda: len(mismatch) >= 3, 90, lambda: f"monitor reports\n{mon.output()}")
+    wait_for(lambda: len(mismatch) >= 3, 300, lambda: f"monitor reports\n{mon.output()}")
     reports = [r for m in mismatch.messages() for r in diagnostics_from_msg(m)]
     assert {r.name.rsplit("/", 1)[-1] for r in reports} == {"xi_x", "xi_y", "xi_theta"}, {r.name for r in reports}
     assert all(r.level < 2 for r in reports), [r for r in reports if r.level >= 2][:3]
