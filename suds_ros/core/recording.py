@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import NO_POSE, SudsDataError
 
 #: How far (s, absolute) a stamp may lie outside the pose stream's span in :meth:`Recording.pose_at`
@@ -88,6 +88,10 @@ class Recording:
         Optional ground truth from a simulator, never written to bags: ``"xi"`` (n, 3)
         body velocity, ``"rdot"`` (n, nj) shape velocity, ``"phase"`` (n,) reference phase
         in rad, ``"tau"`` (n, nj) joint torques.
+    bridged : (n,) bool or None
+        Shape samples that were not measured but bridged across a run of lost samples
+        (:func:`~suds_ros.core.resample.on_shape_grid` sets it; None: every sample measured).
+        The identifier fits and scores no interval that touches one.
     """
 
     t: FloatArray
@@ -102,6 +106,7 @@ class Recording:
     effort: FloatArray | None = None
     bouts: tuple[tuple[float, float], ...] = ()
     truth: dict[str, FloatArray] = field(default_factory=dict, compare=False, repr=False)
+    bridged: BoolArray | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, dtype=float)
@@ -160,6 +165,11 @@ class Recording:
             pose[:, 2] = np.unwrap(pose[:, 2])
         object.__setattr__(self, "r", r)
         object.__setattr__(self, "pose", pose)
+        if self.bridged is not None:
+            bridged = np.asarray(self.bridged, dtype=bool)
+            if bridged.shape != t.shape:
+                raise SudsDataError(f"bridged: expected shape {t.shape}, got {bridged.shape}")
+            object.__setattr__(self, "bridged", bridged)
         if self.effort is not None:
             eff = np.asarray(self.effort, dtype=float)
             if eff.shape != r.shape:
@@ -239,4 +249,5 @@ class Recording:
             pose=self.pose[m],
             effort=None if self.effort is None else self.effort[start:stop],
             truth=truth,
+            bridged=None if self.bridged is None else self.bridged[start:stop],
         )

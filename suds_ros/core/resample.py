@@ -276,6 +276,25 @@ class StreamSampling:
         return out
 
 
+#: Grid points in a run of at least this many without a shape sample are bridged, not measured: a
+#: single lost message (a lab recording's 1 % drops) is bridged by the spline and kept
+BRIDGED_RUN = 3
+
+
+def bridged(ts: FloatArray, grid: FloatArray, min_run: int = BRIDGED_RUN) -> BoolArray | None:
+    """Grid points inside a run of at least ``min_run`` consecutive :func:`gaps` of the stream ``ts``; None if none."""
+    g = gaps(ts, grid).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], g, [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    long = ends - starts >= min_run
+    if not long.any():
+        return None
+    out = np.zeros(grid.size, dtype=bool)
+    for a, b in zip(starts[long], ends[long]):
+        out[a:b] = True
+    return out
+
+
 def on_shape_grid(rec: Recording) -> Recording:
     """``rec`` with its shape stream brought onto its fitted uniform grid; the pose stream untouched.
 
@@ -283,7 +302,9 @@ def on_shape_grid(rec: Recording) -> Recording:
     recording itself is returned.  Otherwise the shape samples are replaced by the least-squares
     linear spline of :func:`knot_fit` at the grid points (the servo set-point times, where the
     drive has its kinks), so shape intervals coincide with the drive's straight-line segments.
-    Ground truth, which belongs to the original stamps, is dropped.
+    Ground truth, which belongs to the original stamps, is dropped.  Grid points inside a run of
+    at least ``BRIDGED_RUN`` lost samples are marked in ``bridged`` (:func:`bridged`): the spline
+    bridges them for the phase, but they were never measured.
     """
     grid = Grid.of(rec)
     if not grid.resampled:
@@ -293,4 +314,4 @@ def on_shape_grid(rec: Recording) -> Recording:
         raise SudsDataError("`rec`: fewer than 3 grid points inside the pose stream's span",
                             code=TOO_LITTLE_DATA)
     effort = None if rec.effort is None else knot_fit(rec.t, rec.effort, t)
-    return replace(rec, t=t, r=knot_fit(rec.t, rec.r, t), effort=effort, truth={})
+    return replace(rec, t=t, r=knot_fit(rec.t, rec.r, t), effort=effort, truth={}, bridged=bridged(rec.t, t))

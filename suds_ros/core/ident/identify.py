@@ -9,11 +9,11 @@ the actuator torques are identified the same way (``torque=True``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import fourier_basis
@@ -269,13 +269,19 @@ class SudsIdentifier(BaseEstimator):
             if iv.effort is None:
                 raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
             Y = np.concatenate([Y, iv.effort], axis=1)
-        pv = pose_intervals(rec, rec.t[:-w], rec.t[w:], w)
+        t0, t1 = rec.t[:-w], rec.t[w:]
+        keep = _measured(rec, w)
+        if keep is not None:  # no interval over shapes bridged across lost samples; no pose interval over those
+            iv = Intervals(t=iv.t[keep], k=iv.k[keep], r=iv.r[keep], rdot=iv.rdot[keep], xi=iv.xi[keep],
+                           effort=None if iv.effort is None else iv.effort[keep], dt=iv.dt[keep])
+            ph, Y, t0, t1 = ph[keep], Y[keep], t0[keep], t1[keep]
+        pv = pose_intervals(rec, t0, t1, w)
         if pv.is_identity(iv.t) and not pose_rows:
             return _Samples(iv, ph, Y, None)
-        k = pv.seg_k
+        k = np.asarray(iv.k, dtype=np.int64)[pv.seg_k]  # seg_k: rows of iv; k: their first shape samples
         frac = (pv.seg_t - rec.t[k]) / (rec.t[k + w] - rec.t[k])
         row = segment_state(self.config.suds, phase[k], phase[k + w], rec.r[k], rec.r[k + w], frac)
-        return _Samples(iv, ph, Y, pv, *segment_states(rec, pv, phase, w), *row)
+        return _Samples(iv, ph, Y, pv, *segment_states(rec, replace(pv, seg_k=k), phase, w), *row)
 
     def _targets(self, rec: Recording, X: FloatArray, s: _Samples) -> tuple[FloatArray, AveragedTargets | None]:
         """Row targets and averaged (pose-interval) targets of the regression."""
@@ -383,8 +389,8 @@ class SudsIdentifier(BaseEstimator):
         (their intervals then score the joints only, as the pose intervals would).
         """
         t, pt = rec.t, rec.pose_t
-        if rec.n_samples <= self.config.block_samples or pt.size < 2:
-            return False
+        if rec.n_samples <= self.config.block_samples or pt.size < 2 or rec.bridged is not None:
+            return False  # (bridged samples: the intervals to leave out are chosen on the whole recording)
         if training:
             return pt.size == t.size and bool(np.array_equal(pt, t))
         i0 = int(np.searchsorted(t, pt[0]))
@@ -587,12 +593,21 @@ def _recordings(rec: Recording | Sequence[Recording]) -> list[Recording]:
 
 def _joined(recs: list[Recording]) -> Recording:
     """The bouts' shape samples end to end on one uniform clock (for the phaser only)."""
-    from dataclasses import replace
-
     r = np.concatenate([x.r for x in recs])
     dt = float(np.median([x.dt for x in recs]))
     t = recs[0].t[0] + dt * np.arange(r.shape[0])
-    return replace(recs[0], t=t, r=r, pose_t=t[[0, -1]], pose=np.zeros((2, 3)), effort=None, truth={})
+    return replace(recs[0], t=t, r=r, pose_t=t[[0, -1]], pose=np.zeros((2, 3)), effort=None, truth={}, bridged=None)
+
+
+def _measured(rec: Recording, window: int) -> BoolArray | None:
+    """Intervals k → k + ``window`` whose samples were all measured (none ``rec.bridged``); None: every one."""
+    if rec.bridged is None:
+        return None
+    n = rec.n_samples - window
+    bad = np.zeros(n, dtype=bool)
+    for j in range(window + 1):
+        bad |= rec.bridged[j:j + n]
+    return ~bad if bad.any() else None
 
 
 def _merged(parts: list[_Samples]) -> _Samples:

@@ -204,7 +204,8 @@ def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, w
     rec : Recording
         Its pose stream, differenced over ``window`` pose samples.
     shape_t0, shape_t1 : (m,) float
-        Start and end stamps of the shape intervals (sorted).
+        Start and end stamps of the shape intervals (sorted).  They may leave holes (intervals
+        left out): a pose interval is kept only if the given intervals cover it wholly.
     """
     import scipy.sparse
 
@@ -218,6 +219,11 @@ def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, w
     rows, cols, s0, s1 = overlap_segments(shape_t0, shape_t1, b0, b1)
     ov = s1 - s0
     total = np.bincount(rows, weights=ov, minlength=b0.size)
+    whole = total >= (b1 - b0) * (1 - 1e-9)  # the shape intervals cover it: it spans no left-out interval
+    if not whole.all():
+        seg = whole[rows]
+        rows, cols, s0, s1, ov = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg], ov[seg]
+        b0, b1, xi, total = b0[whole], b1[whole], xi[whole], total[whole]
     W = scipy.sparse.csr_matrix((ov / total[rows], (rows, np.arange(rows.size))), shape=(b0.size, rows.size))
     return PoseIntervals(t0=b0, t1=b1, xi=xi, seg_k=cols, seg_t=0.5 * (s0 + s1), weights=W)
 

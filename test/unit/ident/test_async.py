@@ -92,3 +92,55 @@ def test_streaming_matches_batch_on_async_data(lab_run) -> None:
     batch = SudsIdentifier(IdentifyConfig(order_grid=(), suds=OnlineConfig().suds)).fit(train).scores(test)
     assert sc.gamma_body > batch.gamma_body - 0.05
     assert sc.gamma_passive > batch.gamma_passive - 0.05
+
+
+def test_only_runs_of_lost_shape_samples_are_bridged() -> None:
+    from suds_ros.core.resample import bridged
+
+    grid = np.arange(20) * 0.01
+    single = np.delete(grid, [5])  # one lost message: bridged by the spline and kept
+    assert bridged(single, grid) is None
+    runs = np.delete(grid, [3, 4, 10, 11, 12, 13])  # two lost, then four lost in a row
+    mask = bridged(runs, grid)
+    assert mask is not None and list(np.flatnonzero(mask)) == [10, 11, 12, 13]
+
+
+def test_pose_intervals_over_a_left_out_shape_interval_are_dropped() -> None:
+    rec = simulate_lab(make_system("purcell3"), SimConfig(cycles=3, seed=1), LabConditions())
+    t0, t1 = rec.t[:-1], rec.t[1:]
+    keep = np.ones(t0.size, bool)
+    keep[100:110] = False
+    full, holed = pose_intervals(rec, t0, t1), pose_intervals(rec, t0[keep], t1[keep])
+    hole = (t0[100], t1[109])
+    spans = (full.t1 > hole[0]) & (full.t0 < hole[1])
+    assert spans.any() and holed.t0.size == full.t0.size - spans.sum()
+    assert not np.any((holed.t1 > hole[0]) & (holed.t0 < hole[1]))
+    np.testing.assert_allclose(np.asarray(holed.weights.sum(axis=1)).ravel(), 1.0, rtol=1e-12)
+
+
+def test_bursts_of_lost_shape_samples_are_left_out_not_bridged(lab_run) -> None:
+    """An encoder bus that loses runs of messages: the shapes bridged across a run were never
+    measured, so no interval over them is fitted or scored; the model of the rest is as good as
+    the intact recording's (it was far worse when the bridged intervals were fitted too)."""
+    rng = np.random.default_rng(4)
+    keep = np.ones(lab_run.t.size, bool)
+    while keep.mean() > 0.75:  # a quarter of the shape stream lost in bursts of 0.3 s mean
+        start = rng.uniform(lab_run.t[0], lab_run.t[-1])
+        keep &= ~((lab_run.t >= start) & (lab_run.t < start + rng.exponential(0.3)))
+    lossy = replace(lab_run, t=lab_run.t[keep], r=lab_run.r[keep], truth={})
+    train, test = split_cycles(lossy, 12, 8)
+    ident = SudsIdentifier(IdentifyConfig()).fit(train)
+    grid_test = ident._prepared(test)
+    b = grid_test.bridged
+    assert b is not None and b.any()
+    s = ident._samples(grid_test, ident._phase(grid_test, fit=False))
+    k = np.asarray(s.iv.k, dtype=int)
+    assert not np.any(b[k] | b[k + 1])  # no interval over a bridged sample is fitted or scored
+    out = np.flatnonzero(b[:-1] | b[1:])  # the intervals left out
+    lo, hi = grid_test.t[out], grid_test.t[out + 1]
+    assert s.pose is not None and s.pose.t0.size > 0
+    assert not np.any((s.pose.t0[:, None] < hi[None, :]) & (s.pose.t1[:, None] > lo[None, :]))
+    whole_train, whole_test = split_cycles(lab_run, 12, 8)
+    intact = SudsIdentifier(IdentifyConfig()).fit(whole_train).scores(whole_test)
+    scores = ident.scores(test)
+    assert scores.gamma_body > intact.gamma_body - 0.05 and scores.gamma_passive > intact.gamma_passive - 0.05
