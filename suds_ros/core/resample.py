@@ -37,6 +37,7 @@ import scipy.sparse.linalg
 
 from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsDataError
+from suds_ros.core.midline import lost_runs
 from suds_ros.core.recording import Recording
 
 #: Weight of the rows that pull every knot toward plain linear interpolation (keeps the least
@@ -283,15 +284,12 @@ BRIDGED_RUN = 3
 
 def bridged(ts: FloatArray, grid: FloatArray, min_run: int = BRIDGED_RUN) -> BoolArray | None:
     """Grid points inside a run of at least ``min_run`` consecutive :func:`gaps` of the stream ``ts``; None if none."""
-    g = gaps(ts, grid).astype(np.int8)
-    edges = np.diff(np.concatenate([[0], g, [0]]))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    long = ends - starts >= min_run
-    if not long.any():
+    runs = [(a, b) for a, b in lost_runs(gaps(ts, grid)) if b - a + 1 >= min_run]
+    if not runs:
         return None
     out = np.zeros(grid.size, dtype=bool)
-    for a, b in zip(starts[long], ends[long]):
-        out[a:b] = True
+    for a, b in runs:
+        out[a:b + 1] = True
     return out
 
 
