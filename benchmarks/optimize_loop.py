@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import math
 import time
@@ -25,7 +26,7 @@ from pathlib import Path
 from _common import RESULTS, SNAKE5, machine, stamp, write
 
 from suds_ros.core.json_text import dumps
-from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopResult, _Robot, _trim, optimize_loop
+from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits, nominal_gait
 from suds_ros.core.physics.systems import load_system
@@ -89,17 +90,6 @@ class _OracleSearch(GaitSearch):
                                    turn=true["rotation"] * gait.gait_hz, speed_se=tiny, rotation_se=tiny)
 
 
-def _oracle_loop(system, config: LoopConfig, start: Gait, limits) -> LoopResult:
-    """optimize_loop with :class:`_OracleSearch` (the same robot and order of events)."""
-    t0 = time.perf_counter()
-    search = _OracleSearch(system, start, limits, config)
-    robot = _Robot(system, start, config)
-    while (req := search.request()) is not None:
-        rec, _ = robot.run(req.gait, req.cycles)
-        search.observe(_trim(rec, config.settle_cycles, robot.spc))
-    return search.result(seconds=time.perf_counter() - t0)
-
-
 def _path(name: str, ablation: str | None) -> Path:
     """The JSON of a robot's runs: the loop's defaults, or an ablation's."""
     return RESULTS / (f"optimize_loop_{name}.json" if ablation is None else f"optimize_loop_{name}_{ablation}.json")
@@ -130,8 +120,8 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
         for seed in (seeds if kind != "wave reversed" else seeds[:1]):
             t1 = time.perf_counter()
             cfg = LoopConfig(budget_cycles=budget, seed=seed, **loop_change)
-            res = (_oracle_loop(system, cfg, start, limits) if ablation == "oracle"
-                   else optimize_loop(system, cfg, start=start, limits=limits))
+            judge = functools.partial(_OracleSearch, system) if ablation == "oracle" else GaitSearch
+            res = optimize_loop(system, cfg, start=start, limits=limits, search=judge)
             secs = time.perf_counter() - t1
             rows, incumbent = [], None
             for it in res.iterations:
