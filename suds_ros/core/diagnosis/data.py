@@ -13,7 +13,8 @@ import numpy as np
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, WRONG_JOINT_NAMES, SudsConfigError, SudsDataError, SudsPhaseError
-from suds_ros.core.resample import Grid, StreamSampling
+from suds_ros.core.midline import lost_runs
+from suds_ros.core.resample import Grid, StreamSampling, gaps
 from suds_ros.core.resample import xi_noise_gain as grid_xi_noise_gain
 from suds_ros.core.phase.phaser import Phaser
 from suds_ros.core.physics.rft import ChainModel
@@ -45,6 +46,15 @@ class Data:
     phase_source: str = "phaser"
     phase_note: str = ""
     shape_gap: BoolArray | None = None  # (n,) shape unreliable: no sample within half a step (or next to such a point)
+    # (the diagnosis widens it by the replay's memory of a gap; ``shape_lost`` keeps the unwidened mask,
+    # the one a local (equation-error) residual needs)
+    shape_lost: BoolArray | None = None
+    # (k,) grid index of the first measured shape sample after each run of lost ones: the replay
+    # restarts its passive joints from the recorded angles there (:func:`.replay.replay`)
+    anchors: IntArray | None = None
+    # noise power of the passive angles' replay residual over the measurement floor² where it is used
+    # (the restarts after gaps leave their measurement error in the replay; set by the diagnosis)
+    rp_noise_power: float = 1.0
     pose_gap: BoolArray | None = None  # (n,) the same for the pose stream
     resampled: bool = False  # the streams were brought onto a grid (not aligned and uniform)
 
@@ -87,6 +97,10 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
     r = grid.shape(rec)[:, order]
     pose = grid.pose(rec)
     phase, source, note = gait_phase(r, t, f)
+    lost = grid.unreliable(rec.t)
+    anchors = None
+    if grid.resampled:  # the first sample after each run of lost shape samples
+        anchors = np.array([b + 1 for _, b in lost_runs(gaps(rec.t, t)) if b + 1 < t.size], dtype=np.intp)
     return Data(
         t=t,
         r=r,
@@ -103,7 +117,9 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         names=names,
         phase_source=source,
         phase_note=note,
-        shape_gap=grid.unreliable(rec.t),
+        shape_gap=lost,
+        shape_lost=lost,
+        anchors=anchors,
         pose_gap=grid.unreliable(rec.pose_t),
         resampled=grid.resampled,
     )

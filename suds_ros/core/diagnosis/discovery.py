@@ -141,7 +141,8 @@ def discover(
     y_tr, _ = scorer.train.residuals(p, thr)
     y_te, _ = scorer.test.residuals(p, thr)
     # the rows the residuals kept; zeroed rows add 0 = 0·β to a block mean, so the means stay consistent
-    kept_tr, kept_te = np.abs(scorer.train.rdot_p) > thr, np.abs(scorer.test.rdot_p) > thr
+    kept_tr = (np.abs(scorer.train.rdot_p) > thr) & scorer.train.measured[:, None]
+    kept_te = (np.abs(scorer.test.rdot_p) > thr) & scorer.test.measured[:, None]
     rest = np.asarray(model.rest)[data.pas] + p.offset
     act_names = [data.names[a] for a in data.act]
     out = []

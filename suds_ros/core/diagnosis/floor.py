@@ -87,12 +87,16 @@ def floor_arrays(
     set-points, interpolated there), where the measurement noise is white whatever the stream's
     rate: on the grid a pose stream slower than the grid is an interpolation whose fourth
     differences hold the kinks of the motion between samples.  On a recording whose pose shares
-    the grid's stamps the two are the same.
+    the grid's stamps the two are the same.  Recorded passive angles at or next to a lost shape
+    sample (:attr:`Data.shape_lost`) are NaN: they were bridged, not measured.
     """
     m = min(length for _, length in segs)
     rr, ss, d4 = [], [], []
     for k, (s0, length) in enumerate(segs):
-        rr.append(data.r[s0:s0 + m][:, data.pas])
+        rec = data.r[s0:s0 + m][:, data.pas]
+        if data.shape_lost is not None:  # a bridged sample is no measurement: its differences are left out
+            rec = np.where(data.shape_lost[s0:s0 + m, None], np.nan, rec)
+        rr.append(rec)
         ss.append(sim_rp[k][:m])
         T = data.t[s0:s0 + length]
         lo = int(np.searchsorted(data.pose_t, T[0], side="left"))

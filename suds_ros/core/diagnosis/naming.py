@@ -13,7 +13,7 @@ import numpy as np
 import scipy.optimize
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.diagnosis.data import Data
 from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.replay import window_xi
@@ -63,6 +63,20 @@ class _EqError:
         self.nint = self.rbar.shape[0]
         self.nwin = self.nint - w + 1
         self.rdot_p = self.rdot[:, self.pas]
+        # Intervals with an end at or next to a lost shape sample (:attr:`Data.shape_lost`) are not
+        # measured: across the gap Δr/Δt is the slope of the bridge, not the joint's rate, and a
+        # passive joint's torque balance there is wrong by whatever the lost samples held (measured:
+        # a Coulomb friction named as viscous damping with 30 % of the shape samples lost in bursts).
+        # They are left out of the torque channels, and so is every ξ window that composes one, or
+        # whose end is at or next to a lost pose sample.
+        lost = np.zeros(hi - lo, dtype=bool) if data.shape_lost is None else data.shape_lost[lo:hi]
+        self.measured = ~(lost[:-1] | lost[1:])
+        bad = np.concatenate([[0], np.cumsum(~self.measured)])
+        win_ok = bad[w:] == bad[:-w]
+        if data.pose_gap is not None:
+            pg = data.pose_gap[lo:hi]
+            win_ok &= ~(pg[: self.nwin] | pg[w:])
+        self.win_measured = win_ok
 
     def _win(self, x: FloatArray) -> FloatArray:
         """Moving average over w intervals along axis 0."""
@@ -163,9 +177,9 @@ class _EqError:
         g2 = (2.0 / self.dt**2) * (others + (own + damping) ** 2) + 0.5 * stiffness**2
         return np.sqrt(np.maximum(g2, 1e-300))
 
-    def valid(self, delay_max: float) -> FloatArray:
-        """Windows whose re-sampled pose stays away from the ends of the span."""
-        ok = np.ones(self.nwin, dtype=bool)
+    def valid(self, delay_max: float) -> BoolArray:
+        """Measured windows whose re-sampled pose stays away from the ends of the span."""
+        ok = self.win_measured.copy()
         n_edge = int(np.ceil(abs(delay_max) / self.dt)) + 1
         ok[:n_edge] = False
         ok[-n_edge:] = False
@@ -187,7 +201,7 @@ class _EqError:
         # torque channel for every candidate: there the joint may be stuck (any friction torque
         # in [−mu, mu] is admissible) and sign(ṙ) is noise, so a dead zone would "explain" noise.
         v = self.rdot_p
-        slip = np.abs(v) > rdot_thr
+        slip = (np.abs(v) > rdot_thr) & self.measured[:, None]
         e = np.where(slip, e + (self.mu + p.mu) * np.sign(v), 0.0)
         if normalised:
             k_local = scale * (p.kscale * self.k + 3.0 * (self.k3 + p.k3) * e_spring**2)  # −∂spring/∂r̄
@@ -308,13 +322,14 @@ class Scorer:
         # time, that put the threshold inside the noise, and the stuck intervals, their sign(ṙ)
         # random, cancelled the friction (fitted at a quarter of its value on noise-free data)
         thr = 3.0 * np.sqrt(2.0) * np.nan_to_num(sig_r, nan=1e-3) / data.dt
-        cap = np.quantile(np.abs(self.train.rdot_p), 0.97, axis=0)
+        cap = np.quantile(np.abs(self.train.rdot_p[self.train.measured]), 0.97, axis=0)
         self.rdot_thr = np.minimum(thr, cap)
         self.ok_train = self.train.valid(self.DELAY_MAX)
         self.ok_test = self.test.valid(self.DELAY_MAX)
         npas = data.pas.size
-        self.n_eff_train = np.array([self.train.nint] * npas + [self.ok_train.sum() / w] * 3, dtype=float)
-        self.n_eff_test = np.array([self.test.nint] * npas + [self.ok_test.sum() / w] * 3, dtype=float)
+        self.n_meas_train, self.n_meas_test = int(self.train.measured.sum()), int(self.test.measured.sum())
+        self.n_eff_train = np.array([self.n_meas_train] * npas + [self.ok_train.sum() / w] * 3, dtype=float)
+        self.n_eff_test = np.array([self.n_meas_test] * npas + [self.ok_test.sum() / w] * 3, dtype=float)
         # least-squares row weights: overlapping ξ windows count 1/w each
         self.row_w = np.array([1.0] * npas + [1.0 / np.sqrt(w)] * 3)
         # the BIC penalty per parameter, (1/2)·log n_eff, nats
@@ -323,19 +338,19 @@ class Scorer:
         self.null = null
         e_tr, x_tr = self._res(self.train, null, np.zeros(0))
         e_te, x_te = self._res(self.test, null, np.zeros(0))
-        self.rss0_train = self._rss(e_tr, x_tr, self.ok_train)
-        self.rss0_test = self._rss(e_te, x_te, self.ok_test)
+        self.rss0_train = self._rss(e_tr, x_tr, self.ok_train, self.n_meas_train)
+        self.rss0_test = self._rss(e_te, x_te, self.ok_test, self.n_meas_test)
 
     def _res(self, eq: _EqError, cand: Candidate, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         p = equation_terms(cand, x, self.data, self.model)
         return eq.residuals(p, self.rdot_thr, normalised=True)
 
     @staticmethod
-    def _rss(e: FloatArray, ex: FloatArray, ok: FloatArray) -> FloatArray:
-        """Mean squared residual per channel (torques, then ξ)."""
+    def _rss(e: FloatArray, ex: FloatArray, ok: FloatArray, n_measured: int) -> FloatArray:
+        """Mean squared residual per channel (torques over the ``n_measured`` measured intervals, then ξ)."""
         ex = ex[ok]
         ex = np.where(np.isfinite(ex), ex, 0.0)
-        return np.concatenate([(e**2).mean(axis=0), (ex**2).mean(axis=0)]) + 1e-30
+        return np.concatenate([(e**2).sum(axis=0) / max(n_measured, 1), (ex**2).mean(axis=0)]) + 1e-30
 
     def gain(self, rss: FloatArray, rss0: FloatArray, n_eff: FloatArray) -> float:
         return float(0.5 * np.sum(n_eff * np.log(rss0 / np.maximum(rss, 1e-300))))
@@ -406,9 +421,9 @@ class Scorer:
                     break
                 x = sol.x
                 e, ex = self._res(self.train, cand, x)
-                wts = 1.0 / np.sqrt(np.maximum(self._rss(e, ex, ok), 1e-300))
+                wts = 1.0 / np.sqrt(np.maximum(self._rss(e, ex, ok, self.n_meas_train), 1e-300))
             e, ex = self._res(self.train, cand, x)
-            sols.append((self.gain(self._rss(e, ex, ok), self.rss0_train, self.n_eff_train), x))
+            sols.append((self.gain(self._rss(e, ex, ok, self.n_meas_train), self.rss0_train, self.n_eff_train), x))
         g_tr, x = max(sols, key=lambda s: s[0])
         return x, g_tr, self.heldout_gain(cand, x)
 
@@ -434,4 +449,4 @@ class Scorer:
     def heldout_gain(self, cand: Candidate, x: FloatArray) -> float:
         """Held-out log-likelihood gain of ``cand`` at ``x`` over the nominal model, nats."""
         e, ex = self._res(self.test, cand, x)
-        return self.gain(self._rss(e, ex, self.ok_test), self.rss0_test, self.n_eff_test)
+        return self.gain(self._rss(e, ex, self.ok_test, self.n_meas_test), self.rss0_test, self.n_eff_test)

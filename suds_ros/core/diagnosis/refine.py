@@ -141,7 +141,7 @@ def _residual_vector(
     windows that touch one, count as zero: there the recording is interpolated across a lost kink.
     """
     idx = np.asarray(starts)[:, None] + np.arange(length)[None, :]
-    e_rp = (data.r[idx][:, :, data.pas] - rep.rp) / sig_rp
+    e_rp = (data.r[idx][:, :, data.pas] - rep.rp) / (sig_rp * np.sqrt(data.rp_noise_power))
     xi_rec = window_xi(data.pose[idx], w, data.dt)
     e_xi = (xi_rec - rep.xi) / np.array([s_xy, s_xy, s_th])
     if data.shape_gap is not None and data.pose_gap is not None:

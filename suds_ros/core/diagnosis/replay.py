@@ -89,8 +89,9 @@ def replay(
 
     Each segment starts from the recorded passive angles and pose at its first sample and is
     driven by the recorded actuated angles (:func:`~suds_ros.core.physics.integrate.integrate_batch`,
-    all segments in one batch); ``delay`` (s) is the pose-stamp delay of ``sensor_time_offset``.
-    ``torques``: discovered torques added to passive joints
+    all segments in one batch).  After a run of lost shape samples, whose drive is not known, its
+    passive angles restart from the recorded ones (:attr:`Data.anchors`).  ``delay`` (s) is the
+    pose-stamp delay of ``sensor_time_offset``.  ``torques``: discovered torques added to passive joints
     (:class:`~suds_ros.core.diagnosis.resimulate.DiscoveredTorqueChain`).
     """
     idx = np.asarray(starts)[:, None] + np.arange(length)[None, :]
@@ -99,13 +100,27 @@ def replay(
     ra = data.r[idx][:, :, data.act]
     rp0 = data.r[idx[:, 0]][:, data.pas]
     pose0 = data.pose[idx[:, 0]]
-    RP, P = integrate_batch(chain.velocities, data.act, data.pas, ra, rp0, pose0, data.dt, substeps)
+    RP, P = integrate_batch(chain.velocities, data.act, data.pas, ra, rp0, pose0, data.dt, substeps,
+                            reset=_anchored(data, idx))
     xi = measure(P, data.t[idx], model.flow, delay, w, data.dt, data.pose_sampling, list(starts))
     tt = data.t[idx] - data.t[idx[:, :1]]
     Pf = P.copy()
     Pf[..., 0] += model.flow[0] * tt
     Pf[..., 1] += model.flow[1] * tt
     return Replay(RP, xi, Pf)
+
+
+def _anchored(data: Data, idx: IntArray) -> FloatArray | None:
+    """Recorded passive angles at the anchors inside the segments ``idx`` (B, m), NaN elsewhere; None if none."""
+    if data.anchors is None or not data.anchors.size or not data.pas.size:
+        return None
+    at = np.isin(idx, data.anchors)
+    at[:, 0] = False  # a segment starts from the recorded state anyway
+    if not at.any():
+        return None
+    out = np.full(idx.shape + (data.pas.size,), np.nan)
+    out[at] = data.r[idx[at]][:, data.pas]
+    return out
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ def integrate_batch(
     dt: float | FloatArray,
     substeps: int,
     progress: Callable[[int, int], None] | None = None,
+    reset: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Integrate B independent runs under piecewise-linear actuated set-points (still fluid).
 
@@ -61,6 +62,9 @@ def integrate_batch(
         RK4 steps per sample interval.
     progress : callable, optional
         Called as ``progress(done, total)`` about every 1 % of the samples (and once at the end).
+    reset : (B, m, np) float, optional
+        Passive joint values the runs restart from at a sample (NaN: integrate on); a run
+        re-anchored to a measured state after a stretch whose drive is unknown.
 
     Returns
     -------
@@ -102,6 +106,9 @@ def integrate_batch(
                 rp = rp + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
                 pose = se2.exp_step(pose, h * (xi1 / 4 + xi2 / 6 + xi3 / 6 - xi4 / 12))
                 pose = se2.exp_step(pose, h * (-xi1 / 12 + xi2 / 6 + xi3 / 6 + xi4 / 4))
+            if reset is not None:
+                rk = reset[:, k + 1]
+                rp = np.where(np.isfinite(rk), rk, rp)
             RP[:, k + 1] = rp
             P[:, k + 1] = pose
     if progress is not None:

@@ -67,3 +67,25 @@ def test_per_run_intervals_equal_each_run_alone() -> None:
         np.testing.assert_allclose(RP[b], one_rp[0], rtol=0, atol=1e-13)
         np.testing.assert_allclose(P[b], one_p[0], rtol=0, atol=1e-12)
     assert np.abs(RP[2, -1] - RP[0, -1]).max() > 1e-3  # the intervals matter
+
+
+def test_a_reset_restarts_the_passive_joints_there_and_the_run_continues_from_it() -> None:
+    """``reset``: at a finite entry the passive joints take it, and the rest equals a run started there."""
+    sys_ = make_system("swimmer9")
+    act, pas = np.asarray(sys_.actuated), np.asarray(sys_.passive)
+    t = np.arange(80) * 0.01
+    rng = np.random.default_rng(7)
+    r_a = np.stack([sys_.reference(t + 0.2 * b) + ou_path(rng, t.size, act.size, 0.01, 8.0, 0.1) for b in range(2)])
+    rp0 = 0.1 * rng.standard_normal((2, pas.size))
+    pose0 = rng.standard_normal((2, 3))
+    reset = np.full((2, 80, pas.size), np.nan)
+    reset[0, 30] = 0.2 * rng.standard_normal(pas.size)  # run 0 restarts at sample 30, run 1 never
+    RP, P = integrate_batch(sys_.velocities, act, pas, r_a, rp0, pose0, 0.01, 3, reset=reset)
+    plain, plain_pose = integrate_batch(sys_.velocities, act, pas, r_a, rp0, pose0, 0.01, 3)
+    np.testing.assert_array_equal(RP[1], plain[1])
+    np.testing.assert_array_equal(RP[0, :30], plain[0, :30])
+    np.testing.assert_array_equal(RP[0, 30], reset[0, 30])
+    tail, tail_pose = integrate_batch(sys_.velocities, act, pas, r_a[:1, 30:], reset[:1, 30], plain_pose[:1, 30],
+                                      0.01, 3)
+    assert np.max(np.abs(RP[0, 30:] - tail[0])) < 1e-13
+    assert np.max(np.abs(RP[0, 40:] - plain[0, 40:])) > 1e-4  # the restart did change the run
