@@ -48,7 +48,7 @@ from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
 #: the ``format`` field of the header
 FORMAT = "suds_ros.estimator_checkpoint"
 #: bumped whenever the state of a class below changes shape
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 #: arrays up to this many elements are written inside the JSON header
 INLINE_MAX = 64
 

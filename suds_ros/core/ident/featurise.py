@@ -68,11 +68,16 @@ class StreamFeaturiser:
         Mean phase rate ω̄, rad/s.
     act, pas : (na,), (np,) int
         Joint indices of the actuated and passive joints.
+    max_interval : float
+        Longest shape interval, s, that counts as measured.  A longer one spans a run of lost
+        samples: it gives no row, and nor does a pose interval that overlaps it (as the batch
+        identifier leaves out what was bridged, :data:`~suds_ros.core.resample.BRIDGED_RUN`).
     """
 
     def __init__(self, suds: SudsConfig, template: FourierTemplate, omega: float, act: IntArray,
-                 pas: IntArray) -> None:
+                 pas: IntArray, max_interval: float = float("inf")) -> None:
         self.suds = suds
+        self.max_interval = float(max_interval)
         self.template = template
         self.omega = float(omega)
         self.act = np.asarray(act, dtype=int)
@@ -143,7 +148,8 @@ class StreamFeaturiser:
         X = interval_features(self.template, self.omega, self.act, 0.5 * (PH[:-1] + PH[1:]),
                               interval_state(self.suds, R[:-1], R[1:]), rdot)
         xi = se2.log(se2.relative(P[:-1], P[1:])) / dt[:, None]
-        return T[1:], X, np.concatenate([xi, rdot[:, self.pas]], axis=1)
+        keep = dt <= self.max_interval
+        return T[1:][keep], X[keep], np.concatenate([xi, rdot[:, self.pas]], axis=1)[keep]
 
     def _pose_rows(self, t_now: float) -> tuple[FloatArray, FloatArray, IntArray, FloatArray]:
         if self._new_pose_t:
@@ -166,6 +172,13 @@ class StreamFeaturiser:
         out = empty
         if t0.size and H.size >= 2:
             rows, k, s0, s1 = overlap_segments(H[:-1], H[1:], t0, t1)
+            bridged = (H[1:] - H[:-1])[k] > self.max_interval
+            if bridged.any():  # a pose interval over a run of lost shape samples: no row
+                ok = np.ones(t0.size, dtype=bool)
+                ok[rows[bridged]] = False
+                seg = ok[rows]
+                rows, k, s0, s1 = (np.cumsum(ok) - 1)[rows[seg]], k[seg], s0[seg], s1[seg]
+                t0, t1, g0, g1 = t0[ok], t1[ok], g0[ok], g1[ok]
             Xs = segment_features(self.suds, self.template, self.omega, self.act, H, self._hist_r,
                                   self._hist_ph, k, 0.5 * (s0 + s1))
             ov = s1 - s0

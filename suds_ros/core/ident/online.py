@@ -38,6 +38,7 @@ from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
+from suds_ros.core.resample import BRIDGED_RUN
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
 from suds_ros.core.ident.model import SudsModel, check_shape_sample
 from suds_ros.core.ident.pairing import StampPairer
@@ -276,7 +277,10 @@ class OnlineSudsEstimator:
         self.selector = self._selector(gait_kernel_scale(s.template, s.omega, self._act))
         self._tracker = PhaseTracker(s.template, s.omega, float(s.phase[-1]), float(s.t[-1]))
         self._phase0 = float(s.phase[0])
-        self._rows = StreamFeaturiser(self.config.suds, s.template, s.omega, self._act, self._pas)
+        # a shape interval over a run of BRIDGED_RUN or more lost samples is not measured
+        period = float(np.median(np.diff(s.t)))
+        self._rows = StreamFeaturiser(self.config.suds, s.template, s.omega, self._act, self._pas,
+                                      max_interval=(BRIDGED_RUN + 0.5) * period)
         for tp, pose in self._early_poses:
             self._rows.add_pose(tp, pose)
         self._early_poses = []

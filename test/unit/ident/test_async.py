@@ -144,3 +144,29 @@ def test_bursts_of_lost_shape_samples_are_left_out_not_bridged(lab_run) -> None:
     intact = SudsIdentifier(IdentifyConfig()).fit(whole_train).scores(whole_test)
     scores = ident.scores(test)
     assert scores.gamma_body > intact.gamma_body - 0.05 and scores.gamma_passive > intact.gamma_passive - 0.05
+
+
+def test_the_streaming_estimator_leaves_out_bursts_of_lost_shape_samples(lab_run) -> None:
+    """The live path leaves out what the batch identifier does: a shape interval over a run of lost
+    samples gives no row, nor does a pose interval overlapping one, so the held-out score stays
+    near the intact recording's (measured with 60 cycles and 30 % lost: Γ body 0.810 against 0.795
+    fitted across the bursts on purcell3, 0.834 against 0.803 on swimmer9; intact 0.816 and 0.862)."""
+    rng = np.random.default_rng(4)
+    keep = np.ones(lab_run.t.size, bool)
+    while keep.mean() > 0.75:
+        start = rng.uniform(lab_run.t[0], lab_run.t[-1])
+        keep &= ~((lab_run.t >= start) & (lab_run.t < start + rng.exponential(0.3)))
+    lossy = replace(lab_run, t=lab_run.t[keep], r=lab_run.r[keep], truth={})
+    train, _ = split_cycles(lossy, 12, 8)
+    est = fit_streaming(train, OnlineConfig(chunk=50))
+    period = float(np.median(np.diff(train.t)))
+    assert est._rows.max_interval == pytest.approx(3.5 * period, rel=0.01)  # the median of the first cycles
+    stamps = np.array([t for t, _ in est.pop_measured()])
+    long_ends = train.t[1:][np.diff(train.t) > 3.5 * period]
+    assert long_ends.size >= 3 and not np.isin(long_ends, stamps).any()
+    # scored on the intact held-out cycles: evaluate_model scores every interval of the recording
+    # it is given, and on the lossy one that includes the intervals over the bursts
+    whole_train, whole_test = split_cycles(lab_run, 12, 8)
+    intact = score_prediction(evaluate_model(fit_streaming(whole_train, OnlineConfig(chunk=50)).model(), whole_test))
+    ours = score_prediction(evaluate_model(est.model(), whole_test))
+    assert ours.gamma_body > intact.gamma_body - 0.05 and ours.gamma_passive > intact.gamma_passive - 0.05
