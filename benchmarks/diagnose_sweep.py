@@ -20,7 +20,11 @@ that was not injected and is not an alternative of one.  With ``--max-effects 1`
 A drawn robot the simulator cannot run (a softening spring past its stable range) is listed, not
 counted, and replaced by the next draw, so a full sweep counts ``--cases`` simulated cases.
 
+``--lose STREAM FRACTION BURST`` makes every recording lose frames of one stream, singly or in
+bursts (:func:`frame_loss.kept`), as a motion-capture occlusion or a congested encoder bus does.
+
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]
+       [--lose shape 0.3 0.3 --out docs/results/diagnose_sweep_frame_loss.md]
 Writes docs/results/diagnose_sweep_lab.md (docs/results/diagnose_sweep.md is the earlier built-in-only, aligned sweep).
 """
 
@@ -30,11 +34,13 @@ import argparse
 import platform
 import time
 from collections.abc import Iterator
+from dataclasses import replace
 from itertools import count
 from pathlib import Path
 
 import numpy as np
 
+from frame_loss import kept
 from suds_ros.core.diagnosis import diagnose
 from suds_ros.core.diagnosis.report import effect_label
 from suds_ros.core.errors import SudsError
@@ -43,6 +49,7 @@ from suds_ros.core.physics.lab import LabConditions, simulate_lab
 from suds_ros.core.physics.rft import ChainModel, RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import load_system
+from suds_ros.core.recording import Recording
 
 ROOT = Path(__file__).resolve().parents[1]
 SYSTEMS = ["purcell3", "swimmer9", str(ROOT.parent / "shared" / "robots" / "snake5.yaml"),
@@ -242,22 +249,47 @@ def known_evidence(rec, base: ChainModel, effects: list[dict]) -> float:  # type
     return float(min(out))
 
 
-def run_case(args: tuple[int, str, list[dict], int, float | None, int]) -> tuple[int, str]:
+#: (stream, fraction, mean burst length in s; 0: single messages) of ``--lose``
+Loss = tuple[str, float, float] | None
+
+
+def lose_frames(rec: Recording, loss: Loss, seed: int) -> Recording:
+    """``rec`` without the frames ``loss`` takes from one stream (seeded; the ends are kept)."""
+    if loss is None:
+        return rec
+    stream, fraction, burst = loss
+    t = rec.t if stream == "shape" else rec.pose_t
+    keep = kept(t, fraction, burst, np.random.default_rng(seed))
+    keep[[0, -1]] = True
+    if stream == "shape":
+        return replace(rec, t=rec.t[keep], r=rec.r[keep], truth={})
+    return replace(rec, pose_t=rec.pose_t[keep], pose=rec.pose[keep], truth={})
+
+
+def loss_label(loss: Loss) -> str:
+    if loss is None:
+        return ""
+    stream, fraction, burst = loss
+    return f"; {stream} {100 * fraction:.0f} % lost " + ("singly" if burst == 0 else f"in {burst:g} s bursts")
+
+
+def run_case(args: tuple[int, str, list[dict], int, float | None, int, Loss]) -> tuple[int, str]:
     """Simulate and diagnose one case in this process; returns (case, markdown row)."""
     from suds_ros.core.blas import pin_blas_threads
 
     pin_blas_threads(1)
-    i, system, effects, sim_seed, pose_hz, cycles = args
+    i, system, effects, sim_seed, pose_hz, cycles, loss = args
     base = chain(system)
     model, delay = apply_effects(base, effects)
     cfg = SimConfig(cycles=cycles, seed=sim_seed, pose_delay=delay, gait_hz=base.gait_hz)
     injected = "; ".join(" ".join(
         f"{k}={v:.4g}" if isinstance(v, float) else str(v) for k, v in e.items()) for e in effects) or "none"
-    cond = "aligned" if pose_hz is None else f"lab, pose {pose_hz:g} Hz"
+    cond = ("aligned" if pose_hz is None else f"lab, pose {pose_hz:g} Hz") + loss_label(loss)
     head = f"| {i} | {short(system)} | {cond} | {sim_seed} | {len(effects)} | {injected} |"
     try:
         rec = (simulate(RFTChain(model), cfg) if pose_hz is None
                else simulate_lab(RFTChain(model), cfg, LabConditions(pose_hz=pose_hz)))
+        rec = lose_frames(rec, loss, sim_seed)
     except (SudsError, FloatingPointError, np.linalg.LinAlgError) as exc:
         # a drawn robot the simulator cannot run (a softening spring past its stable range): a bad
         # draw, listed and left out of the counts, not a diagnosis failure
@@ -278,8 +310,8 @@ def run_case(args: tuple[int, str, list[dict], int, float | None, int]) -> tuple
     return i, (f"{head} {text} | {'yes' if ok else 'NO'} | {'YES' if false else 'no'} | {wall:.1f} |")
 
 
-def draw_cases(args: argparse.Namespace) -> Iterator[tuple[int, str, list[dict], int, float | None, int]]:
-    """The seeded stream of cases: (index, system, effects, simulation seed, pose rate or None, cycles).
+def draw_cases(args: argparse.Namespace) -> Iterator[tuple[int, str, list[dict], int, float | None, int, Loss]]:
+    """The seeded stream of cases: (index, system, effects, simulation seed, pose rate or None, cycles, loss).
 
     The stream is endless; a full sweep takes a further case for each drawn case the simulator cannot
     run, so the first ``--cases`` draws are the same whatever follows them.
@@ -290,7 +322,7 @@ def draw_cases(args: argparse.Namespace) -> Iterator[tuple[int, str, list[dict],
         effects = draw_effects(rng, system, args.max_effects, args.catalogue_only)
         sim_seed = int(rng.integers(100, 10_000))
         pose_hz = float(rng.choice(LAB_POSE_HZ)) if rng.random() < args.lab else None
-        yield i, system, effects, sim_seed, pose_hz, args.cycles
+        yield i, system, effects, sim_seed, pose_hz, args.cycles, args.lose
 
 
 def simulated(row: str) -> bool:
@@ -323,7 +355,8 @@ def write_table(args: argparse.Namespace, cases: list, rows: dict[int, str], tot
             by_k.setdefault(len(effects), []).append(int(ok[i]))
     per_k = ", ".join(f"{k} effect{'s' if k != 1 else ''}: {sum(v)}/{len(v)}" for k, v in sorted(by_k.items()))
     flags = (f" --max-effects {args.max_effects} --lab {args.lab:g} --cycles {args.cycles}"
-             + (" --catalogue-only" if args.catalogue_only else ""))
+             + (" --catalogue-only" if args.catalogue_only else "")
+             + (" --lose {} {:g} {:g}".format(*args.lose) if args.lose else ""))
     done = len(rows)
     partial = "" if done == len(cases) else f" **Partial: {done} of the {len(cases)} cases have run.**"
     lines = [
@@ -336,9 +369,14 @@ def write_table(args: argparse.Namespace, cases: list, rows: dict[int, str], tot
         "",
         "Systems in turn: " + ", ".join(short(s) for s in args.systems) + f". About {100 * args.lab:.0f} % of "
         "the recordings are made the lab way (pose at 100, 120 or 50 Hz from its own start, 0.4 ms jitter, "
-        "1 % drops), the rest aligned.  Each case: 0–3 simultaneous effects drawn from the catalogue and "
-        "the model-parameter errors (link length, link drag, one joint's spring constant, pose-frame "
-        "offset), random targets and magnitudes (ranges in the script).  *Fully correct*: every injected "
+        "1 % drops), the rest aligned." + (
+            f"  Then every recording loses {100 * args.lose[1]:.0f} % of its {args.lose[0]} frames "
+            + ("singly, at random" if args.lose[2] == 0 else
+               f"in bursts of exponential length (mean {args.lose[2]:g} s) at random starts")
+            + " (`--lose`, seeded by the case's simulation seed)." if args.lose else "")
+        + "  Each case: 0–3 simultaneous effects drawn from the catalogue and the model-parameter "
+        "errors (link length, link drag, one joint's spring constant, pose-frame offset), random "
+        "targets and magnitudes (ranges in the script).  *Fully correct*: every injected "
         "effect reported on its target, or listed as an alternative of a reported effect, or reported "
         "confounded with one; parameters within 25 % (vector parameters: ‖x̂ − x‖ ≤ 0.25‖x‖); held-out "
         "improvement ≥ 0.5; no formula discovered; nothing else named.  *False discovery*: an effect "
@@ -381,7 +419,14 @@ def main() -> None:
                     help="run only these case indices (of the --cases drawn) and print their rows; nothing "
                          "is written unless --out is given")
     ap.add_argument("--out", default=None, help="results file (default docs/results/diagnose_sweep_lab.md)")
+    ap.add_argument("--lose", nargs=3, default=None, metavar=("STREAM", "FRACTION", "BURST"),
+                    help="every recording loses FRACTION of its STREAM (shape|pose) frames, singly (BURST 0) "
+                         "or in bursts of mean BURST s")
     args = ap.parse_args()
+    if args.lose is not None:
+        if args.lose[0] not in ("shape", "pose"):
+            ap.error(f"--lose: STREAM must be shape or pose, got {args.lose[0]!r}")
+        args.lose = (args.lose[0], float(args.lose[1]), float(args.lose[2]))
     if args.out is None and args.only is None:
         args.out = "docs/results/diagnose_sweep_lab.md"
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
