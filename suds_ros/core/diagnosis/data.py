@@ -134,7 +134,8 @@ def xi_noise_gain(data: Data, w: int) -> float:
         return float(np.sqrt(2.0))
     lo, hi = data.t[0], data.t[data.n_used - 1]
     sel = (data.pose_t >= lo - data.dt) & (data.pose_t <= hi + data.dt)
-    return grid_xi_noise_gain(data.pose_t[sel], data.t[: data.n_used], w)
+    skip = None if data.pose_gap is None else data.pose_gap[: data.n_used]
+    return grid_xi_noise_gain(data.pose_t[sel], data.t[: data.n_used], w, skip=skip)
 
 
 def gait_phase(r: FloatArray, t: FloatArray, gait_hz: float) -> tuple[FloatArray, str, str]:

@@ -1,8 +1,10 @@
-"""Diagnosis of lab recordings that lost many shape samples, single or in bursts.
+"""Diagnosis of lab recordings that lost many shape or pose samples, single or in bursts.
 
 A lost shape sample hides the drive between its neighbours.  The equation error leaves out the
 intervals at a lost sample, and the replay restarts its passive joints from the recorded angles
-after each run of lost samples (:attr:`~suds_ros.core.diagnosis.data.Data.anchors`).
+after each run of lost samples (:attr:`~suds_ros.core.diagnosis.data.Data.anchors`).  Across lost
+pose samples the fitted pose is an interpolation: the body velocity's noise gain leaves out the
+windows that end there, and the pose noise is measured over evenly spaced samples only.
 """
 
 from __future__ import annotations
@@ -26,14 +28,14 @@ from suds_ros.core.recording import Recording
 
 
 def _lossy(system: str, effects: list[dict[str, Any]], fraction: float, burst: float,
-           seed: int = 3) -> tuple[Recording, ChainModel]:
-    """A 60-cycle lab recording that lost ``fraction`` of its shape samples, singly or in bursts of mean ``burst`` s."""
+           seed: int = 3, stream: str = "shape") -> tuple[Recording, ChainModel]:
+    """A 60-cycle lab recording that lost ``fraction`` of one stream's samples, singly or in bursts of ``burst`` s."""
     base = load_system(system).model
     model, delay = apply_effects(base, effects)
     rec = simulate_lab(RFTChain(model), SimConfig(cycles=60, seed=seed, noise_std=1e-3, pose_delay=delay),
                        LabConditions())
     rng = np.random.default_rng(100 + seed)
-    t = rec.t
+    t = rec.t if stream == "shape" else rec.pose_t
     if burst == 0:
         keep = rng.random(t.size) >= fraction
     else:
@@ -42,6 +44,8 @@ def _lossy(system: str, effects: list[dict[str, Any]], fraction: float, burst: f
             start = rng.uniform(t[0], t[-1])
             keep &= ~((t >= start) & (t < start + rng.exponential(burst)))
     keep[[0, -1]] = True
+    if stream == "pose":
+        return replace(rec, pose_t=t[keep], pose=rec.pose[keep], truth={}), base
     return replace(rec, t=t[keep], r=rec.r[keep], truth={}), base
 
 
@@ -106,3 +110,28 @@ def test_a_drag_anisotropy_is_named_on_a_swimmer_that_lost_a_tenth_of_its_shape_
     assert [e.name for e in rep.effects] == ["drag_anisotropy_error"]
     ratio, se = rep.effects[0].parameters["ratio"], rep.effects[0].stderr["ratio"]
     assert abs(ratio - 2.5) < 0.01 and abs(ratio - 2.5) < 4 * se
+
+
+def test_the_body_velocity_noise_gain_leaves_out_windows_ending_at_a_pose_gap() -> None:
+    from suds_ros.core.resample import gaps, xi_noise_gain
+
+    grid = np.arange(4000) * 0.01
+    rng = np.random.default_rng(2)
+    keep = np.ones(grid.size, bool)
+    for start in rng.integers(0, grid.size - 40, 60):
+        keep[start:start + 30] = False  # 30-sample bursts
+    keep[[0, -1]] = True
+    pose_t = grid[keep]
+    gap = gaps(pose_t, grid)
+    skip = gap | np.roll(gap, 1) | np.roll(gap, -1)
+    measured = xi_noise_gain(pose_t, grid, 10, skip=skip)
+    assert measured == pytest.approx(np.sqrt(2.0), rel=0.05)  # white noise at the window ends that are used
+    assert xi_noise_gain(pose_t, grid, 10) < 0.9 * measured  # the interpolated stretches averaged in
+
+
+def test_a_nominal_swimmer_losing_half_its_pose_frames_in_bursts_stays_clean() -> None:
+    """Once located on ξ_θ (F 2.2): the noise gain averaged in the interpolated stretches."""
+    rec, base = _lossy("swimmer9", [], 0.5, 0.3, stream="pose", seed=3)
+    rep = diagnose(rec, base)
+    assert not rep.mismatch and not rep.effects
+    assert 0.7 < rep.statistics["xi_theta"] < 1.6
