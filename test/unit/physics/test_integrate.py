@@ -10,15 +10,21 @@ from suds_ros.core.physics.sim import integrate, ou_path
 from suds_ros.core.physics.systems import make_system
 
 
-def test_batch_equals_each_run_alone() -> None:
-    """B runs in one batch give each run's trajectory exactly (the simulator integrates B = 1)."""
+def _swimmer_runs(m: int, B: int, shift: float, seed: int):  # type: ignore[no-untyped-def]
+    """swimmer9, its joint columns, and B runs of m samples: drive (gait shifted by b·shift s + OU), starts, rng."""
     sys_ = make_system("swimmer9")
     act, pas = np.asarray(sys_.actuated), np.asarray(sys_.passive)
-    t = np.arange(120) * 0.01
-    rng = np.random.default_rng(4)
-    r_a = np.stack([sys_.reference(t + 0.3 * b) + ou_path(rng, t.size, act.size, 0.01, 8.0, 0.1) for b in range(3)])
-    rp0 = 0.1 * rng.standard_normal((3, pas.size))
-    pose0 = rng.standard_normal((3, 3))
+    t = np.arange(m) * 0.01
+    rng = np.random.default_rng(seed)
+    r_a = np.stack([sys_.reference(t + shift * b) + ou_path(rng, t.size, act.size, 0.01, 8.0, 0.1) for b in range(B)])
+    rp0 = 0.1 * rng.standard_normal((B, pas.size))
+    pose0 = rng.standard_normal((B, 3))
+    return sys_, act, pas, r_a, rp0, pose0, rng
+
+
+def test_batch_equals_each_run_alone() -> None:
+    """B runs in one batch give each run's trajectory exactly (the simulator integrates B = 1)."""
+    sys_, act, pas, r_a, rp0, pose0, rng = _swimmer_runs(120, 3, 0.3, 4)
     RP, P = integrate_batch(sys_.velocities, act, pas, r_a, rp0, pose0, 0.01, 3)
     assert RP.shape == (3, 120, pas.size) and P.shape == (3, 120, 3)
     for b in range(3):
@@ -71,13 +77,7 @@ def test_per_run_intervals_equal_each_run_alone() -> None:
 
 def test_a_reset_restarts_the_passive_joints_there_and_the_run_continues_from_it() -> None:
     """``reset``: at a finite entry the passive joints take it, and the rest equals a run started there."""
-    sys_ = make_system("swimmer9")
-    act, pas = np.asarray(sys_.actuated), np.asarray(sys_.passive)
-    t = np.arange(80) * 0.01
-    rng = np.random.default_rng(7)
-    r_a = np.stack([sys_.reference(t + 0.2 * b) + ou_path(rng, t.size, act.size, 0.01, 8.0, 0.1) for b in range(2)])
-    rp0 = 0.1 * rng.standard_normal((2, pas.size))
-    pose0 = rng.standard_normal((2, 3))
+    sys_, act, pas, r_a, rp0, pose0, rng = _swimmer_runs(80, 2, 0.2, 7)
     reset = np.full((2, 80, pas.size), np.nan)
     reset[0, 30] = 0.2 * rng.standard_normal(pas.size)  # run 0 restarts at sample 30, run 1 never
     RP, P = integrate_batch(sys_.velocities, act, pas, r_a, rp0, pose0, 0.01, 3, reset=reset)
