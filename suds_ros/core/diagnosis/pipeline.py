@@ -295,7 +295,8 @@ def discover_formulas(
 def replay_nominal(data: Data, model: ChainModel, config: DiagnoseConfig, reference: Recording | None) -> _Nominal:
     """Stage 1: replay the nominal model (or take ``reference``), noise floors, residuals, F.
 
-    The returned ``data`` has its shape gaps widened by the replay's memory (:func:`_settle_gaps`).
+    The returned ``data`` has its shape gaps widened by the replay's memory and the passive angles' residual
+    noise power set (:func:`_settle_gaps`).
     """
     w = max(1, int(round(config.window / data.dt)))
     substeps = config.substeps or min(auto_substeps(RFTChain(model), data.dt, accuracy=0.4), 8)
