@@ -26,7 +26,7 @@ import numpy as np
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray, IntArray
-from suds_ros.core.ident.intervals import interval_features, overlap_segments, segment_features
+from suds_ros.core.ident.intervals import covered_segments, interval_features, segment_features
 from suds_ros.core.ident.sysid import SudsConfig, interval_state
 from suds_ros.core.phase.template import FourierTemplate
 
@@ -171,14 +171,11 @@ class StreamFeaturiser:
         H = self._hist_t
         out = empty
         if t0.size and H.size >= 2:
-            rows, k, s0, s1 = overlap_segments(H[:-1], H[1:], t0, t1)
-            bridged = (H[1:] - H[:-1])[k] > self.max_interval
-            if bridged.any():  # a pose interval over a run of lost shape samples: no row
-                ok = np.ones(t0.size, dtype=bool)
-                ok[rows[bridged]] = False
-                seg = ok[rows]
-                rows, k, s0, s1 = (np.cumsum(ok) - 1)[rows[seg]], k[seg], s0[seg], s1[seg]
-                t0, t1, g0, g1 = t0[ok], t1[ok], g0[ok], g1[ok]
+            # a pose interval over a shape interval too long to be measured (lost samples): no row
+            measured = np.flatnonzero(np.diff(H) <= self.max_interval)
+            whole, rows, k, s0, s1 = covered_segments(H[:-1][measured], H[1:][measured], t0, t1)
+            k = measured[k]
+            t0, t1, g0, g1 = t0[whole], t1[whole], g0[whole], g1[whole]
             Xs = segment_features(self.suds, self.template, self.omega, self.act, H, self._hist_r,
                                   self._hist_ph, k, 0.5 * (s0 + s1))
             ov = s1 - s0

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from suds_ros.core import se2
-from suds_ros.core._typing import FloatArray, IntArray
+from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.sysid import SudsConfig, regressor_input, segment_state
 from suds_ros.core.recording import POSE_SPAN_TOL, Recording
@@ -181,6 +181,23 @@ def overlap_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatAr
     return rows[keep], cols[keep], s0[keep], s1[keep]
 
 
+def covered_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray
+                     ) -> tuple[BoolArray, IntArray, IntArray, FloatArray, FloatArray]:
+    """:func:`overlap_segments` of the b-intervals that the a-intervals cover wholly.
+
+    The a-intervals may leave holes (intervals left out, e.g. over lost samples); a b-interval
+    that spans one is dropped.  Returns ``whole`` (b.size,), the b-intervals kept, and the
+    segments of those, their ``rows`` numbered 0 … whole.sum() − 1.
+    """
+    rows, cols, s0, s1 = overlap_segments(a0, a1, b0, b1)
+    total = np.bincount(rows, weights=s1 - s0, minlength=np.size(b0))
+    whole = total >= (np.asarray(b1) - np.asarray(b0)) * (1 - 1e-9)
+    if not whole.all():
+        seg = whole[rows]
+        rows, cols, s0, s1 = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg]
+    return whole, rows, cols, s0, s1
+
+
 def overlap_weights(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray) -> object:
     """Time-overlap averaging weights (q, m) of intervals [b0_i, b1_i] onto intervals [a0_k, a1_k].
 
@@ -216,14 +233,10 @@ def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, w
     xi = se2.body_velocity(rec.pose, b1 - b0, stride=window)
     inside = (b0 >= shape_t0[0]) & (b1 <= shape_t1[-1])
     b0, b1, xi = b0[inside], b1[inside], xi[inside]
-    rows, cols, s0, s1 = overlap_segments(shape_t0, shape_t1, b0, b1)
+    whole, rows, cols, s0, s1 = covered_segments(shape_t0, shape_t1, b0, b1)
+    b0, b1, xi = b0[whole], b1[whole], xi[whole]
     ov = s1 - s0
     total = np.bincount(rows, weights=ov, minlength=b0.size)
-    whole = total >= (b1 - b0) * (1 - 1e-9)  # the shape intervals cover it: it spans no left-out interval
-    if not whole.all():
-        seg = whole[rows]
-        rows, cols, s0, s1, ov = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg], ov[seg]
-        b0, b1, xi, total = b0[whole], b1[whole], xi[whole], total[whole]
     W = scipy.sparse.csr_matrix((ov / total[rows], (rows, np.arange(rows.size))), shape=(b0.size, rows.size))
     return PoseIntervals(t0=b0, t1=b1, xi=xi, seg_k=cols, seg_t=0.5 * (s0 + s1), weights=W)
 
