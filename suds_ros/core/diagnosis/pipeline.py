@@ -497,7 +497,13 @@ class _Tried:
 
     @property
     def se(self) -> FloatArray:
-        """Sampling standard errors: what the set's own decisions (neutral members, alternatives) use."""
+        """Sampling standard errors: what the alternatives' neutrality test uses.
+
+        Smaller than the reported errors where a misfit spreads the estimates, so an alternative is
+        set aside as "the same explanation" only when even sampling cannot tell it from neutral:
+        listing one too many errs on the side of saying both.  Members are dropped from a set on
+        the reported errors (:func:`~.refine.refine_choice`).
+        """
         return self.refined.se
 
 

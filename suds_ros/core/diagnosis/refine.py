@@ -59,11 +59,14 @@ def refine_choice(
     """Refine the chosen set in the simulator.
 
     After refining a set of several effects, the members whose parameters all lie within
-    ``config.member_z`` sampling standard errors of their neutral values are dropped and the others
-    are refined again (nothing is dropped when no member would remain).
+    ``config.member_z`` reported standard errors (:attr:`Refined.stderr`, the misfit spread
+    included) of their neutral values are dropped and the others are refined again (nothing is
+    dropped when no member would remain).  Where the channels and gait phases disagree, a value
+    that their spread cannot tell from neutral is not a finding: a sensor time offset of
+    -0.1 ± 0.14 ms beside a pose-frame offset is the frame offset's misfit, not a second effect.
     """
     first = _refine(cand, x0, model, data, config, w, substeps, floors)
-    x, se = first.x, first.se
+    x, se = first.x, first.stderr
     if len(cand.parts) < 2:
         return first
     keep, drop = [], []

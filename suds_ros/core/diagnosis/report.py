@@ -113,7 +113,8 @@ class DiagnoseConfig:
         Maximum simulator evaluations per refined parameter (least-squares budget).
     member_z : float
         After refining a set of effects, a member whose parameters all lie within ``member_z``
-        sampling standard errors of their neutral values is dropped (the others are refined again).
+        reported standard errors (sampling and misfit spread in quadrature) of their neutral values
+        is dropped (the others are refined again).
     misfit_alpha : float
         Significance level of the test that a refined parameter's estimates from each channel and
         quarter of the gait cycle agree; where it rejects, their spread joins the parameter's

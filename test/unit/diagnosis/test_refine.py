@@ -44,6 +44,34 @@ def test_sandwich_stderr_matches_ordinary_least_squares_for_iid_residuals() -> N
     assert np.isnan(_sandwich_stderr(np.zeros((B * k, 1)), R, 1)).all()
 
 
+# ------------------------------------------------------------------------------ neutral members
+@pytest.mark.parametrize("spread, dropped", [(1.4e-4, ("sensor_time_offset",)), (0.0, ())])
+def test_a_member_is_dropped_when_its_reported_stderr_covers_its_neutral_value(monkeypatch, spread, dropped) -> None:
+    """A time offset of -0.1 ms beside a damping, known to 0.02 ms by sampling but spread by 0.14 ms
+    over the channels and gait quarters (a misfit): the report could only say "-0.1 ± 0.14 ms", so
+    the member is dropped and the damping refined alone; with no spread it is 5 stderr from zero
+    and kept."""
+    from suds_ros.core.diagnosis import DiagnoseConfig, refine
+    from suds_ros.core.diagnosis.naming import Candidate
+    from suds_ros.core.physics.systems import purcell3_model
+
+    calls = []
+
+    def fake(cand, x0, *args):  # type: ignore[no-untyped-def]
+        calls.append(cand)
+        if len(cand.parts) == 2:
+            return refine.Refined(cand, np.array([0.4, -1e-4]), np.array([0.01, 2e-5]),
+                                  np.array([0.0, spread]), np.array([1.0, 1e-9]))
+        return refine.Refined(cand, np.array([0.41]), np.array([0.01]), np.zeros(1), np.ones(1))
+
+    monkeypatch.setattr(refine, "_refine", fake)
+    cand = Candidate((("joint_viscous_damping", "joint_2"), ("sensor_time_offset", None)))
+    got = refine.refine_choice(cand, np.array([0.5, 0.0]), purcell3_model(), None, DiagnoseConfig(), 1, 1, None)
+    assert got.dropped == dropped
+    assert len(calls) == 1 + len(dropped)
+    assert len(got.cand.parts) == 2 - len(dropped)
+
+
 # ------------------------------------------------------------------------------ score test
 def _gains(effects, parts):  # type: ignore[no-untyped-def]
     """First-order output-error gains of ``parts`` on top of a damping on joint_2 refined alone."""
