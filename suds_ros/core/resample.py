@@ -303,6 +303,18 @@ def bridged(ts: FloatArray, grid: FloatArray, min_run: int = BRIDGED_RUN) -> Boo
     return out
 
 
+def window_any(mask: BoolArray, span: int) -> BoolArray:
+    """Along the last axis, whether any of ``mask[..., k:k + span + 1]`` is set, for k = 0 … n − 1 − span.
+
+    The one rule for "a lost or bridged sample inside this window" (a window of ``span``
+    intervals spans ``span + 1`` samples): the identifier's bridged intervals, the diagnosis's
+    unmeasured torque windows, the refinement's residual windows and the location's ξ windows.
+    """
+    m = np.asarray(mask, dtype=bool)
+    c = np.concatenate([np.zeros(m.shape[:-1] + (1,), dtype=np.int64), np.cumsum(m, axis=-1)], axis=-1)
+    return c[..., span + 1:] > c[..., : c.shape[-1] - span - 1]
+
+
 def on_shape_grid(rec: Recording) -> Recording:
     """``rec`` with its shape stream brought onto its fitted uniform grid; the pose stream untouched.
 

@@ -16,6 +16,7 @@ from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig, Located
 from suds_ros.core.fourier import fourier_basis, fourier_basis_and_derivative
 from suds_ros.core.ident.sysid import SudsConfig, SudsRegressor, regressor_input
 from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.resample import window_any
 
 
 @dataclass(frozen=True)
@@ -120,11 +121,8 @@ def _window_touches(gap: BoolArray, w: int) -> BoolArray:
 
 def _window_holds(gap: BoolArray, w: int) -> BoolArray:
     """Window midpoints i (windows [i − w//2, i − w//2 + w]) with a ``gap`` point anywhere in the window."""
-    c = np.concatenate([[0], np.cumsum(gap)])
-    i = np.arange(gap.size)
-    lo = np.clip(i - w // 2, 0, gap.size)
-    hi = np.clip(i - w // 2 + w + 1, 0, gap.size)
-    return c[hi] > c[lo]
+    h = w // 2
+    return window_any(np.concatenate([np.zeros(h, dtype=bool), gap, np.zeros(w - h, dtype=bool)]), w)
 
 
 def locate_channels(

@@ -21,7 +21,7 @@ from suds_ros.core.diagnosis.report import set_label
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.physics.effects import EFFECTS, EquationTerms, neutral_params
 from suds_ros.core.physics.rft import ChainModel, RFTChain
-from suds_ros.core.resample import knot_fit
+from suds_ros.core.resample import knot_fit, window_any
 
 
 # =============================================================================== equation error
@@ -71,8 +71,7 @@ class _EqError:
         # whose end is at or next to a lost pose sample.
         lost = np.zeros(hi - lo, dtype=bool) if data.shape_lost is None else data.shape_lost[lo:hi]
         self.measured = ~(lost[:-1] | lost[1:])
-        bad = np.concatenate([[0], np.cumsum(~self.measured)])
-        win_ok = bad[w:] == bad[:-w]
+        win_ok = ~window_any(lost, w)  # the w intervals i … i + w − 1 span samples i … i + w
         if data.pose_gap is not None:
             pg = data.pose_gap[lo:hi]
             win_ok &= ~(pg[: self.nwin] | pg[w:])

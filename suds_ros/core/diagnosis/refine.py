@@ -28,6 +28,7 @@ from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.parallel import fork_map
 from suds_ros.core.physics.effects import EFFECTS, ParamSpec, apply_effects
 from suds_ros.core.physics.rft import ChainModel
+from suds_ros.core.resample import window_any
 
 
 @dataclass(frozen=True)
@@ -150,8 +151,7 @@ def _residual_vector(
     if data.shape_gap is not None and data.pose_gap is not None:
         sg = data.shape_gap[idx]
         e_rp = np.where(sg[..., None], 0.0, e_rp)
-        bad = np.concatenate([np.zeros((idx.shape[0], 1)), np.cumsum(sg | data.pose_gap[idx], axis=1)], axis=1)
-        touches = (bad[:, w + 1:] - bad[:, : bad.shape[1] - w - 1]) > 0  # window k spans samples k … k + w
+        touches = window_any(sg | data.pose_gap[idx], w)  # window k spans samples k … k + w
         e_xi = np.where(touches[:, : e_xi.shape[1], None], 0.0, e_xi)
     e_xi = e_xi[:, ::w]
     e_xi = np.where(np.isfinite(e_xi), e_xi, 0.0)

@@ -26,6 +26,7 @@ from suds_ros.core.ident.intervals import (
     segment_states,
 )
 from suds_ros.core.recording import Recording
+from suds_ros.core.resample import window_any
 from suds_ros.core.ident.scoring import (
     BODY_CHANNELS,
     PoseIntervalPrediction,
@@ -603,10 +604,7 @@ def _measured(rec: Recording, window: int) -> BoolArray | None:
     """Intervals k → k + ``window`` whose samples were all measured (none ``rec.bridged``); None: every one."""
     if rec.bridged is None:
         return None
-    n = rec.n_samples - window
-    bad = np.zeros(n, dtype=bool)
-    for j in range(window + 1):
-        bad |= rec.bridged[j:j + n]
+    bad = window_any(rec.bridged, window)
     return ~bad if bad.any() else None
 
 

@@ -1,0 +1,27 @@
+"""Grid helpers (:mod:`suds_ros.core.resample`): the window rule for lost samples."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from suds_ros.core.resample import window_any
+
+
+def test_window_any_matches_a_direct_scan_over_each_window() -> None:
+    """Random masks (1-D and stacked 2-D), spans 0 … 9: out[k] is any(mask[k … k + span])."""
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        n = int(rng.integers(2, 50))
+        span = int(rng.integers(0, min(n, 10)))
+        mask = rng.random((3, n)) < rng.choice([0.0, 0.05, 0.3, 1.0])
+        want = np.array([[row[k:k + span + 1].any() for k in range(n - span)] for row in mask])
+        got = window_any(mask, span)
+        assert got.shape == (3, n - span)
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(window_any(mask[0], span), want[0])
+
+
+def test_a_single_lost_sample_spoils_every_window_that_spans_it() -> None:
+    mask = np.zeros(10, dtype=bool)
+    mask[5] = True
+    np.testing.assert_array_equal(np.flatnonzero(window_any(mask, 3)), [2, 3, 4, 5])
