@@ -25,6 +25,7 @@ bursts (:func:`frame_loss.kept`), as a motion-capture occlusion or a congested e
 
 Usage: PYTHONPATH=. .venv/bin/python benchmarks/diagnose_sweep.py [--cases 24] [--seed 0] [--jobs 2]
        [--lose shape 0.3 0.3 --out docs/results/diagnose_sweep_frame_loss.md]
+       (also --lose pose 0.3 0.3: diagnose_sweep_pose_loss.md; --lose shape 0.1 0: diagnose_sweep_single_loss.md)
 Writes docs/results/diagnose_sweep_lab.md (docs/results/diagnose_sweep.md is the earlier built-in-only, aligned sweep).
 """
 
