@@ -119,3 +119,19 @@ def test_short_recordings_are_prepared_once_when_scored(purcell3_run, monkeypatc
     ident.config = IdentifyConfig(block_samples=700)
     ident.scores(test)
     assert len(calls) == 2  # long: checked for the block-wise path, then scored a block at a time
+
+
+def test_a_long_recording_with_bridged_samples_is_identified_whole(purcell3_run) -> None:
+    """Bridged shape samples (a run of lost messages): the intervals to leave out are chosen on the
+    whole recording, so a long one is not split into blocks; it gets the model the whole path fits."""
+    train, _ = split_cycles(purcell3_run, 12, 8)
+    mask = np.zeros(train.n_samples, dtype=bool)
+    mask[400:430] = True
+    lossy = replace(train, bridged=mask)
+    whole = SudsIdentifier().fit(lossy)
+    blocked = SudsIdentifier(IdentifyConfig(block_samples=700)).fit(lossy)
+    assert blocked._blockwise(train, training=True) and not blocked._blockwise(lossy, training=True)
+    np.testing.assert_allclose(blocked.regressor_.coef_, whole.regressor_.coef_, rtol=1e-9,
+                               atol=1e-9 * np.abs(whole.regressor_.coef_).max())
+    plain = SudsIdentifier().fit(train)
+    assert not np.allclose(plain.regressor_.coef_, whole.regressor_.coef_)  # the bridged intervals were left out
