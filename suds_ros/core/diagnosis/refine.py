@@ -67,13 +67,13 @@ def refine_choice(
     -0.1 ± 0.14 ms beside a pose-frame offset is the frame offset's misfit, not a second effect.
     """
     first = _refine(cand, x0, model, data, config, w, substeps, floors)
-    x, se = first.x, first.stderr
+    x, err = first.x, first.stderr
     if len(cand.parts) < 2:
         return first
     keep, drop = [], []
     neutral = cand.neutral(model)
     for part, sl in zip(cand.parts, cand.slices()):
-        if is_neutral(x[sl], se[sl], neutral[sl], config.member_z):
+        if is_neutral(x[sl], err[sl], neutral[sl], config.member_z):
             drop.append(effect_label(*part))
         else:
             keep.append((part, sl))

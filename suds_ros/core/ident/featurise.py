@@ -173,15 +173,13 @@ class StreamFeaturiser:
         if t0.size and H.size >= 2:
             # a pose interval over a shape interval too long to be measured (lost samples): no row
             measured = np.flatnonzero(np.diff(H) <= self.max_interval)
-            whole, rows, k, s0, s1 = covered_segments(H[:-1][measured], H[1:][measured], t0, t1)
+            whole, rows, k, s0, s1, share = covered_segments(H[:-1][measured], H[1:][measured], t0, t1)
             k = measured[k]
             t0, t1, g0, g1 = t0[whole], t1[whole], g0[whole], g1[whole]
             Xs = segment_features(self.suds, self.template, self.omega, self.act, H, self._hist_r,
                                   self._hist_ph, k, 0.5 * (s0 + s1))
-            ov = s1 - s0
-            total = np.bincount(rows, weights=ov, minlength=t0.size)
             xi = se2.log(se2.relative(g0, g1)) / (t1 - t0)[:, None]
-            out = (Xs, ov / total[rows], rows, xi)
+            out = (Xs, share, rows, xi)
         # forget the shape samples no later pose interval can need (keep the one at or before its start)
         start = self._pose_t[0]
         i = max(int(np.searchsorted(H, start, side="right")) - 1, 0)

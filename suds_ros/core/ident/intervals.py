@@ -182,20 +182,23 @@ def overlap_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatAr
 
 
 def covered_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray
-                     ) -> tuple[BoolArray, IntArray, IntArray, FloatArray, FloatArray]:
+                     ) -> tuple[BoolArray, IntArray, IntArray, FloatArray, FloatArray, FloatArray]:
     """:func:`overlap_segments` of the b-intervals that the a-intervals cover wholly.
 
     The a-intervals may leave holes (intervals left out, e.g. over lost samples); a b-interval
     that spans one is dropped.  Returns ``whole`` (b.size,), the b-intervals kept, and the
-    segments of those, their ``rows`` numbered 0 … whole.sum() − 1.
+    segments of those: ``rows`` numbered 0 … whole.sum() − 1, ``cols``, ``s0``, ``s1`` and
+    ``share``, each segment's part of its b-interval's covered length (a row's shares sum to 1:
+    the time-overlap averaging weights).
     """
     rows, cols, s0, s1 = overlap_segments(a0, a1, b0, b1)
     total = np.bincount(rows, weights=s1 - s0, minlength=np.size(b0))
     whole = total >= (np.asarray(b1) - np.asarray(b0)) * (1 - 1e-9)
+    share_of = total[rows]
     if not whole.all():
         seg = whole[rows]
-        rows, cols, s0, s1 = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg]
-    return whole, rows, cols, s0, s1
+        rows, cols, s0, s1, share_of = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg], share_of[seg]
+    return whole, rows, cols, s0, s1, (s1 - s0) / share_of
 
 
 def overlap_weights(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray) -> object:
@@ -233,11 +236,9 @@ def pose_intervals(rec: Recording, shape_t0: FloatArray, shape_t1: FloatArray, w
     xi = se2.body_velocity(rec.pose, b1 - b0, stride=window)
     inside = (b0 >= shape_t0[0]) & (b1 <= shape_t1[-1])
     b0, b1, xi = b0[inside], b1[inside], xi[inside]
-    whole, rows, cols, s0, s1 = covered_segments(shape_t0, shape_t1, b0, b1)
+    whole, rows, cols, s0, s1, share = covered_segments(shape_t0, shape_t1, b0, b1)
     b0, b1, xi = b0[whole], b1[whole], xi[whole]
-    ov = s1 - s0
-    total = np.bincount(rows, weights=ov, minlength=b0.size)
-    W = scipy.sparse.csr_matrix((ov / total[rows], (rows, np.arange(rows.size))), shape=(b0.size, rows.size))
+    W = scipy.sparse.csr_matrix((share, (rows, np.arange(rows.size))), shape=(b0.size, rows.size))
     return PoseIntervals(t0=b0, t1=b1, xi=xi, seg_k=cols, seg_t=0.5 * (s0 + s1), weights=W)
 
 
