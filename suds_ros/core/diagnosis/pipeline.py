@@ -62,10 +62,11 @@ number in the report is computed on the held-out half.
    (:meth:`~suds_ros.core.diagnosis.locate.ChannelTable.evidence`) is reported (the equation
    error has biases of its own; a note says so).  Sets that
    swap a member of the selection for one it was confounded with in the equation error are refined
-   too (``swap_max``).  Then the forward selection's members that the reported set lacks and the
-   effects of the leading sets of the forward step that failed the threshold (``extend_max``)
-   are scored on top of the reported set in output error (a score
-   test, :func:`_extension`); the best is refined with it and added only when its replay
+   too (``swap_max``), and so is the selection without the member it added last (the
+   equation error can add one the motion does not show).  Then the forward selection's members
+   that the reported set lacks and the effects of the leading sets of the forward step that
+   failed the threshold (``extend_max``) are scored on top of the reported set in output error
+   (a score test, :func:`_extension`); the best is refined with it and added only when its replay
    evidence is more than ``evidence_threshold`` above the set's on both halves (the equation
    error can hold a real effect back; a note says so).  Ambiguity: every refined set whose
    held-out output-error evidence
@@ -508,7 +509,8 @@ class _Tried:
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
-    """The selection, the selections from the first step's runners-up, and confounded swaps.
+    """The selection, the selections from the first step's runners-up, the selection without its
+    last member (:func:`_prefix`), and confounded swaps.
 
     A swap replaces one member of the chosen set by a candidate it was confounded with in the
     equation error (within the confounding margin at its step), started from the chosen set's
@@ -543,7 +545,30 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
                            for g in [(lead,) + tuple(lab for lab in rest if lab not in mine)] if len(g) > 1)
             swaps.append(_Option(cand, np.concatenate(xs), (), groups,
                                  whole.score.score if whole is not None else float("nan")))
-    return out + swaps + _weak_rivals(naming, config, seen)
+    return out + _prefix(naming, seen) + swaps + _weak_rivals(naming, config, seen)
+
+
+def _prefix(naming: Naming, seen: set[frozenset]) -> list[_Option]:
+    """The selection without the member it added last, refined on its own (none for a single effect).
+
+    The equation error adds members one at a time and can add one that the recording's motion
+    does not show (a drag anisotropy beside a link drag and a pose offset on a four-link body:
+    656 nats in the equation error, 1.5 nats in the replay); refined on its own, the set without
+    it lets the output error judge that last step as it judges the rest.  The member it lacks is
+    the extension's first candidate (:func:`_extension`), so a member the replay does show is
+    put back.
+    """
+    chosen = naming.chosen
+    parts = chosen.cand.parts
+    if len(parts) < 2 or frozenset(parts[:-1]) in seen:
+        return []
+    cand = Candidate(parts[:-1])
+    seen.add(frozenset(cand.parts))
+    x = chosen.x[:chosen.cand.slices()[-1].start]
+    mine = {effect_label(*p) for p in cand.parts}
+    groups = tuple(g for g in naming.confounded if g[0] in mine)
+    whole = naming.fits.get(cand.label)
+    return [_Option(cand, x, (), groups, whole.score.score if whole is not None else float("nan"))]
 
 
 def _weak_rivals(naming: Naming, config: DiagnoseConfig, seen: set[frozenset]) -> list[_Option]:
