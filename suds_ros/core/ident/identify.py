@@ -363,8 +363,11 @@ class SudsIdentifier(BaseEstimator):
             suds = self._select_model(rec, Xs, picked, self.output_template(picked.ph))
             del Xs, picked
             self.regressor_ = SudsRegressor(suds, n_actuated=len(rec.actuated), kernel_scale=self.kernel_scale_)
-            for a, Xb, Yb, _ in self._blocks(rec, phase):
-                (self.regressor_.partial_fit if a else self.regressor_.fit)(Xb, Yb)
+            fitted = False
+            for _, Xb, Yb, _ in self._blocks(rec, phase):
+                if Yb.shape[0]:
+                    (self.regressor_.partial_fit if fitted else self.regressor_.fit)(Xb, Yb)
+                    fitted = True
         else:
             parts = [self._samples(r, p) for r, p in zip(recs, phases)]
             if len(parts) > 1 and any(p.pose is not None for p in parts):  # every bout on its pose intervals
@@ -387,20 +390,22 @@ class SudsIdentifier(BaseEstimator):
         """Process ``rec`` a block at a time: long, and every pose stamp a shape stamp.
 
         Training needs a pose at every shape stamp; held-out data may lack poses at the ends
-        (their intervals then score the joints only, as the pose intervals would).
+        (their intervals then score the joints only, as the pose intervals would).  Bridged
+        shape samples are left out block by block (:meth:`_blocks`), as the whole path leaves them out.
         """
         t, pt = rec.t, rec.pose_t
-        if rec.n_samples <= self.config.block_samples or pt.size < 2 or rec.bridged is not None:
-            return False  # (bridged samples: the intervals to leave out are chosen on the whole recording)
+        if rec.n_samples <= self.config.block_samples or pt.size < 2:
+            return False
         if training:
             return pt.size == t.size and bool(np.array_equal(pt, t))
         i0 = int(np.searchsorted(t, pt[0]))
         return i0 + pt.size <= t.size and bool(np.array_equal(t[i0:i0 + pt.size], pt))
 
     def _blocks(self, rec: Recording, phase: FloatArray):  # type: ignore[no-untyped-def]
-        """(a, X, Y, phase) of consecutive blocks of intervals a … a + len − 1 (see :meth:`_samples`).
+        """(k, X, Y, phase) of consecutive blocks of intervals (see :meth:`_samples`); k: each row's interval.
 
-        Y's body channels are NaN on intervals without a pose at both ends.
+        Intervals over a bridged shape sample are left out (:func:`_measured`), so a block's rows
+        need not be consecutive.  Y's body channels are NaN on intervals without a pose at both ends.
         """
         w = self.config.window
         for a, b in _ranges(rec.n_samples - w, self.config.block_samples):
@@ -412,30 +417,38 @@ class SudsIdentifier(BaseEstimator):
                 if iv.effort is None:
                     raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
                 Y = np.concatenate([Y, iv.effort], axis=1)
-            yield a, self.features(sub, iv, ph), Y, ph
+            X, k = self.features(sub, iv, ph), np.arange(a, b)
+            keep = _measured(sub, w)
+            if keep is not None:
+                X, Y, ph, k = X[keep], Y[keep], ph[keep], k[keep]
+            yield k, X, Y, ph
 
     def _block_data(self, rec: Recording, phase: FloatArray, out: object) -> tuple[_Samples, FloatArray]:
         """The output template and the model selection's data of an aligned recording, made block by block.
 
         ``out`` (an unfitted FourierTemplate) is fitted to every interval's outputs and becomes
-        ``output_template_coef_``.  Returns the outputs, phases and regressor rows of every
-        ``step``-th interval: all of them up to ``config.select_max_rows`` intervals, else the
-        smallest stride that leaves at most that many.  Nothing is held for every interval.
+        ``output_template_coef_``.  Returns the outputs, phases and regressor rows of the measured
+        intervals (none over a bridged sample) whose index is a multiple of ``step``: every one up
+        to ``config.select_max_rows`` intervals, else the smallest stride that leaves at most that
+        many.  Nothing is held for every interval.
         """
         m = rec.n_samples - self.config.window
         step = max(1, -(-m // self.config.select_max_rows))
-        n = len(range(0, m, step))
+        n = len(range(0, m, step))  # at most this many rows (fewer when some are bridged)
         Xs = Ys = None
         ph = np.empty(n)
-        for a, Xb, Yb, pb in self._blocks(rec, phase):
-            out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
+        got = 0
+        for k, Xb, Yb, pb in self._blocks(rec, phase):
+            if pb.size:
+                out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
             if Xs is None:
                 Xs, Ys = np.empty((n, Xb.shape[1])), np.empty((n, Yb.shape[1]))
-            first = -a % step  # the block's first row on the stride
-            rows = slice((a + first) // step, (a + pb.size + step - 1) // step)
-            Xs[rows], Ys[rows], ph[rows] = Xb[first::step], Yb[first::step], pb[first::step]  # type: ignore[index]
+            on = k % step == 0
+            rows = slice(got, got + int(on.sum()))
+            Xs[rows], Ys[rows], ph[rows] = Xb[on], Yb[on], pb[on]  # type: ignore[index]
+            got = rows.stop
         self.output_template_coef_ = out.fit_check().coef_  # type: ignore[attr-defined]
-        return _Samples(None, ph, Ys, None), Xs  # type: ignore[arg-type, return-value]
+        return _Samples(None, ph[:got], Ys[:got], None), Xs[:got]  # type: ignore[arg-type, index]
 
     def _block_scores(self, rec: Recording) -> Scores:
         """:meth:`scores` of a long recording, a block of intervals at a time (nothing held whole)."""
@@ -445,6 +458,8 @@ class SudsIdentifier(BaseEstimator):
         sums = ScoreSums(self.channels_)
         nb = len(_BODY)
         for _, X, Y, ph in self._blocks(rec, phase):
+            if not Y.shape[0]:
+                continue
             sums.add(Y, self.regressor_.predict(X), self.output_template(ph), np.isfinite(Y[:, :nb]).all(axis=1))
         return sums.scores()
 
