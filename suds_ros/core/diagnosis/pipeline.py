@@ -432,12 +432,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     conditions.update(channel_conditions(new, nom.E0, table, model))
     evidence = {effect_label(*p): e for p, e in zip(ranked.cand.parts, member_ev)}
     kept = {effect_label(*p) for p in cand.parts}
-    # a confounded member that the replay tells apart (a refined set with it in place of one of
-    # the reported members, outside the band) is not confounded
-    told_apart = {lab for t in tried if t is not win
-                  and win.evidence - t.evidence > config.ambiguity_band
-                  for new_labels in [{effect_label(*q) for q in t.cand.parts} - kept] if len(new_labels) == 1
-                  for lab in new_labels}
+    told_apart = _told_apart(win, tried, config.ambiguity_band)
     confounded = tuple(kept_g for g in groups if g[0] not in dropped and g[0] in kept
                        for kept_g in [tuple(lab for lab in g if lab == g[0] or lab not in told_apart)]
                        if len(kept_g) > 1)
@@ -450,6 +445,23 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         effects[0] = dataclasses.replace(effects[0], alternatives=alternatives)
     return _Fit(effects, rep1, E1, floor, F0,
                 located, conditions, confounded, False, tuple(notes))
+
+
+def _told_apart(win: _Tried, tried: list[_Tried], band: float) -> set[str]:
+    """Effects the replay tells apart from a member of ``win``: each in a refined set in place of
+    exactly one of ``win``'s members, with held-out evidence more than ``band`` below ``win``'s.
+
+    A set that also lacks another member (the selection without its last) falls short for that
+    member, and tells nothing apart.
+    """
+    kept = {effect_label(*p) for p in win.cand.parts}
+    out: set[str] = set()
+    for t in tried:
+        theirs = {effect_label(*q) for q in t.cand.parts}
+        if (t is not win and win.evidence - t.evidence > band
+                and len(theirs - kept) == 1 and len(kept - theirs) == 1):
+            out |= theirs - kept
+    return out
 
 
 def _misfit_notes(refined: Refined) -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from suds_ros.core.diagnosis import DiagnoseConfig, diagnose
 from suds_ros.core.diagnosis.data import prepare
 from suds_ros.core.diagnosis.locate import locate_channels
 from suds_ros.core.diagnosis.naming import Candidate, Scorer
-from suds_ros.core.diagnosis.pipeline import _Clock, _options, _refine, _weak_rivals, replay_nominal
+from suds_ros.core.diagnosis.pipeline import _Clock, _options, _refine, _told_apart, _weak_rivals, replay_nominal
 from suds_ros.core.diagnosis.report import CandidateScore
 from suds_ros.core.diagnosis.selection import Naming, Ranked, _Path, _Selector
 from suds_ros.core.physics.effects import apply_effects
@@ -115,6 +116,26 @@ def test_the_selection_without_its_last_member_is_refined_too() -> None:
     offered = Naming((), chosen, (), (500.0, 800.0, 200.0), alternatives=(_Path(pair, (), (1.0, 1.0), (), ()),),
                      fits={})
     assert [o.cand.parts for o in _options(offered, DiagnoseConfig())] == [(drag, offset, ratio), (drag, offset)]
+
+
+def test_only_a_one_for_one_swap_tells_a_confounded_member_apart() -> None:
+    """A refined set with one effect in place of one reported member, well below the reported set,
+    tells that effect apart; the selection without its last member also lacks a member, and its
+    deficit says nothing about the effect it holds instead of another (the lab sweep's case 10:
+    joint_2 stiffness or stiffness-to-drag, beside an anisotropy the shorter set lacks)."""
+    def tried(parts, evidence):  # type: ignore[no-untyped-def]
+        return SimpleNamespace(cand=Candidate(parts), evidence=evidence)
+
+    offset, ratio = ("sensor_time_offset", None), ("drag_anisotropy_error", None)
+    stiff, s2d, damp = ("joint_stiffness_error", "joint_2"), ("stiffness_to_drag_error", None), \
+        ("joint_viscous_damping", "joint_2")
+    win = tried((offset, stiff, ratio), 5000.0)
+    shorter = tried((offset, s2d), 2000.0)  # s2d for stiff, and no anisotropy
+    swap = tried((offset, damp, ratio), 4000.0)  # damping for stiff, one for one
+    close = tried((offset, s2d, ratio), 4999.0)  # inside the band: not told apart
+    assert _told_apart(win, [win, shorter, close], 10.0) == set()  # type: ignore[arg-type]
+    got = _told_apart(win, [win, shorter, swap, close], 10.0)  # type: ignore[arg-type]
+    assert got == {"joint_viscous_damping:joint_2"}
 
 
 @pytest.mark.slow
