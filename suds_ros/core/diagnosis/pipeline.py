@@ -448,11 +448,11 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
 
 
 def _told_apart(win: _Tried, tried: list[_Tried], band: float) -> set[str]:
-    """Effects the replay tells apart from a member of ``win``: each in a refined set in place of
-    exactly one of ``win``'s members, with held-out evidence more than ``band`` below ``win``'s.
+    """Effects the replay tells apart from a member of ``win`` (the labels).
 
-    A set that also lacks another member (the selection without its last) falls short for that
-    member, and tells nothing apart.
+    Each is in a refined set in place of exactly one of ``win``'s members, and that set's held-out
+    evidence is more than ``band`` below ``win``'s.  A set that also lacks another member (the
+    selection without its last) falls short for that member, and tells nothing apart.
     """
     kept = {effect_label(*p) for p in win.cand.parts}
     out: set[str] = set()
@@ -521,9 +521,10 @@ class _Tried:
 
 
 def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
-    """The selection, the selections from the first step's runners-up, the selection without its
-    last member (:func:`_prefix`), and confounded swaps.
+    """The selection, its runners-up's selections, the selection without its last member, and swaps.
 
+    The selections are those started from the first step's runners-up; the shorter set is
+    :func:`_prefix`'s.
     A swap replaces one member of the chosen set by a candidate it was confounded with in the
     equation error (within the confounding margin at its step), started from the chosen set's
     parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
