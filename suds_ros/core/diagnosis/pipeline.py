@@ -524,8 +524,7 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
     """The selection, its runners-up's selections, the selection without its last member, and swaps.
 
     The selections are those started from the first step's runners-up; the shorter set is
-    :func:`_prefix`'s.
-    A swap replaces one member of the chosen set by a candidate it was confounded with in the
+    :func:`_prefix`'s.  A swap replaces one member of the chosen set by a candidate it was confounded with in the
     equation error (within the confounding margin at its step), started from the chosen set's
     parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
     """
@@ -567,9 +566,9 @@ def _prefix(naming: Naming, seen: set[frozenset]) -> list[_Option]:
     The equation error adds members one at a time and can add one that the recording's motion
     does not show (a drag anisotropy beside a link drag and a pose offset on a four-link body:
     656 nats in the equation error, 1.5 nats in the replay); refined on its own, the set without
-    it lets the output error judge that last step as it judges the rest.  The member it lacks is
-    the extension's first candidate (:func:`_extension`), so a member the replay does show is
-    put back.
+    it lets the output error judge that last step as it judges the rest.  When it is preferred,
+    the member it lacks is among the effects scored on top of it (:func:`_extension`), so a member
+    the replay does show is put back.
     """
     chosen = naming.chosen
     parts = chosen.cand.parts
