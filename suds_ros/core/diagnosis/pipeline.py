@@ -524,9 +524,10 @@ def _options(naming: Naming, config: DiagnoseConfig) -> list[_Option]:
     """The selection, its runners-up's selections, the selection without its last member, and swaps.
 
     The selections are those started from the first step's runners-up; the shorter set is
-    :func:`_prefix`'s.  A swap replaces one member of the chosen set by a candidate it was confounded with in the
-    equation error (within the confounding margin at its step), started from the chosen set's
-    parameters and the swapped-in candidate's own single fit; at most ``config.swap_max``.
+    :func:`_prefix`'s.  A swap replaces one member of the chosen set by a candidate it was
+    confounded with in the equation error (within the confounding margin at its step), started
+    from the chosen set's parameters and the swapped-in candidate's own single fit; at most
+    ``config.swap_max``.
     """
     chosen = naming.chosen
     out = [_Option(chosen.cand, chosen.x, naming.evidence, naming.confounded, chosen.score.score)]

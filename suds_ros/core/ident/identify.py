@@ -439,8 +439,7 @@ class SudsIdentifier(BaseEstimator):
         ph = np.empty(n)
         got = 0
         for k, Xb, Yb, pb in self._blocks(rec, phase):
-            if pb.size:
-                out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
+            out.partial_fit(pb, Yb)  # type: ignore[attr-defined]
             if Xs is None:
                 Xs, Ys = np.empty((n, Xb.shape[1])), np.empty((n, Yb.shape[1]))
             on = k % step == 0

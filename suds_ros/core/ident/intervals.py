@@ -194,11 +194,11 @@ def covered_segments(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatAr
     rows, cols, s0, s1 = overlap_segments(a0, a1, b0, b1)
     total = np.bincount(rows, weights=s1 - s0, minlength=np.size(b0))
     whole = total >= (np.asarray(b1) - np.asarray(b0)) * (1 - 1e-9)
-    share_of = total[rows]
+    covered = total[rows]  # each segment's b-interval's covered length
     if not whole.all():
         seg = whole[rows]
-        rows, cols, s0, s1, share_of = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg], share_of[seg]
-    return whole, rows, cols, s0, s1, (s1 - s0) / share_of
+        rows, cols, s0, s1, covered = (np.cumsum(whole) - 1)[rows[seg]], cols[seg], s0[seg], s1[seg], covered[seg]
+    return whole, rows, cols, s0, s1, (s1 - s0) / covered
 
 
 def overlap_weights(a0: FloatArray, a1: FloatArray, b0: FloatArray, b1: FloatArray) -> object:
