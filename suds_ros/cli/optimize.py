@@ -102,6 +102,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--trust", type=float, default=2.0, metavar="KAPPA",
                    help="BAG: trust region in standard deviations of the data's δ spread (default 2); "
                         "--simulate: its initial radius, centred on the incumbent gait")
+    p.add_argument("--half-wave", choices=("auto", "yes", "no"), default="auto",
+                   help="steps move only the odd harmonics, so a half-wave symmetric gait (a travelling sine) stays "
+                        "one and runs straight on a mirror-symmetric robot. auto: with --simulate from a half-wave "
+                        "incumbent measured on course (speed, efficiency), never with BAG; yes: BAG too; no: never")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
@@ -192,10 +196,11 @@ def _from_data(args: argparse.Namespace) -> int:
     out = _check_output(args)
     try:
         cfg = DataOptimizeConfig(objective=args.objective, order=args.order, trust=args.trust,
-                                 draws=16 if args.draws is None else args.draws, seed=args.seed)
+                                 draws=16 if args.draws is None else args.draws, seed=args.seed,
+                                 half_wave=args.half_wave == "yes")
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
-        raise SudsConfigError(f"--{name}: {exc}", code=exc.code) from None
+        raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None
     ns = argparse.Namespace(system=args.system, model=args.model, actuated=None, passive=None, gait_hz=None,
                             namespace="")
     rec, _ = load_recording_and_model(args.bag, ns)
@@ -304,7 +309,8 @@ def _loop(args: argparse.Namespace) -> int:
     try:
         cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
-                         first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch)
+                         first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
+                         half_wave=args.half_wave != "no")
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

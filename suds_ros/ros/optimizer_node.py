@@ -101,6 +101,11 @@ class OptimizerNodeConfig:
     model_miss: float = setting(0.15, "a run whose motion misses the model's prediction along its own shapes by "
                                       "this much (fraction of its translation, or rad of yaw per cycle) means the "
                                       "robot changed", gt=0.0)
+    half_wave: bool = setting(True, "from a half-wave symmetric incumbent (a travelling sine) measured on course, "
+                                    "steps move only the odd harmonics: a straight course on a mirror-symmetric "
+                                    "robot whatever the model's yaw says (speed, efficiency)")
+    rotation_sigmas: float = setting(1.0, "a measured rotation counts as over the straight-course bound only when "
+                                          "over it by more than this many standard errors", ge=0.0)
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -126,7 +131,8 @@ class OptimizerNodeConfig:
                           first_cycles=self.first_cycles, step_cycles=self.step_cycles,
                           settle_cycles=self.settle_cycles, order=self.order,
                           samples_per_cycle=self.samples_per_cycle, watch=self.watch,
-                          change_sigmas=self.change_sigmas, model_miss=self.model_miss)
+                          change_sigmas=self.change_sigmas, model_miss=self.model_miss, half_wave=self.half_wave,
+                          rotation_sigmas=self.rotation_sigmas)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

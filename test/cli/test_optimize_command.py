@@ -71,6 +71,21 @@ def test_optimize_from_a_recording(p3_bag: Path, tmp_path: Path, capsys: pytest.
     assert "recorded gait: the recording's gait template" in text and "simulated" not in text
 
 
+def test_a_half_wave_step_from_a_recording(p3_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    out = tmp_path / "odd.yaml"
+    assert main(["optimize", str(p3_bag), "--system", "purcell3", "--draws", "0", "--half-wave", "yes",
+                 "-o", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    gait = load_gait(out, make_system("purcell3"))
+    assert doc["step_taken"] and gait.order == 3 and gait.is_half_wave(atol=0.0)
+    assert abs(doc["simulated"]["proposed"]) > 0 and doc["trust_used"] <= doc["trust_radius"] * 1.01
+    assert main(["optimize", str(p3_bag), "--system", "purcell3", "--half-wave", "yes", "--objective", "turn",
+                 "-o", str(tmp_path / "turn.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ERROR: --half-wave: `half_wave`: expected False for the turn")
+
+
 def test_efficiency_needs_a_torque_model(p3_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
     assert main(["optimize", str(p3_bag), "--objective", "efficiency", "-o", str(tmp_path / "e.yaml")]) == 2

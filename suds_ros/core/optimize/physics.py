@@ -356,12 +356,14 @@ class SteadyStateProblem:
     """
 
     def __init__(self, ev: PeriodicShooting, cfg: OptimizeConfig, nominal_speed: float, scale: float,
-                 sign: float, rp0: FloatArray, free: FloatArray, tol: float = 1e-9, max_iter: int = 8) -> None:
+                 sign: float, rp0: FloatArray, free: FloatArray, tol: float = 1e-9, max_iter: int = 8,
+                 rotation_centre: float = 0.0) -> None:
         self.ev, self.cfg, self.nominal_speed, self.scale, self.sign = ev, cfg, nominal_speed, scale, sign
         self.free = np.asarray(free)
         self.rp = np.array(rp0, dtype=float).reshape(-1)
         self.tol, self.max_iter = tol, max_iter
         self.failed = 0  # evaluations without a steady state
+        self.rotation_centre = float(rotation_centre)  # the rotation bound is |rotation − this| ≤ max_rotation
         self._key: bytes | None = None
         self._val = np.empty(3)
         self._nc = {"speed": 2, "turn": 1, "efficiency": 3}[cfg.objective]
@@ -370,14 +372,16 @@ class SteadyStateProblem:
     def _outputs(self, g_c: FloatArray, work: FloatArray) -> FloatArray:
         """Rows (B, 1 + nc): minimised objective (scaled), then the nonlinear constraints (≥ 0).
 
-        speed: rotation within ±max_rotation; turn: speed ≥ the nominal's; efficiency: both.
+        speed: rotation within ±max_rotation of ``rotation_centre`` (default 0); turn: speed ≥ the
+        nominal's; efficiency: both.
         """
         v = objective_values(CycleResult(g_c=g_c, work=work, r_p=np.empty((g_c.shape[0], 0))), self.ev.gait_hz)
         cfg = self.cfg
         cols = [(-self.sign * v["turn"] if cfg.objective == "turn" else -v[cfg.objective]) / self.scale]
         rot = cfg.max_rotation * (1 - MARGIN)
         if cfg.objective in ("speed", "efficiency"):
-            cols += [1.0 - v["rotation"] / rot, 1.0 + v["rotation"] / rot]
+            turned = v["rotation"] - self.rotation_centre
+            cols += [1.0 - turned / rot, 1.0 + turned / rot]
         if cfg.objective in ("turn", "efficiency"):
             cols.append(v["speed"] / (max(self.nominal_speed, 1e-12) * (1 + MARGIN)) - 1.0)
         return np.stack(cols, axis=1)

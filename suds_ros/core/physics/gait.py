@@ -132,6 +132,12 @@ class Gait:
         """``offset`` (na,), ``cos`` (na, K), ``sin`` (na, K) as arrays."""
         return np.array(self.offset), np.array(self.cos), np.array(self.sin)
 
+    def is_half_wave(self, atol: float = 1e-9) -> bool:
+        """Whether r(t + T/2) = −r(t): no offset and no even harmonic (within ``atol``, rad)."""
+        off, c, sn = self.arrays()
+        return bool(np.all(np.abs(off) <= atol) and np.all(np.abs(c[:, 1::2]) <= atol)
+                    and np.all(np.abs(sn[:, 1::2]) <= atol))
+
     def at_phase(self, s: FloatArray) -> FloatArray:
         """Joint angles at gait time ``s`` in cycles (phase 2π·s), shape (len(s), na), rad."""
         off, c, sn = self.arrays()

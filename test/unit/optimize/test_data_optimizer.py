@@ -13,6 +13,7 @@ from suds_ros.core.optimize.data import (
     LearnedCycle,
     LearnedModel,
     align_to_model,
+    half_wave_free,
     learn_model,
     motion_miss,
     optimize_from_data,
@@ -90,6 +91,24 @@ def test_refusals(purcell: tuple[object, LearnedModel]) -> None:
         DataOptimizeConfig(trust=0.0)
     with pytest.raises(SudsConfigError, match="`gait`: joints"):
         align_to_model(model, nominal_gait(make_system("swimmer9")))
+
+
+def test_a_half_wave_step_moves_only_the_odd_harmonics(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    limits = gait_limits(system)  # type: ignore[arg-type]
+    nom = nominal_gait(system)  # type: ignore[arg-type]
+    start = nom.from_vector(nom.to_vector(3), 3)
+    np.testing.assert_array_equal(half_wave_free(2, 3), [1, 3, 4, 6, 8, 10, 11, 13])
+    cfg = DataOptimizeConfig(order=3, draws=0, trust_centre="start")
+    free = optimize_from_data(model, cfg, limits=limits, start=start)
+    half = optimize_from_data(model, dataclasses.replace(cfg, half_wave=True), limits=limits, start=start)
+    assert free.step_taken and half.step_taken
+    assert not free.gait.is_half_wave(atol=1e-6)  # left free, the step uses the even harmonics too
+    assert half.gait.is_half_wave(atol=0.0) and constraint_violations(half.gait, limits) == []
+    assert trust_used(model, half.gait, half.recorded) <= 2.0 * 1.01 and half.value > half.recorded_value
+    assert abs(evaluate_gait(system, half.gait)["rotation"]) < 1e-9  # type: ignore[arg-type]
+    with pytest.raises(SudsConfigError, match="`half_wave`: expected False for the turn objective"):
+        DataOptimizeConfig(objective="turn", half_wave=True)
 
 
 def test_trust_region_centred_on_the_start(purcell: tuple[object, LearnedModel]) -> None:

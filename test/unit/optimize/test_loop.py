@@ -56,6 +56,12 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
     assert is_better(frugal, fast, eff, speed_floor=0.44)
     assert not is_better(frugal, fast, eff, speed_floor=0.5)  # more efficient, but slower than the start
     assert not is_better(dataclasses.replace(frugal, rotation=0.06), fast, eff, speed_floor=0.44)  # off course
+    # the rotation is a measured number too: over the bound by less than rotation_sigmas se is not off course
+    lax = LoopConfig(budget_cycles=20, rotation_sigmas=1.0)
+    noisy = dataclasses.replace(_m(0.9, 0.07), rotation_se=0.03)
+    assert is_better(noisy, _m(0.1, 0.0), lax)
+    assert not is_better(noisy, _m(0.1, 0.0), dataclasses.replace(lax, rotation_sigmas=0.0))
+    assert not is_better(dataclasses.replace(noisy, rotation_se=0.01), _m(0.1, 0.0), lax)
 
 
 @pytest.mark.parametrize("kwargs, message, code", [
@@ -88,6 +94,7 @@ def test_loop_improves_a_poor_start_within_budget_and_bounds(p3_half: tuple[obje
     assert its[0].cycles == 6 and all(it.cycles == 5 for it in its[1:]) and len(its) == 3
     assert "budget spent" in res.stopped
     assert all(constraint_violations(it.gait, limits) == [] for it in its)  # nothing run outside the bounds
+    assert all(it.gait.is_half_wave() for it in its)  # the half-amplitude sine's steps keep its symmetry
     assert constraint_violations(res.gait, limits) == []
     assert its[0].predicted is not None and all(it.predicted is not None for it in its)
     # the returned gait is the best measured among the accepted ones, and carries its prediction
@@ -139,7 +146,7 @@ def test_a_marginal_gain_is_run_again_before_it_is_kept() -> None:
     the measurement's noise: such a candidate is run again and judged on both stretches pooled,
     and none is kept on a first measurement within ``confirm_sigmas``."""
     system = make_system("purcell3")
-    cfg = LoopConfig(budget_cycles=26, seed=0, confirm_sigmas=1.0)
+    cfg = LoopConfig(budget_cycles=26, seed=0, confirm_sigmas=1.0, half_wave=False)
     its = optimize_loop(system, cfg).iterations
     confirming = [i for i, it in enumerate(its) if it.note.startswith("to be confirmed")]
     assert confirming, [it.note for it in its]

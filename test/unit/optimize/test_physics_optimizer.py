@@ -91,3 +91,18 @@ def test_feasible_scale_puts_a_gait_exactly_on_its_tightest_bound() -> None:
         r, v = gait_extremes(scaled)
         tight = max(np.max(r / np.asarray(lim.limit)), np.max(v / np.asarray(lim.speed_limit)))
         assert tight == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", ["purcell3", "swimmer9"])
+def test_a_half_wave_gait_runs_a_straight_course_on_a_mirror_symmetric_robot(name: str) -> None:
+    """What the loop's half-wave steps rely on: odd harmonics only, any coefficients, no net rotation."""
+    system = make_system(name)
+    nom = nominal_gait(system)
+    rng = np.random.default_rng(3)
+    x = nom.to_vector(3).reshape(len(nom.joints), 7)
+    x[:, [1, 3, 4, 6]] += rng.normal(scale=0.3, size=(len(nom.joints), 4))  # cos_1, cos_3, sin_1, sin_3
+    g = nom.from_vector(x.ravel(), 3)
+    assert g.is_half_wave()
+    assert abs(evaluate_gait(system, g)["rotation"]) < 1e-9
+    x[0, 2] = 0.3  # a second harmonic breaks the symmetry, and the course bends
+    assert abs(evaluate_gait(system, nom.from_vector(x.ravel(), 3))["rotation"]) > 1e-3

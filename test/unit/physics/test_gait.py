@@ -139,6 +139,22 @@ def test_vector_round_trip_and_padding() -> None:
         g3.to_vector(2)
 
 
+def test_half_wave_symmetry_is_odd_harmonics_only() -> None:
+    g = nominal_gait(make_system("swimmer9")).from_vector(nominal_gait(make_system("swimmer9")).to_vector(3), 3)
+    assert g.is_half_wave()  # a travelling sine wave: r(t + T/2) = −r(t)
+    t = np.linspace(0, 1, 41)
+    np.testing.assert_allclose(g.r(t + 0.5 / g.gait_hz), -g.r(t), atol=1e-12)
+    x = g.to_vector(3).reshape(4, 7)
+    for col, name in ((0, "offset"), (2, "cos_2"), (5, "sin_2")):
+        bent = x.copy()
+        bent[1, col] = 1e-3
+        assert not g.from_vector(bent.ravel(), 3).is_half_wave(), name
+        assert g.from_vector(bent.ravel(), 3).is_half_wave(atol=2e-3), name
+    odd = x.copy()
+    odd[:, 3] = 0.2  # a third harmonic keeps the symmetry
+    assert g.from_vector(odd.ravel(), 3).is_half_wave()
+
+
 def test_default_limits_come_from_the_nominal_gait() -> None:
     system = make_system("swimmer9")
     lim = gait_limits(system)
