@@ -4,7 +4,7 @@ Both see only what the robot's streams measure.  The robot is the loop's
 (`suds_ros.core.optimize.loop`: default OU perturbation, 100 Hz, 1 mm / 1 mrad noise, seeded alike),
 every candidate gait is switched in at a cycle boundary and run 1 settling + 4 measured cycles
 (the loop's own candidate cost; every cycle counted), after the robot's nominal gait (the start,
-1 + 5 cycles, as the loop measures it): the nominal gait, or half its amplitude (a poor start).
+1 + 4 cycles, as the loop measures it): the nominal gait, or half its amplitude (a poor start).
 
 CMA-ES (the `cma` package, a benchmark-only dependency) searches the order-3 gait vector from
 the nominal gait with σ0 = 0.25 × the mean joint range limit; a candidate outside the joint range
@@ -36,7 +36,8 @@ from suds_ros.core.physics.gait import check_constraints, gait_limits, nominal_g
 from suds_ros.core.physics.systems import load_system
 
 ORDER = 3
-SETTLE, MEASURED, FIRST = 1, 4, 5  # the loop's settling, candidate and start-gait cycles
+_LOOP = LoopConfig(budget_cycles=10)
+SETTLE, MEASURED, FIRST = _LOOP.settle_cycles, _LOOP.step_cycles, _LOOP.first_cycles  # as the loop runs its gaits
 MAX_ROTATION = 0.05
 START_KINDS = ("nominal", "half amplitude")  # the loop benchmark's starts (optimize_loop.starts)
 CHECKPOINTS = {"purcell3": (15, 25, 40), "snake5": (25, 40, 60), "swimmer9": (45, 90)}

@@ -82,8 +82,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--change", action="append", default=[], metavar="CYCLE:EFFECTS",
                    help="--simulate: the robot changes unannounced after CYCLE cycles to the nominal model with "
                         "EFFECTS (a JSON list of catalogue effects); repeatable")
-    p.add_argument("--first-cycles", type=int, default=5, metavar="N",
-                   help="--simulate: measured cycles of the start gait, ≥ 4 (default 5)")
+    p.add_argument("--first-cycles", type=int, default=4, metavar="N",
+                   help="--simulate: measured cycles of the start gait, ≥ 4 (default 4)")
     p.add_argument("--limit", choices=("auto", "yes", "no"), default="auto",
                    help="--simulate: also compute the physics optimiser's limit for comparison (auto: robots "
                         "of at most 5 joints)")

@@ -89,7 +89,7 @@ class OptimizerNodeConfig:
     budget_cycles: int = setting(200, "gait cycles the search may ask for in all", ge=6)
     start_gait: str = setting("", "gait file (suds-gait/1) to start from (empty: the robot's nominal gait)")
     order: int = setting(3, "harmonics of the proposed gaits", ge=1, le=8)
-    first_cycles: int = setting(5, "measured cycles of the start gait", ge=4)
+    first_cycles: int = setting(4, "measured cycles of the start gait", ge=4)
     step_cycles: int = setting(4, "measured cycles of each candidate gait", ge=4)
     settle_cycles: int = setting(1, "cycles discarded after each switch (the fade and the transient)", ge=1)
     samples_per_cycle: int = setting(100, "pose samples per cycle the measurement interpolates onto", ge=8)

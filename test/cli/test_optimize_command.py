@@ -98,9 +98,9 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "12", "--seed", "1", "--limit", "no",
                  "-o", str(out), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["cycles_used"] == 11 and doc["budget_cycles"] == 12 and "budget spent" in doc["stopped"]
+    assert doc["cycles_used"] == 10 and doc["budget_cycles"] == 12 and "budget spent" in doc["stopped"]
     its = doc["iterations"]
-    assert [it["cycles_used"] for it in its] == [6, 11] and its[0]["accepted"] and its[0]["note"] == "start gait"
+    assert [it["cycles_used"] for it in its] == [5, 10] and its[0]["accepted"] and its[0]["note"] == "start gait"
     assert all(it["predicted"] > 0 and it["measured"] > 0 for it in its)
     best = max((it for it in its if it["accepted"]), key=lambda it: it["index"])
     assert doc["measured"] == best["measured"] and doc["predicted"] == best["predicted"]
@@ -113,7 +113,7 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
                  "-o", str(tmp_path / "t.yaml")]) == 0
     cap = capsys.readouterr()
     assert re.search(r"predicted \d\.\d+ m/s", cap.out)  # the start's prediction, though no step was taken
-    assert "[0] cycles   6" in cap.err and "after 6 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
+    assert "[0] cycles   5" in cap.err and "after 5 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
 
 
 def test_loop_on_a_robot_that_changes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -131,7 +131,7 @@ def test_loop_on_efficiency_measures_the_work(tmp_path: Path, capsys: pytest.Cap
     assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "11", "--seed", "0", "--objective",
                  "efficiency", "--limit", "no", "-o", str(tmp_path / "e.yaml"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["objective"] == "efficiency" and doc["cycles_used"] == 11 and len(doc["iterations"]) == 2
+    assert doc["objective"] == "efficiency" and doc["cycles_used"] == 10 and len(doc["iterations"]) == 2
     for it in doc["iterations"]:
         d = it["measured_detail"]
         assert d["work"] > 0 and it["measured"] == d["efficiency"] == pytest.approx(d["speed"] / d["work"])
@@ -144,8 +144,8 @@ def test_loop_on_efficiency_measures_the_work(tmp_path: Path, capsys: pytest.Cap
      "--model/--system are not taken with it"),
     (["optimize", "--simulate", "purcell3", "--physics", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
      "--simulate and --physics"),
-    (["optimize", "--simulate", "purcell3", "--budget-cycles", "5", "-o", "{tmp}/g.yaml"],
-     "--budget-cycles: `budget_cycles`: expected at least settle_cycles + first_cycles = 6"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "4", "-o", "{tmp}/g.yaml"],
+     "--budget-cycles: `budget_cycles`: expected at least settle_cycles + first_cycles = 5"),
     (["optimize", "--physics", "--system", "purcell3", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"],
      "--budget-cycles: only with --simulate"),
     (["optimize", "--simulate", "nosuch", "--budget-cycles", "9", "-o", "{tmp}/g.yaml"], "unknown system 'nosuch'"),

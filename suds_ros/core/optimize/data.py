@@ -794,6 +794,12 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
     res = ev.steady(x_end[None], base.r_p)[0]
     new_vals = _scalars(res, hz)
     value = _value(new_vals, cfg.objective)
+    if step_taken and start_violation == 0 and not value > rec_value:
+        # the steady state reached from the recorded gait's is not the one the search saw (a learned map
+        # may have several): the step is not predicted better after all
+        msg += (f"; its steady state from the recorded gait's predicts {value:.4g}, not above the recorded "
+                f"{rec_value:.4g}: the recorded gait is returned")
+        step_taken, x_end, res, new_vals, value = False, x0, base, rec_vals, rec_value
     # uncertainty: the recorded and proposed gaits under coefficient draws (paired)
     draws: list[tuple[float, float]] = []
     if cfg.draws and model.chol is not None:

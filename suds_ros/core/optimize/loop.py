@@ -38,7 +38,8 @@ One iteration
    again and judged on both stretches pooled.  Accepted: the
    candidate becomes the incumbent and its cycles the next model's data; the radius grows
    (× ``grow``, up to ``trust_max``) when the measured gain is at least half the predicted gain
-   and the step reached the region's edge.
+   and the step reached the region's edge, and shrinks (× ``shrink``, not below ``trust``) when
+   it is under ``POOR_RATIO`` of it.
    Rejected: the incumbent's model refitted with the rejected cycles (``pool_rejected``; else the
    same model), radius × ``shrink``.  Below ``trust_min`` the incumbent
    is run again (settling + ``step_cycles``): its stretches are pooled for a new measurement (which
@@ -121,6 +122,10 @@ MAX_STRETCHES = 8
 #: further out the model extrapolates (on the unchanged swimmer9 a step at 2 σ missed its rotation by
 #: 0.31 rad/cycle, one at 1 σ by 0.21)
 MISS_TRUST = 0.5
+#: an accepted step whose measured gain is under this fraction of its predicted gain shrinks a radius that
+#: had grown past ``trust`` (× ``shrink``, not below ``trust``): the model was far off that far out (snake5
+#: from half amplitude: at 8 σ a step predicted +0.56 m/s measured +0.03, and the next 8 σ step halted the robot)
+POOR_RATIO = 0.25
 
 
 @dataclass(frozen=True)
@@ -136,7 +141,10 @@ class LoopConfig:
     objective : str
         ``speed``, ``turn`` or ``efficiency`` (measured from the recorded effort).
     first_cycles : int
-        Measured cycles of the start gait (≥ 4, as ``step_cycles``).
+        Measured cycles of the start gait (≥ 4, as ``step_cycles``).  The default, as many as a
+        candidate's, makes every gait cost ``settle_cycles`` + 4 = 5 cycles, so a budget of 5n cycles
+        holds n gaits exactly (with 5 measured start cycles the fifth gait ended at cycle 26: one
+        step fewer within the 5-per-link targets of ``docs/results/optimize_loop.md``).
     step_cycles : int
         Measured cycles of each candidate gait (≥ 4: an accepted candidate's cycles are the next
         model's data, and the phaser needs three whole cycles after the settling one is cut).
@@ -232,7 +240,7 @@ class LoopConfig:
     budget_cycles: int
     seed: int = 0
     objective: str = "speed"
-    first_cycles: int = 5
+    first_cycles: int = 4
     step_cycles: int = 4
     settle_cycles: int = 1
     order: int = DEFAULT_MAX_ORDER
@@ -1028,6 +1036,10 @@ class GaitSearch:
             if grew:
                 self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {self._kappa:.3g}"
+            elif ratio < POOR_RATIO and self._kappa > cfg.trust:
+                # a gain, but far short of the prediction: the model was wrong that far out
+                self._kappa = max(self._kappa * cfg.shrink, cfg.trust)
+                note += f"; under {POOR_RATIO:g} of the prediction, trust → {self._kappa:.3g}"
             self._take(cand, meas, list(stretches), step.value)
             self._fresh = False  # measured on the robot as it is now
         else:

@@ -111,6 +111,31 @@ def test_a_half_wave_step_moves_only_the_odd_harmonics(purcell: tuple[object, Le
         DataOptimizeConfig(objective="turn", half_wave=True)
 
 
+def test_a_step_whose_own_steady_state_is_no_better_is_not_taken(
+        purcell: tuple[object, LearnedModel], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The search scores each gait from the last gait's steady state; a learned map may have more than one, and
+    the step is confirmed from the recorded gait's: here every gait but the recorded one is made to go nowhere."""
+    system, model = purcell
+    start = nominal_gait(system)  # type: ignore[arg-type]
+    limits = gait_limits(system)  # type: ignore[arg-type]
+    cfg = DataOptimizeConfig(draws=0)
+    assert optimize_from_data(model, cfg, limits=limits, start=start).step_taken
+    steady = LearnedCycle.steady
+    seen: list[bytes] = []
+
+    def other_orbit(self: LearnedCycle, X: np.ndarray, rp: np.ndarray) -> object:
+        out = steady(self, X, rp)
+        if not seen:  # the first steady state asked for is the recorded gait's
+            seen.append(X.tobytes())
+        if X.tobytes() != seen[0]:  # not the recorded gait: a steady state that goes nowhere
+            out[0].g_c[...] = 0.0
+        return out
+
+    monkeypatch.setattr(LearnedCycle, "steady", other_orbit)
+    res = optimize_from_data(model, cfg, limits=limits, start=start)
+    assert not res.step_taken and res.value == res.recorded_value and "not above the recorded" in res.message
+
+
 def test_trust_region_centred_on_the_start(purcell: tuple[object, LearnedModel]) -> None:
     system, model = purcell
     limits = gait_limits(system)  # type: ignore[arg-type]

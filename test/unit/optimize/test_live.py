@@ -31,7 +31,7 @@ def _stream(system, seed: int = 3) -> StreamingSimulator:  # type: ignore[no-unt
 
 
 def test_the_search_asks_until_told_and_refuses_out_of_turn(purcell3) -> None:  # type: ignore[no-untyped-def]
-    cfg = LoopConfig(budget_cycles=6)
+    cfg = LoopConfig(budget_cycles=6, first_cycles=5)
     search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
     with pytest.raises(SudsConfigError, match="expected at least the start gait's cycles observed") as exc:
         search.result()
@@ -138,7 +138,8 @@ def test_live_windows_are_placed_by_the_switch_stamp(purcell3) -> None:  # type:
 def test_a_switch_that_is_not_the_commanded_gait_opens_nothing(purcell3) -> None:  # type: ignore[no-untyped-def]
     names = tuple(purcell3.joint_names)
     nominal = nominal_gait(purcell3)
-    live = LiveGaitSearch(GaitSearch(nominal, gait_limits(purcell3), LoopConfig(budget_cycles=20)), names,
+    live = LiveGaitSearch(GaitSearch(nominal, gait_limits(purcell3), LoopConfig(budget_cycles=20, first_cycles=5)),
+                          names,
                           (names[0],), (names[1],), "purcell3")
     live.on_shape(10.0, np.zeros(2))
     req = live.search.request()
@@ -187,14 +188,15 @@ def test_a_robot_that_changes_mid_run_is_noticed_and_measured_afresh(purcell3) -
     """The spring 3× stiffer against the drag after cycle 30 halves the speed, unannounced: a re-run of the incumbent
     measures off its standing value, so its old data are dropped and the search goes on from the robot as it is."""
     change = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
-    res = optimize_loop(purcell3, LoopConfig(budget_cycles=50, seed=0, watch=True), changes=[(30, change)])
+    cfg = LoopConfig(budget_cycles=50, seed=0, watch=True, first_cycles=5)
+    res = optimize_loop(purcell3, cfg, changes=[(30, change)])
     taken = [it for it in res.iterations if "the robot changed" in it.note]
     assert taken and taken[0].cycles_used - 30 <= 10, [it.note for it in res.iterations]
     assert all(it.cycles_used > 30 for it in taken)  # never from a run that ended before the change
     assert taken[-1].measured.speed < 0.06  # measured afresh on the changed robot (its limit is 0.043 m/s)
     assert res.index >= taken[-1].index  # the gait returned was measured on the changed robot
     # the same run unchanged: nothing taken for a change
-    same = optimize_loop(purcell3, LoopConfig(budget_cycles=50, seed=0, watch=True))
+    same = optimize_loop(purcell3, cfg)
     assert not [it for it in same.iterations if "the robot changed" in it.note]
 
 
@@ -353,7 +355,7 @@ def test_a_first_model_that_sees_no_gain_asks_for_more_data_first(purcell3, monk
         return dataclasses.replace(real(model, *args, **kwargs), step_taken=False)
 
     monkeypatch.setattr(loop_mod, "optimize_from_data", no_gain)
-    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), LoopConfig(budget_cycles=20))
+    search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), LoopConfig(budget_cycles=20, first_cycles=5))
     sim = _stream(purcell3)
     names = purcell3.joint_names
 

@@ -4,12 +4,24 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
 
 from suds_ros.core.errors import SudsConfigError
-from suds_ros.core.optimize.loop import LoopConfig, LoopResult, Measurement, is_better, measure_cycles, optimize_loop
+from suds_ros.core.optimize.loop import (
+    POOR_RATIO,
+    GaitSearch,
+    LoopConfig,
+    LoopResult,
+    Measurement,
+    RunRequest,
+    is_better,
+    measure_cycles,
+    optimize_loop,
+)
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
 from suds_ros.core.physics.systems import load_system, make_system
@@ -65,7 +77,7 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
 
 
 @pytest.mark.parametrize("kwargs, message, code", [
-    ({"budget_cycles": 5}, "`budget_cycles`: expected at least settle_cycles \\+ first_cycles = 6", "budget_too_small"),
+    ({"budget_cycles": 4}, "`budget_cycles`: expected at least settle_cycles \\+ first_cycles = 5", "budget_too_small"),
     ({"budget_cycles": 20, "floor_sigmas": -1.0}, "`floor_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
     ({"budget_cycles": 20, "step_cycles": 3}, "`step_cycles`: expected ≥ 4, got 3", "bad_config"),
     ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
@@ -83,7 +95,7 @@ def p3_half() -> tuple[object, object, LoopResult]:
     system = make_system("purcell3")
     nom = nominal_gait(system)
     half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
-    return system, half, optimize_loop(system, LoopConfig(budget_cycles=17, seed=0), start=half)
+    return system, half, optimize_loop(system, LoopConfig(budget_cycles=17, seed=0, first_cycles=5), start=half)
 
 
 def test_loop_improves_a_poor_start_within_budget_and_bounds(p3_half: tuple[object, object, LoopResult]) -> None:
@@ -130,7 +142,7 @@ def test_stretches_are_pooled_in_the_measurement() -> None:
 
 def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
     system = make_system("purcell3")
-    cfg = LoopConfig(budget_cycles=21, seed=0, trust=2.0, trust_min=2.0)  # the first rejection collapses it
+    cfg = LoopConfig(budget_cycles=21, seed=0, trust=2.0, trust_min=2.0, first_cycles=5)  # one rejection collapses it
     res = optimize_loop(system, cfg)
     its = res.iterations
     assert not its[1].accepted and "trust → 1" in its[1].note
@@ -139,6 +151,42 @@ def test_a_collapsed_trust_region_re_runs_the_incumbent() -> None:
     # the next step comes from the model of both stretches, with the radius afresh
     assert its[3].predicted is not None and its[3].trust == pytest.approx(2.0)
     assert res.index == (3 if its[3].accepted else 2)
+
+
+class _Told(GaitSearch):
+    """The search, with each run's measurement given instead of measured."""
+
+    def __init__(self, *args: Any, told: list[Measurement], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.told = told
+
+    def _measure(self, data: Any, gait: Any) -> Measurement:
+        return self.told.pop(0)
+
+
+def test_the_radius_follows_how_far_the_measured_gain_bears_out_the_predicted_one() -> None:
+    system = make_system("purcell3")
+    nom = nominal_gait(system)
+    told = [_m(0.10, 0.0), _m(0.11, 0.0), _m(0.12, 0.0), _m(0.20, 0.0), _m(0.21, 0.0)]
+    search = _Told(nom, gait_limits(system), LoopConfig(budget_cycles=40), told=told)
+    search.observe(None)  # type: ignore[arg-type]  # the start gait
+
+    def candidate(predicted_gain: float, radius: float) -> Any:
+        step = SimpleNamespace(value=1.0 + predicted_gain, recorded_value=1.0, value_std=None, trust_radius=radius,
+                               trust_used=radius)
+        search._pending = RunRequest(nom, 5, "candidate", step=step)
+        return search.observe(None)  # type: ignore[arg-type]
+
+    search._kappa = 8.0  # grown by earlier steps
+    it = candidate(0.4, 8.0)  # measured +0.01: kept, but the model was far off that far out
+    assert it.accepted and search._kappa == 4.0 and f"under {POOR_RATIO:g} of the prediction, trust → 4" in it.note
+    it = candidate(0.03, 4.0)  # measured +0.01, a third: the radius stays
+    assert it.accepted and search._kappa == 4.0 and "trust" not in it.note
+    it = candidate(0.01, 4.0)  # measured +0.08, at the region's edge: it grows
+    assert it.accepted and search._kappa == 8.0 and "trust grows to 8" in it.note
+    search._kappa = 2.0  # never below the initial radius
+    it = candidate(1.0, 2.0)
+    assert it.accepted and search._kappa == 2.0 and "trust" not in it.note
 
 
 def test_a_marginal_gain_is_run_again_before_it_is_kept() -> None:
