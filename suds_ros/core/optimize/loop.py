@@ -30,8 +30,9 @@ One iteration
    pose frame, g_c = g(t)⁻¹ g(t + 1/f), averaged over the cycles) is compared with the
    incumbent's measurement.  The step is accepted only if the measurement confirms it: a higher
    measured objective, and for ``speed``/``efficiency`` a measured |rotation| per cycle within
-   ``max_rotation`` (the spec's straight-course bound) or over it by at most ``rotation_sigmas``
-   standard errors (for ``turn`` and ``efficiency`` a measured
+   ``max_rotation`` (the spec's straight-course bound; for a half-wave gait on a robot whose
+   half-wave start measured straight, over it by at most ``rotation_sigmas`` standard errors;
+   for ``turn`` and ``efficiency`` a measured
    speed no lower than the start gait's).  A feasible gait always beats an infeasible one; between infeasible
    gaits the smaller violation wins.  Optionally (``confirm_sigmas``, off by default) a gain
    within that many standard errors of the difference is not kept at once: the candidate is run
@@ -74,6 +75,7 @@ physics, the phase-averaged one 1.1–1.3× (``docs/results/optimize_efficiency.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -172,10 +174,13 @@ class LoopConfig:
         efficient gaits lie on the floor, so a strict test on two noisy numbers would refuse about
         half of them.
     rotation_sigmas : float
-        For ``speed`` and ``efficiency``, a measured |rotation| counts as over the bound only when it is
-        over by more than this many of its standard errors (0: any excess).  Under the default
-        excitation a few cycles' rotation of a straight gait scatters by about 0.1 rad/cycle on
-        swimmer9, twice the bound, so a strict test refuses straight gaits on a coin toss.
+        For ``speed`` and ``efficiency``, on a robot that looks mirror-symmetric (its half-wave start
+        gait measured a rotation within this many of its standard errors of zero), a half-wave
+        gait's measured |rotation| counts as over the bound only when it is over by more than this
+        many of its standard errors; otherwise, and for every other gait, any excess counts.  Under
+        the default excitation a few cycles' rotation of a straight gait scatters by about 0.1
+        rad/cycle on swimmer9, twice the bound, so a strict test refuses straight gaits on a coin
+        toss; on a robot with a bent spring the same gaits truly turn, and the bound is kept strictly.
     accept_sigmas : float
         A candidate is kept only if its measured gain exceeds this many standard errors of the
         difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
@@ -787,6 +792,8 @@ class GaitSearch:
         self._pending: RunRequest | None = RunRequest(start, config.settle_cycles + config.first_cycles, "start",
                                                       "start gait")
         self._confirming: list[Recording] = []  # a candidate's first stretch while it is run again
+        self._symmetric = False  # a half-wave gait of this robot measured straight: it looks mirror-symmetric
+        self._strict = dataclasses.replace(config, rotation_sigmas=0.0)
 
     @property
     def best(self) -> Gait:
@@ -838,7 +845,7 @@ class GaitSearch:
         kappa = self._kappa
         # a robot whose half-wave incumbent runs off course is not symmetric: the full step, to bring it back
         half_wave = (cfg.half_wave and cfg.objective != "turn" and self._best_gait.is_half_wave()
-                     and self._best_meas is not None and _turned(self._best_meas, cfg) == 0.0)
+                     and self._best_meas is not None and _turned(self._best_meas, self._rules(self._best_gait)) == 0.0)
         dcfg = DataOptimizeConfig(objective=cfg.objective, order=cfg.order, trust=kappa, draws=cfg.draws,
                                   min_gain_sigmas=cfg.min_gain_sigmas, seed=cfg.seed + len(self.iterations),
                                   max_rotation=cfg.max_rotation * cfg.rotation_margin, trust_centre=cfg.trust_centre,
@@ -894,6 +901,7 @@ class GaitSearch:
         if req.kind == "start":
             # turn, efficiency: no slower than the start gait (measured)
             self._speed_floor, self._floor_se = meas.speed, meas.speed_se
+            self._symmetric = self._looks_symmetric(req.gait, meas)
             self._best_meas, self._best_data = meas, [data]
             it = LoopIteration(index=0, gait=req.gait, cycles=req.cycles, cycles_used=self.cycles_used,
                                predicted=None, predicted_std=None, predicted_incumbent=None, measured=meas,
@@ -937,6 +945,7 @@ class GaitSearch:
                 note += f", and its own first {first} cycle{'s' if first > 1 else ''} (the robot before the change)"
             self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
             self.changes.append(len(self.iterations))
+            self._symmetric = self._looks_symmetric(req.gait, meas)  # the changed robot may not be
         else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
             self._best_data = [*self._best_data, data][-MAX_STRETCHES:]
             self._best_meas = self._measure(self._best_data, req.gait)
@@ -967,7 +976,7 @@ class GaitSearch:
         cfg, old = self.config, self._best_meas
         assert old is not None
         self._speed_floor, self._floor_se = meas.speed, meas.speed_se
-        taken = is_better(meas, old, cfg, self._speed_floor, self._floor_se)
+        taken = is_better(meas, old, self._rules(self._start), self._speed_floor, self._floor_se)
         note = f"{req.note}: floor → {meas.speed:.4g} m/s"
         if taken:
             self._take(self._start, meas, [data], None)
@@ -999,20 +1008,37 @@ class GaitSearch:
     def _measure(self, data: Recording | list[Recording], gait: Gait) -> Measurement:
         return measure_recording(data, self.config.samples_per_cycle, gait.gait_hz, work=self._work)
 
-    def _feasible(self, m: Measurement) -> bool:
-        return _feasible(m, self.config, self._speed_floor, self._floor_se)[0]
+    def _rules(self, gait: Gait) -> LoopConfig:
+        """The config a measurement of ``gait`` is judged by: ``rotation_sigmas`` only on a symmetric-looking robot.
+
+        A half-wave gait runs straight on a mirror-symmetric robot, so there a measured rotation over the
+        bound by a standard error or so is the measurement's noise.  A robot whose half-wave start measured
+        a rotation beyond ``rotation_sigmas`` of its standard error (a bent spring, a current) is not
+        symmetric, and neither is a gait that is not half-wave: there the bound is the measured number.
+        """
+        return self.config if self._symmetric and gait.is_half_wave() else self._strict
+
+    def _looks_symmetric(self, gait: Gait, m: Measurement) -> bool:
+        """Whether ``gait`` is half-wave and measured straight (|rotation| within ``rotation_sigmas`` se of 0)."""
+        cfg = self.config
+        return (cfg.objective != "turn" and gait.is_half_wave() and math.isfinite(m.rotation_se)
+                and abs(m.rotation) <= cfg.rotation_sigmas * m.rotation_se)
+
+    def _feasible(self, m: Measurement, gait: Gait) -> bool:
+        return _feasible(m, self._rules(gait), self._speed_floor, self._floor_se)[0]
 
     def _judge(self, req: RunRequest, meas: Measurement, stretches: list[Recording]) -> LoopIteration:
         """Accept, confirm or reject a candidate by its measurement; schedule a re-run when the region collapsed."""
         cfg, step, cand = self.config, req.step, req.gait
         old = self._best_meas
         assert old is not None
-        accepted = is_better(meas, old, cfg, self._speed_floor, self._floor_se)
+        rules = self._rules(cand)
+        accepted = is_better(meas, old, rules, self._speed_floor, self._floor_se)
         pred_gain = step.value - step.recorded_value
         meas_gain = meas.value(cfg.objective) - old.value(cfg.objective)
         kappa_used = step.trust_radius
         confirm = ""
-        marginal = req.kind == "candidate" and cfg.confirm_sigmas > 0 and self._feasible(old)
+        marginal = req.kind == "candidate" and cfg.confirm_sigmas > 0 and self._feasible(old, self._best_gait)
         if accepted and marginal:
             z = _sigmas(meas.value(cfg.objective), old.value(cfg.objective),
                         meas.value_se(cfg.objective), old.value_se(cfg.objective))
@@ -1055,11 +1081,11 @@ class GaitSearch:
             if cfg.pool_rejected:  # its cycles join the incumbent's model: refitted for the next step
                 self._near = [*self._near, *stretches][-cfg.pool_rejected:]
                 self._model = None
-            why = (confirm or "measured objective not higher" if self._feasible(meas)
-                   else _infeasible_text(meas, cfg, self._speed_floor, self._floor_se))
+            why = (confirm or "measured objective not higher" if self._feasible(meas, cand)
+                   else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
             note = (f"rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
                     f"trust → {self._kappa:.3g}")
-            low = _surprise(meas, old, cfg, self._speed_floor, self._floor_se)
+            low = _surprise(meas, old, rules, self._speed_floor, self._floor_se)
             self._low_streak = self._low_streak + 1 if low else 0
             rerun = None
             if self._fresh:

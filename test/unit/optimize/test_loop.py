@@ -189,6 +189,25 @@ def test_the_radius_follows_how_far_the_measured_gain_bears_out_the_predicted_on
     assert it.accepted and search._kappa == 2.0 and "trust" not in it.note
 
 
+def test_a_rotation_within_a_standard_error_of_the_bound_passes_only_on_a_symmetric_looking_robot() -> None:
+    system = make_system("purcell3")
+    nom = nominal_gait(system)  # half-wave: a sine
+    skew = nom.from_vector(np.r_[0.1, nom.to_vector()[1:]], 1)  # an offset: not half-wave
+    step = SimpleNamespace(value=1.2, recorded_value=1.0, value_std=None, trust_radius=2.0, trust_used=2.0)
+    over = dataclasses.replace(_m(0.2, 0.07), rotation_se=0.03)  # 0.02 over the bound, within 1 se
+
+    def judged(start_rotation: float, candidate: Any, se: float = 0.03) -> bool:
+        start = dataclasses.replace(_m(0.1, start_rotation), rotation_se=se)
+        search = _Told(nom, gait_limits(system), LoopConfig(budget_cycles=40), told=[start, over])
+        search.observe(None)  # type: ignore[arg-type]
+        search._pending = RunRequest(candidate, 5, "candidate", step=step)
+        return search.observe(None).accepted  # type: ignore[arg-type]
+
+    assert judged(0.01, nom)  # the start ran straight: a half-wave gait's excess is noise
+    assert not judged(0.045, nom, se=0.01)  # the start turned, if within the bound: the bound is the measured number
+    assert not judged(0.01, skew)  # a gait that is not half-wave can truly turn
+
+
 def test_a_marginal_gain_is_run_again_before_it_is_kept() -> None:
     """From purcell3's nominal gait (98.8 % of the limit) the candidates' measured gains are within
     the measurement's noise: such a candidate is run again and judged on both stretches pooled,
