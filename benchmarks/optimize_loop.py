@@ -327,10 +327,10 @@ def report() -> None:
               "on the spec's grid). The simulator's OU perturbation (0.175 rad) acts on top of the gait's set-points, "
               "so the perturbed set-points themselves do leave the bounds by up to about that much; that is the "
               "simulated robot's behaviour, not a gait the loop chose.",
-              "- The measured speed of 4 cycles under this perturbation has a standard error of 5–15 % (snake5, "
-              "swimmer9), so near the limit a candidate can be accepted on a lucky measurement (the 'returned gait "
-              "worse than the start' count); a collapsed trust region re-runs the incumbent and pools its "
-              "measurements, which corrects some of these.",
+              "- The measured speed of 4 cycles under this perturbation has a standard error of 5–20 % (snake5, "
+              "swimmer9; 18 % for a near-optimal swimmer9 gait, README), so near the limit a candidate can be "
+              "accepted on a lucky measurement (the 'returned gait worse than the start' count); a collapsed "
+              "trust region re-runs the incumbent and pools its measurements, which corrects some of these.",
               "- The measured rotation is noisy: with 4 cycles under this perturbation its error reaches "
               "±0.1–0.2 rad/cycle on swimmer9 (per-run tables), larger than the 0.05 bound; straight gaits are "
               "refused on it only when it is over the bound by more than a standard error, and when the incumbent "
