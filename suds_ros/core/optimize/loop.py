@@ -646,8 +646,8 @@ def _infeasible_text(m: Measurement, cfg: LoopConfig, speed_floor: float, floor_
     """Which side bound a measurement breaks, in words."""
     parts = []
     if cfg.objective != "turn" and _turned(m, cfg) > 0:
-        parts.append(f"measured rotation |{m.rotation:.3g}| rad/cycle over the bound by over "
-                     f"{cfg.rotation_sigmas:g} se")
+        by = f" by over {cfg.rotation_sigmas:g} se" if cfg.rotation_sigmas > 0 else ""
+        parts.append(f"measured rotation |{m.rotation:.3g}| rad/cycle over the bound{by}")
     if cfg.objective != "speed" and _slow(m, cfg, speed_floor, floor_se) > 0:
         parts.append(f"measured speed {m.speed:.4g} m/s under the start gait's {speed_floor:.4g} by over "
                      f"{cfg.floor_sigmas:g} se")
