@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 from _common import RESULTS, machine, run_report_cli, stamp, write
-from optimize_loop import ABLATIONS, ROBOTS, starts
+from optimize_loop import ABLATIONS, DEFAULTS, ROBOTS, starts
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.loop import LoopConfig, _Robot, _trim, measure_cycles
@@ -36,8 +36,7 @@ from suds_ros.core.physics.gait import check_constraints, gait_limits, nominal_g
 from suds_ros.core.physics.systems import load_system
 
 ORDER = 3
-_LOOP = LoopConfig(budget_cycles=10)
-SETTLE, MEASURED, FIRST = _LOOP.settle_cycles, _LOOP.step_cycles, _LOOP.first_cycles  # as the loop runs its gaits
+SETTLE, MEASURED, FIRST = DEFAULTS.settle_cycles, DEFAULTS.step_cycles, DEFAULTS.first_cycles  # as the loop runs them
 MAX_ROTATION = 0.05
 START_KINDS = ("nominal", "half amplitude")  # the loop benchmark's starts (optimize_loop.starts)
 CHECKPOINTS = {"purcell3": (15, 25, 40), "snake5": (25, 40, 60), "swimmer9": (45, 90)}

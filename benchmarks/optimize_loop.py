@@ -32,7 +32,7 @@ from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits,
 from suds_ros.core.physics.systems import load_system
 
 MAX_ROTATION = LoopConfig.max_rotation  # the default bound on |rotation| per cycle for the speed objective
-_D = LoopConfig(budget_cycles=10)  # the loop's defaults, as the report describes them
+DEFAULTS = LoopConfig(budget_cycles=10)  # the loop's defaults, as the reports describe them
 ROBOTS = {"purcell3": ("purcell3", 40, 15), "snake5": (SNAKE5, 60, 25),
           "swimmer9": ("swimmer9", 90, 45)}  # name: (spec, budget, the target cycles: 5 per link)
 PEERS = {"purcell3": "Deng et al. ≈ 30 (10 per link)", "snake5": "Deng et al. ≈ 50 (10 per link)",
@@ -261,9 +261,9 @@ def report() -> None:
     lines = ["# `suds optimize --simulate`: the offline run → fit → step loop, measured", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_loop.py` (nice 5; the 2 cores shared "
              "with other work, so times are rough).", "",
-             f"The loop (`suds_ros/core/optimize/loop.py`, defaults): the start gait runs {_D.settle_cycles} settling "
-             f"+ {_D.first_cycles} measured cycles; each candidate {_D.settle_cycles} settling + {_D.step_cycles} "
-             "measured cycles (every cycle counted); the SUDS model is fitted "
+             f"The loop (`suds_ros/core/optimize/loop.py`, defaults): the start gait runs {DEFAULTS.settle_cycles} "
+             f"settling + {DEFAULTS.first_cycles} measured cycles; each candidate {DEFAULTS.settle_cycles} settling "
+             f"+ {DEFAULTS.step_cycles} measured cycles (every cycle counted); the SUDS model is fitted "
              "to the incumbent gait's measured cycles and to the newest 2 stretches of the candidates rejected "
              "since it became the incumbent (refitted after each rejection); one trust-region step (κ = 2 σ, "
              "doubled after a confirmed full step up to 8, halved after a rejection and after an accepted step "
@@ -272,7 +272,7 @@ def report() -> None:
              "gait run is half-wave symmetric and runs straight on these mirror-symmetric robots, and the model's "
              "rotation is held within 0.025 rad/cycle of its value for the incumbent; a step is kept only if the "
              "*measured* speed is higher and the measured |rotation| is ≤ 0.05 rad/cycle or over it by at most "
-             f"{_D.rotation_sigmas:g} standard error. "
+             f"{DEFAULTS.rotation_sigmas:g} standard error. "
              "Robot: the simulator with its default OU perturbation (0.175 rad, κ = 8 /s), 100 Hz, 1 mm / 1 mrad "
              "noise, seeded. 'true' = a gait on the physics at its passive periodic steady state, computed after "
              "the run; the loop never sees it. The gait returned at a budget is the incumbent at that point.", ""]
@@ -321,8 +321,8 @@ def report() -> None:
               "Predicted values are the model's at the step (for run 0: the first model's fit of the start gait).",
               "", "## Notes", "",
               "- Cycles to x % counts the start gait's cycles too; a start already above x % reads as the start's "
-              f"{_D.settle_cycles + _D.first_cycles} cycles (the designer's nominal sinusoids of purcell3 and snake5 "
-              "are at 98.8 % of the limit).",
+              f"{DEFAULTS.settle_cycles + DEFAULTS.first_cycles} cycles (the designer's nominal sinusoids of purcell3 "
+              "and snake5 are at 98.8 % of the limit).",
               "- 'Bounds': every gait the loop ran or returned is within the joint range and speed bounds (checked "
               "on the spec's grid). The simulator's OU perturbation (0.175 rad) acts on top of the gait's set-points, "
               "so the perturbed set-points themselves do leave the bounds by up to about that much; that is the "

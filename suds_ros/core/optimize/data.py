@@ -75,6 +75,7 @@ from suds_ros.core.physics.gait import (
     checked_extremes,
     constraint_grid,
     constraint_violations,
+    half_wave_free,
     with_predicted,
 )
 from suds_ros.core.recording import Recording
@@ -116,7 +117,8 @@ class DataOptimizeConfig:
     half_wave : bool
         Move only the odd harmonics (the offsets and even harmonics held at the start's): from a
         half-wave symmetric start, r_a(t + T/2) = −r_a(t), the step stays in that family, whose net
-        rotation per cycle is zero by symmetry on a mirror-symmetric robot (:func:`half_wave_free`).
+        rotation per cycle is zero by symmetry on a mirror-symmetric robot
+        (:func:`~suds_ros.core.physics.gait.half_wave_free`).
         The model's predicted rotation is then bounded around its prediction for the start
         (|rotation − start's| ≤ ``max_rotation``), not around zero: the model's yaw errs by more
         than the bound (swimmer9 from five cycles: −0.07 rad/cycle for the nominal gait, which runs
@@ -563,20 +565,6 @@ def trust_used(model: LearnedModel, gait: Gait, centre: Gait | None = None) -> f
     d = np.abs(gait.r(t) - mid) / np.maximum(model.spread_delta, 1e-12)
     v = np.abs(gait.rdot(t) - dmid) / np.maximum(model.spread_rate, 1e-12)
     return float(max(d.max(), v.max()))
-
-
-def half_wave_free(na: int, order: int) -> FloatArray:
-    """Indices of the odd harmonics' coefficients in a gait vector (:meth:`Gait.to_vector`).
-
-    A gait of odd harmonics only is half-wave symmetric: r(t + T/2) = −r(t).  On a robot that is
-    its own mirror image (body, springs and medium), the passive periodic steady state of such a
-    drive is half-wave symmetric too, so the second half cycle undoes the first half's rotation:
-    its net rotation per cycle is zero whatever the odd coefficients are.
-    """
-    per = 2 * order + 1
-    k = np.arange(1, order + 1)
-    odd = np.concatenate([k[k % 2 == 1], order + k[k % 2 == 1]])
-    return (np.arange(na)[:, None] * per + odd[None]).ravel()
 
 
 def recorded_limits(gait: Gait) -> GaitLimits:

@@ -13,7 +13,6 @@ from suds_ros.core.optimize.data import (
     LearnedCycle,
     LearnedModel,
     align_to_model,
-    half_wave_free,
     learn_model,
     motion_miss,
     optimize_from_data,
@@ -22,7 +21,7 @@ from suds_ros.core.optimize.data import (
 )
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.effects import apply_effects
-from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, half_wave_free, nominal_gait
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import make_system
