@@ -510,11 +510,13 @@ class SudsIdentifier(BaseEstimator):
         return best
 
     def _prepared(self, rec: Recording) -> Recording:
-        if not self.config.regrid or self.config.phase == "truth":
-            return rec
-        from suds_ros.core.resample import on_shape_grid
+        """``rec`` on its shape grid (``config.regrid``), refused when no interval of it was measured."""
+        if self.config.regrid and self.config.phase != "truth":
+            from suds_ros.core.resample import on_shape_grid
 
-        return on_shape_grid(rec)
+            rec = on_shape_grid(rec)
+        _check_measured(rec, self.config.window)
+        return rec
 
     def _check(self, rec: Recording) -> None:
         check_is_fitted(self)
@@ -620,6 +622,24 @@ def _measured(rec: Recording, window: int) -> BoolArray | None:
         return None
     bad = window_any(rec.bridged, window)
     return ~bad if bad.any() else None
+
+
+def _check_measured(rec: Recording, window: int) -> None:
+    """Refuse a recording in which every interval spans a bridged shape sample (nothing measured to use).
+
+    Raises
+    ------
+    SudsDataError
+        (code ``too_little_data``) naming how many shape samples were bridged and over what span.
+    """
+    keep = _measured(rec, window)
+    if keep is None or keep.any():
+        return
+    lost = np.flatnonzero(rec.bridged)
+    raise SudsDataError(
+        f"`rec`: every interval of {window} sample(s) spans a shape sample that was bridged across a run of "
+        f"lost messages ({lost.size} of {rec.n_samples} shape samples, between stamps {rec.t[lost[0]]:.3f} and "
+        f"{rec.t[lost[-1]]:.3f} s): no measured interval is left to fit or score", code=TOO_LITTLE_DATA)
 
 
 def _merged(parts: list[_Samples]) -> _Samples:

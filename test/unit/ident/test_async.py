@@ -170,3 +170,27 @@ def test_the_streaming_estimator_leaves_out_bursts_of_lost_shape_samples(lab_run
     intact = score_prediction(evaluate_model(fit_streaming(whole_train, OnlineConfig(chunk=50)).model(), whole_test))
     ours = score_prediction(evaluate_model(est.model(), whole_test))
     assert ours.gamma_body > intact.gamma_body - 0.05 and ours.gamma_passive > intact.gamma_passive - 0.05
+
+
+def test_a_recording_with_nothing_measured_is_refused_by_name() -> None:
+    """Every interval over a bridged shape sample: fit and scores say so (no IndexError deep inside)."""
+    from suds_ros.core.errors import TOO_LITTLE_DATA, SudsDataError
+    from suds_ros.core.physics.sim import simulate
+
+    cfg = IdentifyConfig(regrid=False)  # the mask is given here, not found from the stamps
+    train, test = split_cycles(simulate(make_system("purcell3"), SimConfig(cycles=20, seed=2)), 12, 8)
+    ident = SudsIdentifier(cfg).fit(train)
+    def fit(rec):  # type: ignore[no-untyped-def]
+        return SudsIdentifier(cfg).fit(rec).omega_
+
+    def score(rec):  # type: ignore[no-untyped-def]
+        return ident.scores(rec).gamma_body
+
+    for rec, call in ((train, fit), (test, score)):
+        mask = np.zeros(rec.n_samples, bool)
+        mask[::2] = True  # every interval of one sample touches a bridged sample
+        with pytest.raises(SudsDataError, match="bridged across a run of lost messages") as err:
+            call(replace(rec, bridged=mask))
+        assert err.value.code == TOO_LITTLE_DATA
+        mask[: 4 * 100] = False  # four cycles measured: those are used
+        assert np.isfinite(call(replace(rec, bridged=mask)))
