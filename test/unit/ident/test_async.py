@@ -180,6 +180,7 @@ def test_a_recording_with_nothing_measured_is_refused_by_name() -> None:
     cfg = IdentifyConfig(regrid=False)  # the mask is given here, not found from the stamps
     train, test = split_cycles(simulate(make_system("purcell3"), SimConfig(cycles=20, seed=2)), 12, 8)
     ident = SudsIdentifier(cfg).fit(train)
+
     def fit(rec):  # type: ignore[no-untyped-def]
         return SudsIdentifier(cfg).fit(rec).omega_
 
