@@ -34,9 +34,11 @@ One iteration
    half-wave start measured straight, over it by at most ``rotation_sigmas`` standard errors;
    for ``turn`` and ``efficiency`` a measured
    speed no lower than the start gait's).  A feasible gait always beats an infeasible one; between infeasible
-   gaits the smaller violation wins.  Optionally (``confirm_sigmas``, off by default) a gain
-   within that many standard errors of the difference is not kept at once: the candidate is run
-   again and judged on both stretches pooled.  Accepted: the
+   gaits the smaller violation wins.  A measured gain within ``confirm_sigmas`` standard errors
+   of the difference, for a step whose *predicted* gain is within as many too, is not kept at
+   once: the candidate is run again and judged on both stretches pooled (near the limit such
+   gains are the measurement's noise; a step the model expects to gain more than the noise, as
+   from a poor start, is kept on its first measurement).  Accepted: the
    candidate becomes the incumbent and its cycles the next model's data; the radius grows
    (× ``grow``, up to ``trust_max``) when the measured gain is at least half the predicted gain
    and the step reached the region's edge, and shrinks (× ``shrink``, not below ``trust``) when
@@ -186,12 +188,15 @@ class LoopConfig:
         difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
     confirm_sigmas : float
         A candidate that measures better than the incumbent, but by less than this many standard
-        errors of the difference, is run again (settling + ``step_cycles``) before it is kept:
+        errors of the difference (√(se_new² + se_old²)), and whose step's predicted gain is also
+        less than this many of them, is run again (settling + ``step_cycles``) before it is kept:
         its two stretches are pooled and judged once more (no further confirmation).  Without the
-        budget for that run it is rejected.  0 (default): kept on its first measurement.  Near the
-        limit the measured gains are within the measurement's noise and keeping a lucky one walks
-        the gait away from the limit; confirming helps there but spends cycles that a poor start
-        needs (``docs/results/optimize_loop.md``, ablation: on balance worse at the budget).
+        budget for that run it is rejected.  0: every candidate is kept on its first measurement.
+        Near the limit the measured gains are within the measurement's noise and keeping a lucky
+        one walks the gait away from the limit (from purcell3's and snake5's nominal gaits the loop
+        kept gaits 0.1–1.1 points below the start); from a poor start the model predicts gains well
+        beyond the noise, and those steps are not run twice (confirming every marginal gain cost
+        purcell3's half-amplitude start 24 points at 15 cycles: ``docs/results/optimize_loop.md``).
     rotation_margin : float
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
         (in (0, 1]): the model's rotation errs by a few hundredths of a radian per cycle, so a
@@ -261,7 +266,7 @@ class LoopConfig:
     rotation_margin: float = 0.5
     floor_sigmas: float = 1.0
     accept_sigmas: float = 0.0
-    confirm_sigmas: float = 0.0
+    confirm_sigmas: float = 1.0
     pool_rejected: int = 2
     watch: bool = False
     change_sigmas: float = 2.5
@@ -1039,10 +1044,12 @@ class GaitSearch:
         kappa_used = step.trust_radius
         confirm = ""
         marginal = req.kind == "candidate" and cfg.confirm_sigmas > 0 and self._feasible(old, self._best_gait)
-        if accepted and marginal:
+        se = math.hypot(meas.value_se(cfg.objective), old.value_se(cfg.objective))
+        if accepted and marginal and se != 0:  # (se 0: exact measurements, nothing to confirm)
             z = _sigmas(meas.value(cfg.objective), old.value(cfg.objective),
                         meas.value_se(cfg.objective), old.value_se(cfg.objective))
-            if z < cfg.confirm_sigmas:
+            z_pred = pred_gain / se  # NaN with an unknown se: then the measured gain alone decides
+            if z < cfg.confirm_sigmas and not z_pred >= cfg.confirm_sigmas:
                 if self.cycles_used + self._step_cycles <= cfg.budget_cycles:
                     self._confirming = list(stretches)
                     self._pending = RunRequest(cand, self._step_cycles, "confirm",
