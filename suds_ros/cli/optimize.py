@@ -98,7 +98,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--seed", type=int, default=0, help="seed of the random starts (default 0)")
     p.add_argument("--start", metavar="GAIT",
                    help="BAG: the gait that drove the recording (default: the bag's suds_gait record, else the "
-                        "robot's nominal gait with --system/--model, else the recording's gait template)")
+                        "robot's nominal gait with --system/--model, else the recording's gait template); "
+                        "--simulate: the gait the loop starts from (default: the nominal gait); --physics: one "
+                        "more SLSQP start after the nominal gait (e.g. the gait optimised on the model file, when "
+                        "optimising on the model `suds diagnose` corrected)")
     p.add_argument("--trust", type=float, default=2.0, metavar="KAPPA",
                    help="BAG: trust region in standard deviations of the data's δ spread (default 2); "
                         "--simulate: its initial radius, centred on the incumbent gait")
@@ -152,7 +155,12 @@ def run(args: argparse.Namespace) -> int:
         flag = {"steps_per_cycle": "steps"}.get(name, name)
         raise SudsConfigError(f"--{flag}: {exc}", code=exc.code) from None
     log = None if args.json else (lambda line: print(f"  {line}", file=sys.stderr))
-    res = optimize_gait(system, cfg, log=log)
+    initial = []
+    if args.start:
+        if not Path(args.start).is_file():
+            raise SudsConfigError(f"--start: no such file {args.start!r}")
+        initial.append(load_gait(args.start, system))
+    res = optimize_gait(system, cfg, log=log, initial=initial)
     check_constraints(res.gait, res.limits)  # type: ignore[arg-type]
     save_gait(res.gait, out)
     load_gait(out, system)  # it loads back

@@ -25,6 +25,13 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
     assert constraint_violations(gait, gait_limits(system)) == []
     # and it drives the simulator
     assert main(["simulate", "purcell3", "--gait", str(out), "-o", str(tmp_path / "run.mcap"), "--cycles", "1"]) == 0
+    # and it is a start of another optimisation (after the nominal gait)
+    capsys.readouterr()
+    assert main(["optimize", "--physics", "--system", "purcell3", "--order", "2", "--starts", "1", "--start", str(out),
+                 "-o", str(tmp_path / "again.yaml"), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert [s["kind"] for s in again["starts"]] == ["nominal", "given"]
+    assert again["value"] >= doc["value"] * (1 - 1e-3)
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -37,6 +44,8 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
     (["optimize", "--physics", "--system", "purcell3", "--order", "0", "-o", "{tmp}/g.yaml"],
      "--order: `order`: expected 1..8, got 0"),
     (["optimize", "--physics", "--system", "nosuch", "-o", "{tmp}/g.yaml"], "unknown system 'nosuch'"),
+    (["optimize", "--physics", "--system", "purcell3", "--start", "{tmp}/none.yaml", "-o", "{tmp}/g.yaml"],
+     "--start: no such file"),
 ])
 def test_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
                              message: str) -> None:

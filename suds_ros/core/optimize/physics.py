@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -54,6 +54,7 @@ from suds_ros.core.physics.gait import (
     OBJECTIVES,
     Gait,
     GaitLimits,
+    check_gait,
     constraint_grid,
     gait_extremes,
     gait_limits,
@@ -507,7 +508,7 @@ def evaluate_gait(system: SudsSystem, gait: Gait, *, steps: int | None = None,
 
 def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(), *,
                   nominal: Gait | None = None, limits: GaitLimits | None = None,
-                  log: Callable[[str], None] | None = None) -> OptimizeResult:
+                  log: Callable[[str], None] | None = None, initial: Sequence[Gait] = ()) -> OptimizeResult:
     """Optimise a gait of ``system`` on its physics (see the module docstring).
 
     Parameters
@@ -522,11 +523,16 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         The bounds (default :func:`~suds_ros.core.physics.gait.gait_limits`).
     log : callable, optional
         Receives one line per start.
+    initial : sequence of Gait
+        More starts, run after the nominal gait and before the random ones (e.g. the gait optimised
+        on a model file, when optimising on that model corrected by a diagnosis: the random starts
+        can miss the optimum it lies near).  Each is scaled into the bounds if it is outside them.
 
     Raises
     ------
     SudsConfigError
-        A system without a nominal gait; no start reached a feasible gait.
+        A system without a nominal gait; no start reached a feasible gait; an ``initial`` gait for
+        other joints or with more harmonics than ``config.order``.
     """
     t_start = time.perf_counter()
     cfg = config
@@ -552,6 +558,11 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
     M, b = linear_bounds(nominal, K, limits, cfg.points_per_harmonic)
     rng = np.random.default_rng(cfg.seed)
     starts: list[tuple[str, FloatArray]] = [("nominal", x_nom)]
+    for i, g in enumerate(initial):
+        g = check_gait(g, system, f"`initial[{i}]`")
+        if g.order > K:
+            raise SudsConfigError(f"`initial[{i}]`: expected at most {K} harmonics (`order`), got {g.order}")
+        starts.append(("given", g.to_vector(K) * min(1.0, feasible_scale(g, limits))))
     na = len(nominal.joints)
     for _ in range(cfg.starts - 1):
         x = np.zeros((na, 2 * K + 1))

@@ -106,3 +106,20 @@ def test_a_half_wave_gait_runs_a_straight_course_on_a_mirror_symmetric_robot(nam
     assert abs(evaluate_gait(system, g)["rotation"]) < 1e-9
     x[0, 2] = 0.3  # a second harmonic breaks the symmetry, and the course bends
     assert abs(evaluate_gait(system, nom.from_vector(x.ravel(), 3))["rotation"]) > 1e-3
+
+
+def test_a_given_start_is_run_after_the_nominal_gait() -> None:
+    """``initial`` gaits are started from too: one SLSQP iteration from half the nominal amplitude cannot
+    reach the optimum, one from a gait already at it keeps it; a gait for another robot is refused by name."""
+    system = make_system("purcell3")
+    best = optimize_gait(system, OptimizeConfig(order=3, starts=2, seed=1))
+    short = OptimizeConfig(order=3, starts=1, maxiter=1)
+    nom = nominal_gait(system)
+    half = {"nominal": nom.from_vector(0.5 * nom.to_vector(), nom.order), "limits": gait_limits(system)}
+    alone = optimize_gait(system, short, **half)
+    given = optimize_gait(system, short, initial=[best.gait], **half)
+    assert [s["kind"] for s in given.starts] == ["nominal", "given"]
+    assert alone.value < 0.999 * best.value <= given.value * 1.001
+    assert constraint_violations(given.gait, gait_limits(system)) == []
+    with pytest.raises(SudsConfigError, match=r"`initial\[0\]`: `system`"):
+        optimize_gait(system, short, initial=[nominal_gait(make_system("swimmer9"))], **half)
