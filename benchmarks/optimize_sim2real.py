@@ -129,7 +129,8 @@ def report() -> None:
     lines = ["# Sim-to-real: three gaits for a robot that differs from its model file", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_sim2real.py`.", "",
              "Each cell: the gait's true speed as a % of the true robot's limit (the physics optimiser on the true "
-             "physics, order 3, 8 starts, or the fastest straight gait found here on the true physics if that is "
+             "physics, order 3, 8 starts and the 'nominal' gait, or the fastest straight gait found here on the true "
+             "physics if that is "
              "faster), and its true net rotation per cycle (the spec's straight-course bound is "
              "0.05 rad).  "
              "'nominal' = the best gait on the nominal model file; 'loop' = the data-driven loop on the true robot "
@@ -137,8 +138,8 @@ def report() -> None:
              "same loop started from the 'nominal' gait (optimise on the model file, then refine on the robot); "
              "'diagnosed' = the best gait on the model "
              "corrected by `diagnose` (a recording of the nominal gait on the true robot, the reported effects and "
-             "their fitted values); every optimum on a model with 8 starts (purcell3 has a second local optimum near "
-             "0.057 m/s that 4 starts can end in).", ""]
+             "their fitted values), optimised from 8 starts and the 'nominal' gait; the 'nominal' gait with 8 starts "
+             "(purcell3 has a second local optimum near 0.057 m/s that 4 starts can end in).", ""]
     for name in CASES:
         path = RESULTS / f"optimize_sim2real_{name}.json"
         if not path.exists():
