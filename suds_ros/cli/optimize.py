@@ -171,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
             "gain": gain, "gait": str(out), "system": system.name, "order": args.order,
             "values": res.values, "nominal_values": res.nominal_values, "starts": res.starts,
             "time": res.seconds, "cycles": res.cycles,
+            "speed_over_time_origins": None if res.speed_over_origins is None else list(res.speed_over_origins),
             "limits": {"limit": list(res.limits.limit), "speed_limit": list(res.limits.speed_limit)}
             if res.limits is not None else None}))
     else:
@@ -178,6 +179,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {out}: {system.name}, {args.objective} {res.value:.6g} {unit} "
               f"(nominal gait {res.nominal_value:.6g}, {100 * gain:+.2f} %), order {args.order}, "
               f"{len(res.starts)} starts, {res.seconds:.1f} s")
+        lo, hi = res.speed_over_origins or (0.0, 0.0)
+        if hi > lo * (1 + 1e-3):
+            print(f"  note: the gait turns ({res.values['rotation']:+.4f} rad/cycle), so its speed depends on where "
+                  f"a cycle is counted from: {lo:.6g}–{hi:.6g} m/s over the cycle's start "
+                  f"({res.values['speed']:.6g} from the gait's time zero)")
     return 0
 
 

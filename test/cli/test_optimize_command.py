@@ -20,6 +20,8 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
     doc = json.loads(capsys.readouterr().out)
     assert doc["objective"] == "speed" and doc["gait"] == str(out)
     assert doc["value"] >= doc["nominal_value"] * (1 - 1e-9) and doc["time"] > 0
+    lo, hi = doc["speed_over_time_origins"]  # the speed counted from other points of the cycle
+    assert lo <= doc["values"]["speed"] <= hi
     system = make_system("purcell3")
     gait = load_gait(out, system)
     assert constraint_violations(gait, gait_limits(system)) == []

@@ -76,6 +76,7 @@ from suds_ros.core.physics.gait import (
     constraint_grid,
     constraint_violations,
     half_wave_free,
+    time_shifted,
     with_predicted,
 )
 from suds_ros.core.recording import Recording
@@ -486,16 +487,6 @@ class LearnedCycle(PeriodicShooting):
         return self.steady(x[None], rp)[0]
 
 
-def shifted(gait: Gait, s0: float) -> Gait:
-    """The same gait started ``s0`` cycles later: r'(s) = r(s + s0) (every objective is unchanged)."""
-    off, c, sn = gait.arrays()
-    a = 2 * np.pi * np.arange(1, gait.order + 1) * s0
-    ca, sa = np.cos(a), np.sin(a)
-    return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
-                cos=tuple(map(tuple, c * ca + sn * sa)), sin=tuple(map(tuple, sn * ca - c * sa)),
-                objective=gait.objective, predicted=gait.predicted)
-
-
 def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gait:
     """``gait`` shifted in time so that gait time s matches the model's phase 2π·s (least squares on the template).
 
@@ -515,7 +506,7 @@ def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gai
     target = model.theta(2 * np.pi * s)[0][:, model.act]  # (256, na)
     shifts = np.arange(n_shifts) / n_shifts
     err = [float(np.sum((gait.at_phase(s + s0) - target) ** 2)) for s0 in shifts]
-    return shifted(gait, float(shifts[int(np.argmin(err))]))
+    return time_shifted(gait, float(shifts[int(np.argmin(err))]))
 
 
 def _centre(model: LearnedModel, t: FloatArray, hz: float,

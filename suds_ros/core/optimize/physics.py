@@ -59,6 +59,7 @@ from suds_ros.core.physics.gait import (
     gait_extremes,
     gait_limits,
     nominal_gait,
+    time_shifted,
     with_predicted,
 )
 from suds_ros.core.physics.sim import _rest_angles, _still, passive_rate
@@ -68,6 +69,10 @@ from suds_ros.core.physics.system import SudsSystem
 MARGIN = 1e-3
 #: code of an objective the physics cannot evaluate
 UNSUPPORTED_OBJECTIVE = "unsupported_objective"
+#: time origins a turning result's speed is read from (``OptimizeResult.speed_over_origins``)
+ORIGINS = 32
+#: |net rotation| per cycle, rad, above which a gait counts as turning there
+ORIGIN_ROTATION = 1e-6
 
 
 @dataclass(frozen=True)
@@ -334,6 +339,10 @@ class OptimizeResult:
         Candidate cycles integrated (cost).
     limits : GaitLimits
         The bounds honoured.
+    speed_over_origins : (float, float) or None
+        The smallest and largest speed of the same motion counted from other points of the cycle
+        (the gait time-shifted by k/``ORIGINS`` of a cycle; :func:`time_shifted`), m/s.  A gait that
+        runs straight reads the same from every point; one that turns does not.  None for ``turn``.
     """
 
     gait: Gait
@@ -345,6 +354,7 @@ class OptimizeResult:
     seconds: float = 0.0
     cycles: int = 0
     limits: GaitLimits | None = None
+    speed_over_origins: tuple[float, float] | None = None
 
 
 class SteadyStateProblem:
@@ -445,9 +455,12 @@ class SteadyStateProblem:
 def phase_pinned(x: FloatArray, na: int, order: int) -> FloatArray:
     """The same gait shifted in time so that joint 1's first harmonic is a pure sine of amplitude ≥ 0.
 
-    Every objective is unchanged by a time shift (the net motion per cycle is the same up to the
-    starting pose), so fixing ``cos_1`` of the first joint at 0 removes the flat direction the
-    optimiser would otherwise wander along.
+    A time shift leaves the bounds, the net rotation and the work per cycle unchanged, and the
+    speed too for a gait that runs straight, so fixing ``cos_1`` of the first joint at 0 removes
+    the flat direction the optimiser would otherwise wander along.  A gait that turns has a speed
+    that depends on where its cycle is counted from (:func:`~suds_ros.core.physics.gait.time_shifted`):
+    the optimiser then counts from this pinned origin, and :class:`OptimizeResult` reports the
+    speed over the other origins (``speed_over_origins``).
     """
     m = np.array(x, dtype=float).reshape(na, 2 * order + 1)
     psi = math.atan2(m[0, 1], m[0, order + 1])
@@ -633,6 +646,13 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
     value = abs(vals["turn"]) if cfg.objective == "turn" else vals[cfg.objective]
     predicted = {cfg.objective: value}
     gait = with_predicted(gait, cfg.objective, predicted)
+    origins = None
+    if cfg.objective != "turn":
+        origins = (vals["speed"], vals["speed"])
+        if abs(vals["rotation"]) > ORIGIN_ROTATION:  # a turning gait's speed depends on the cycle's start
+            X = np.stack([time_shifted(gait, k / ORIGINS).to_vector(K) for k in range(ORIGINS)])
+            sp = objective_values(ev.steady(X, np.repeat(res.r_p, ORIGINS, axis=0))[0], nominal.gait_hz)["speed"]
+            origins = (float(min(sp.min(), vals["speed"])), float(max(sp.max(), vals["speed"])))
     return OptimizeResult(gait=gait, value=value, nominal_value=nominal_value, values=vals,
                           nominal_values=nom_vals, starts=report, seconds=time.perf_counter() - t_start,
-                          cycles=ev.cycles_run, limits=limits)
+                          cycles=ev.cycles_run, limits=limits, speed_over_origins=origins)

@@ -16,12 +16,11 @@ from suds_ros.core.optimize.data import (
     learn_model,
     motion_miss,
     optimize_from_data,
-    shifted,
     trust_used,
 )
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.effects import apply_effects
-from suds_ros.core.physics.gait import constraint_violations, gait_limits, half_wave_free, nominal_gait
+from suds_ros.core.physics.gait import constraint_violations, gait_limits, half_wave_free, nominal_gait, time_shifted
 from suds_ros.core.physics.rft import RFTChain
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import make_system
@@ -46,7 +45,7 @@ def test_learned_cycle_is_periodic_and_predicts_the_nominal_speed(purcell: tuple
     predicted = float(np.hypot(*res.g_c[0, :2]))
     assert predicted == pytest.approx(true, rel=0.2)
     # a gait shifted by half a cycle leaves the data: the model no longer predicts the same motion
-    far = ev.steady_of(shifted(gait, 0.5).to_vector())
+    far = ev.steady_of(time_shifted(gait, 0.5).to_vector())
     assert abs(float(np.hypot(*far.g_c[0, :2])) - predicted) > 0.2 * predicted
 
 
@@ -75,9 +74,9 @@ def test_shift_and_alignment_recover_the_model_phase(purcell: tuple[object, Lear
     system, model = purcell
     g = nominal_gait(system).from_vector(nominal_gait(system).to_vector(2) + 0.1, 2)  # type: ignore[arg-type]
     s = np.linspace(0, 1, 17)
-    np.testing.assert_allclose(shifted(g, 0.3).at_phase(s), g.at_phase(s + 0.3), atol=1e-12)
+    np.testing.assert_allclose(time_shifted(g, 0.3).at_phase(s), g.at_phase(s + 0.3), atol=1e-12)
     a = align_to_model(model, g)
-    b = align_to_model(model, shifted(g, 0.37))
+    b = align_to_model(model, time_shifted(g, 0.37))
     np.testing.assert_allclose(a.at_phase(s), b.at_phase(s), atol=0.02)
 
 

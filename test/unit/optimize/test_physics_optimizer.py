@@ -50,6 +50,7 @@ def test_optimiser_improves_purcell3_within_the_bounds() -> None:
     assert res.gait.objective == "speed" and dict(res.gait.predicted)["speed"] == res.value
     # the value it reports is the gait's own, evaluated from scratch
     assert evaluate_gait(system, res.gait)["speed"] == pytest.approx(res.value, rel=1e-6)
+    assert res.speed_over_origins == (res.values["speed"], res.values["speed"])  # straight: the same from anywhere
 
 
 def test_bad_settings_are_refused() -> None:
@@ -68,6 +69,11 @@ def test_turn_and_efficiency_keep_the_nominal_speed(objective: str) -> None:
     assert constraint_violations(res.gait, gait_limits(system)) == []
     if objective == "efficiency":
         assert abs(res.values["rotation"]) <= 0.05
+        # it turns a little, so its speed depends on where a cycle is counted from; the report says how much
+        lo, hi = res.speed_over_origins
+        assert abs(res.values["rotation"]) > 1e-4 and lo <= res.values["speed"] <= hi and hi > lo * (1 + 1e-4)
+    else:
+        assert res.speed_over_origins is None
 
 
 def test_feasible_scale_puts_a_gait_exactly_on_its_tightest_bound() -> None:

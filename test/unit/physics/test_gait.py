@@ -204,3 +204,22 @@ def test_a_recorded_drive_is_fitted_as_a_gait_whatever_its_start() -> None:
         fitted_gait(g, t[:3], r[:3], 2)
     with pytest.raises(SudsDataError, match="shape"):
         fitted_gait(g, t, r[:, :2], 2)
+
+
+def test_a_time_shift_keeps_the_motion_and_moves_a_turning_gaits_chord() -> None:
+    """time_shifted is the same drive from another start: r'(s) = r(s + s0).  Bounds and net rotation
+    stay; the speed stays for a straight gait and moves for one that turns."""
+    from suds_ros.core.optimize.physics import evaluate_gait
+    from suds_ros.core.physics.gait import gait_extremes, time_shifted
+
+    system = make_system("purcell3")
+    nom = nominal_gait(system)
+    s = np.linspace(0.0, 1.0, 101)
+    moved = time_shifted(nom, 0.3)
+    np.testing.assert_allclose(moved.r(s), nom.r(s + 0.3), atol=1e-12)
+    np.testing.assert_allclose(gait_extremes(moved), gait_extremes(nom), rtol=1e-3)
+    bent = nom.from_vector(np.r_[0.3, nom.to_vector()[1:]], 1)  # an offset: it turns
+    for gait, turns in ((nom, False), (bent, True)):
+        a, b = evaluate_gait(system, gait), evaluate_gait(system, time_shifted(gait, 0.3))
+        assert b["rotation"] == pytest.approx(a["rotation"], abs=1e-9)
+        assert (abs(b["speed"] / a["speed"] - 1) > 1e-3) == turns, (a, b)
