@@ -15,6 +15,7 @@ from suds_ros.core.errors import SudsConfigError
 
 if TYPE_CHECKING:  # the core is imported lazily at run time
     from suds_ros.core.optimize.loop import LoopIteration, Measurement
+    from suds_ros.core.physics.gait import Gait
 
 EPILOG = """\
 examples:
@@ -155,12 +156,8 @@ def run(args: argparse.Namespace) -> int:
         flag = {"steps_per_cycle": "steps"}.get(name, name)
         raise SudsConfigError(f"--{flag}: {exc}", code=exc.code) from None
     log = None if args.json else (lambda line: print(f"  {line}", file=sys.stderr))
-    initial = []
-    if args.start:
-        if not Path(args.start).is_file():
-            raise SudsConfigError(f"--start: no such file {args.start!r}")
-        initial.append(load_gait(args.start, system))
-    res = optimize_gait(system, cfg, log=log, initial=initial)
+    start = _given_start(args, system)
+    res = optimize_gait(system, cfg, log=log, initial=[] if start is None else [start])
     check_constraints(res.gait, res.limits)  # type: ignore[arg-type]
     save_gait(res.gait, out)
     load_gait(out, system)  # it loads back
@@ -273,16 +270,26 @@ def _from_data(args: argparse.Namespace) -> int:
     return 0
 
 
+def _given_start(args: argparse.Namespace, system: object) -> Gait | None:
+    """The ``--start`` gait file, loaded (against ``system`` when given), or None without ``--start``."""
+    from suds_ros.core.physics.gait import load_gait
+
+    if not args.start:
+        return None
+    if not Path(args.start).is_file():
+        raise SudsConfigError(f"--start: no such file {args.start!r}")
+    return load_gait(args.start, system)  # type: ignore[arg-type]
+
+
 def _start_gait(args: argparse.Namespace, system: object) -> tuple[object, str]:
     """The gait that drove the recording and where it came from (None: the recording's template)."""
-    from suds_ros.core.physics.gait import loads_gait, load_gait, nominal_gait
+    from suds_ros.core.physics.gait import loads_gait, nominal_gait
     from suds_ros.io.mcap import read_metadata
     from suds_ros.io.recording_bag import GAIT_METADATA_NAME, META_GAIT_YAML
 
-    if args.start:
-        if not Path(args.start).is_file():
-            raise SudsConfigError(f"--start: no such file {args.start!r}")
-        return load_gait(args.start, system), f"--start {args.start}"  # type: ignore[arg-type]
+    given = _given_start(args, system)
+    if given is not None:
+        return given, f"--start {args.start}"
     bag = Path(args.bag)
     files = [bag] if bag.is_file() else sorted(bag.glob("*.mcap"))
     text = read_metadata(files[0]).get(GAIT_METADATA_NAME, {}).get(META_GAIT_YAML) if files else None
@@ -314,11 +321,7 @@ def _loop(args: argparse.Namespace) -> int:
         raise SudsConfigError("--budget-cycles: required with --simulate (gait cycles the robot may run)")
     out = _check_output(args)
     system = load_system(args.simulate)
-    start = None
-    if args.start:
-        if not Path(args.start).is_file():
-            raise SudsConfigError(f"--start: no such file {args.start!r}")
-        start = load_gait(args.start, system)
+    start = _given_start(args, system)
     changes = [_change(text) for text in args.change]
     try:
         cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,

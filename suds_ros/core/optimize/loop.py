@@ -1046,8 +1046,7 @@ class GaitSearch:
         marginal = req.kind == "candidate" and cfg.confirm_sigmas > 0 and self._feasible(old, self._best_gait)
         se = math.hypot(meas.value_se(cfg.objective), old.value_se(cfg.objective))
         if accepted and marginal and se != 0:  # (se 0: exact measurements, nothing to confirm)
-            z = _sigmas(meas.value(cfg.objective), old.value(cfg.objective),
-                        meas.value_se(cfg.objective), old.value_se(cfg.objective))
+            z = abs(meas_gain) / se if math.isfinite(se) else 0.0  # (as _sigmas, on the se just taken)
             z_pred = pred_gain / se  # NaN with an unknown se: then the measured gain alone decides
             if z < cfg.confirm_sigmas and not z_pred >= cfg.confirm_sigmas:
                 if self.cycles_used + self._step_cycles <= cfg.budget_cycles:

@@ -59,6 +59,7 @@ from suds_ros.core.physics.gait import (
     gait_extremes,
     gait_limits,
     nominal_gait,
+    shifted_harmonics,
     time_shifted,
     with_predicted,
 )
@@ -464,11 +465,8 @@ def phase_pinned(x: FloatArray, na: int, order: int) -> FloatArray:
     """
     m = np.array(x, dtype=float).reshape(na, 2 * order + 1)
     psi = math.atan2(m[0, 1], m[0, order + 1])
-    k = np.arange(1, order + 1)
-    c, s = m[:, 1:order + 1].copy(), m[:, order + 1:].copy()
-    ck, sk = np.cos(k * psi), np.sin(k * psi)
-    m[:, 1:order + 1] = c * ck - s * sk
-    m[:, order + 1:] = c * sk + s * ck
+    m[:, 1:order + 1], m[:, order + 1:] = shifted_harmonics(m[:, 1:order + 1], m[:, order + 1:],
+                                                            -(np.arange(1, order + 1) * psi))
     m[0, 1] = 0.0
     return m.ravel()
 

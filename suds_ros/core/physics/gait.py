@@ -198,11 +198,19 @@ def time_shifted(gait: Gait, s0: float) -> Gait:
     optimum, turning at the 0.05 rad bound, reads 0.488–0.538 m/s over its time origins).
     """
     off, c, sn = gait.arrays()
-    a = 2 * np.pi * np.arange(1, gait.order + 1) * s0
-    ca, sa = np.cos(a), np.sin(a)
+    c, sn = shifted_harmonics(c, sn, 2 * np.pi * np.arange(1, gait.order + 1) * s0)
     return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
-                cos=tuple(map(tuple, c * ca + sn * sa)), sin=tuple(map(tuple, sn * ca - c * sa)),
-                objective=gait.objective, predicted=gait.predicted)
+                cos=tuple(map(tuple, c)), sin=tuple(map(tuple, sn)), objective=gait.objective,
+                predicted=gait.predicted)
+
+
+def shifted_harmonics(c: FloatArray, sn: FloatArray, angles: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Cosine and sine coefficients (na, K) of harmonics 1…K after a time shift, harmonic k by ``angles[k − 1]``.
+
+    A shift of s0 cycles, r'(s) = r(s + s0), turns harmonic k by 2π·k·s0 (:func:`time_shifted`).
+    """
+    ca, sa = np.cos(angles), np.sin(angles)
+    return c * ca + sn * sa, sn * ca - c * sa
 
 
 def fitted_gait(template: Gait, t: FloatArray, r: FloatArray, order: int) -> Gait:
