@@ -180,7 +180,8 @@ def run(args: argparse.Namespace) -> int:
         if hi > lo * (1 + 1e-3):
             print(f"  note: the gait turns ({res.values['rotation']:+.4f} rad/cycle), so its speed depends on where "
                   f"a cycle is counted from: {lo:.6g}–{hi:.6g} m/s over the cycle's start "
-                  f"({res.values['speed']:.6g} from the gait's time zero)")
+                  f"({res.values['speed']:.6g} from the gait's time zero"
+                  + (", its best point)" if cfg.free_origin else ")"))
     return 0
 
 

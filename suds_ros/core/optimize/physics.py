@@ -30,8 +30,11 @@ How it is made fast
   with a relative margin of 1e-3 inside the optimiser (the speed floor is nominal·1.001, the
   rotation bound 0.04995 rad), so that the final scaling cannot break them.
 
-Several starts — the nominal gait (padded to order K) and random feasible gaits — run SLSQP;
-the best feasible result is returned with its own steady-state evaluation.
+Several starts — the nominal gait (padded to order K) and random feasible gaits — run SLSQP
+with the time origin pinned; a gait that turns goes further counted from some points of its
+cycle than from others, so each end that would beat the best counted from its best point is
+shifted there and optimised again with every coefficient free (``free_origin``).  The best
+feasible result is returned with its own steady-state evaluation.
 """
 
 from __future__ import annotations
@@ -60,7 +63,6 @@ from suds_ros.core.physics.gait import (
     gait_limits,
     nominal_gait,
     shifted_harmonics,
-    time_shifted,
     with_predicted,
 )
 from suds_ros.core.physics.sim import _rest_angles, _still, passive_rate
@@ -70,10 +72,8 @@ from suds_ros.core.physics.system import SudsSystem
 MARGIN = 1e-3
 #: code of an objective the physics cannot evaluate
 UNSUPPORTED_OBJECTIVE = "unsupported_objective"
-#: time origins a turning result's speed is read from (``OptimizeResult.speed_over_origins``)
-ORIGINS = 32
-#: |net rotation| per cycle, rad, above which a gait counts as turning there
-ORIGIN_ROTATION = 1e-6
+#: relative gain of another time origin below which an optimised gait is not shifted and polished
+ORIGIN_GAIN = 1e-4
 
 
 @dataclass(frozen=True)
@@ -102,6 +102,16 @@ class OptimizeConfig:
         SLSQP's tolerance on the objective (in units of the scaled objective, ≈ relative).
     fd_step : float
         Forward-difference step on the coefficients, rad.
+    free_origin : bool
+        Count each gait's cycle from its best point (``speed`` and ``efficiency``).  The spec counts
+        the cycle from the gait file's time zero, and a gait that turns goes further counted from
+        some points of its cycle than from others (:func:`origin_distances`); the coefficients hold
+        the origin, so a gait shifted in time is another gait under the same bounds.  The starts
+        run with the origin pinned (:func:`phase_pinned`); then every end that would beat the best
+        from another origin is shifted there and optimised again with every coefficient free.
+        False: the pinned origin only.
+    origin_rounds : int
+        Rounds of shift and re-optimisation at most.
     """
 
     objective: str = "speed"
@@ -114,6 +124,8 @@ class OptimizeConfig:
     maxiter: int = 100
     ftol: float = 1e-8
     fd_step: float = 1e-6
+    free_origin: bool = True
+    origin_rounds: int = 2
 
     def __post_init__(self) -> None:
         if self.objective not in OBJECTIVES:
@@ -123,7 +135,7 @@ class OptimizeConfig:
                   ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
                   ("steps_per_cycle", self.steps_per_cycle is None or self.steps_per_cycle >= 8, "≥ 8"),
                   ("maxiter", self.maxiter >= 1, "≥ 1"), ("ftol", self.ftol > 0, "> 0"),
-                  ("fd_step", self.fd_step > 0, "> 0")]
+                  ("fd_step", self.fd_step > 0, "> 0"), ("origin_rounds", self.origin_rounds >= 0, "≥ 0")]
         for name, ok, expected in checks:
             if not ok:
                 raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
@@ -258,8 +270,11 @@ class CycleEvaluator(PeriodicShooting):
         coef = X.reshape(X.shape[0], self.na, 2 * self.order + 1)
         return (np.einsum("tc,bjc->tbj", self._basis, coef), np.einsum("tc,bjc->tbj", self._dbasis, coef))
 
-    def cycle(self, X: FloatArray, rp0: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def cycle(self, X: FloatArray, rp0: FloatArray, poses: list[FloatArray] | None = None
+              ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Integrate one cycle from r_p(0) = ``rp0`` (B, np) and the identity pose.
+
+        ``poses``, if given, receives the pose (B, 3) after every step (``steps`` arrays).
 
         Returns
         -------
@@ -298,6 +313,8 @@ class CycleEvaluator(PeriodicShooting):
                 work = work + (h / 6.0) * (p1 + 2 * p2 + 2 * p3 + p4)
             pose = se2.exp_step(pose, h * (xi1 / 4 + xi2 / 6 + xi3 / 6 - xi4 / 12))
             pose = se2.exp_step(pose, h * (-xi1 / 12 + xi2 / 6 + xi3 / 6 + xi4 / 4))
+            if poses is not None:
+                poses.append(pose)
         self.cycles_run += B
         return rp, pose, (work if self.with_work else np.full(B, np.nan))
 
@@ -307,6 +324,44 @@ def objective_values(res: CycleResult, gait_hz: float) -> dict[str, FloatArray]:
     dist = np.hypot(res.g_c[:, 0], res.g_c[:, 1])
     return {"speed": dist * gait_hz, "turn": res.g_c[:, 2] * gait_hz, "rotation": res.g_c[:, 2],
             "efficiency": dist / res.work, "distance": dist}
+
+
+def origin_distances(ev: CycleEvaluator, x: FloatArray, res: CycleResult) -> FloatArray:
+    """Distance per cycle of one gait x counted from each step time k/steps of its cycle (k = 0 … steps − 1), m.
+
+    ``res`` is the gait's periodic steady state (leading axis 1).  There the body velocity is
+    periodic, so g(s + T) = g_c·g(s), and the cycle counted from s is g(s)⁻¹ g_c g(s): the same net
+    rotation θ, and for g(s) = (p_s, a_s), g_c = (q, θ) the translation R(a_s)ᵀ (q + (R_θ − I) p_s),
+    whose length |q + (R_θ − I) p_s| is the same at every s only when θ = 0.
+    """
+    poses: list[FloatArray] = []
+    ev.cycle(np.atleast_2d(x)[:1], res.r_p[:1], poses=poses)
+    p = np.concatenate([np.zeros((1, 2)), np.stack(poses[:-1])[:, 0, :2]])  # (steps, 2): p_s at s = k/steps
+    q, th = res.g_c[0, :2], float(res.g_c[0, 2])
+    c, sn = math.cos(th) - 1.0, math.sin(th)
+    chord = q[None] + np.stack([c * p[:, 0] - sn * p[:, 1], sn * p[:, 0] + c * p[:, 1]], axis=1)
+    return np.hypot(chord[:, 0], chord[:, 1])
+
+
+def best_origin(ev: CycleEvaluator, x: FloatArray, rp_guess: FloatArray) -> tuple[FloatArray, float]:
+    """The gait x counted from the point of its cycle it goes furthest from, and the distance's gain there.
+
+    The best of the step times (:func:`origin_distances`), refined by a parabola through it and its
+    neighbours.  Returns the shifted gait vector (the same motion, :func:`~suds_ros.core.physics.gait.
+    time_shifted`) and the ratio of its estimated distance per cycle to the unshifted one's.
+    """
+    res, _, _ = ev.steady(np.atleast_2d(x)[:1], rp_guess)
+    d = origin_distances(ev, x, res)
+    n, k = d.size, int(np.argmax(d))
+    lo, mid, hi = d[(k - 1) % n], d[k], d[(k + 1) % n]
+    curv = lo - 2 * mid + hi
+    frac = 0.0 if curv >= 0 else float(np.clip(0.5 * (lo - hi) / curv, -0.5, 0.5))
+    peak = mid + 0.25 * (hi - lo) * frac  # the parabola's vertex
+    s0 = (k + frac) / n
+    m = np.array(x, dtype=float).reshape(ev.na, 2 * ev.order + 1)
+    K = ev.order
+    m[:, 1:K + 1], m[:, K + 1:] = shifted_harmonics(m[:, 1:K + 1], m[:, K + 1:], 2 * np.pi * np.arange(1, K + 1) * s0)
+    return m.ravel(), float(peak / max(d[0], 1e-300))
 
 
 def auto_steps(system: SudsSystem, gait_hz: float) -> int:
@@ -341,9 +396,10 @@ class OptimizeResult:
     limits : GaitLimits
         The bounds honoured.
     speed_over_origins : (float, float) or None
-        The smallest and largest speed of the same motion counted from other points of the cycle
-        (the gait time-shifted by k/``ORIGINS`` of a cycle; :func:`time_shifted`), m/s.  A gait that
-        runs straight reads the same from every point; one that turns does not.  None for ``turn``.
+        The smallest and largest speed of the same motion counted from other points of its cycle
+        (every integration step; :func:`origin_distances`), m/s.  A gait that runs straight reads
+        the same from every point; one that turns does not (with ``free_origin`` the gait is counted
+        from its best point).  None for ``turn``.
     """
 
     gait: Gait
@@ -460,8 +516,8 @@ def phase_pinned(x: FloatArray, na: int, order: int) -> FloatArray:
     speed too for a gait that runs straight, so fixing ``cos_1`` of the first joint at 0 removes
     the flat direction the optimiser would otherwise wander along.  A gait that turns has a speed
     that depends on where its cycle is counted from (:func:`~suds_ros.core.physics.gait.time_shifted`):
-    the optimiser then counts from this pinned origin, and :class:`OptimizeResult` reports the
-    speed over the other origins (``speed_over_origins``).
+    the starts count from this pinned origin, and ``OptimizeConfig.free_origin`` then moves each
+    end to its best one (:func:`best_origin`).
     """
     m = np.array(x, dtype=float).reshape(na, 2 * order + 1)
     psi = math.atan2(m[0, 1], m[0, order + 1])
@@ -584,30 +640,30 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         g = nominal.from_vector(x.ravel(), K)
         s = feasible_scale(g, limits) * rng.uniform(0.6, 0.95)
         starts.append(("random", s * x.ravel()))
-    best: tuple[float, FloatArray] | None = None
     report: list[dict[str, Any]] = []
     p_all = x_nom.size
-    free = np.flatnonzero(np.arange(p_all) != 1)  # joint 1's cos_1 stays 0 (phase_pinned)
-    Mf = M[:, free]
+    pinned = np.flatnonzero(np.arange(p_all) != 1)  # joint 1's cos_1 stays 0 (phase_pinned)
 
-    def embed(z: FloatArray) -> FloatArray:
-        x = np.zeros(p_all)
-        x[free] = z
-        return x
+    def solve(kind: str, x0: FloatArray, free: FloatArray) -> tuple[float, FloatArray] | None:
+        """SLSQP from x0 over the coefficients ``free``: (value, x) of a feasible end, else None."""
+        Mf = M[:, free]
 
-    for kind, x0 in starts:
-        x0 = phase_pinned(x0, na, K)
+        def embed(z: FloatArray) -> FloatArray:
+            x = x0.copy()
+            x[free] = z
+            return x
+
         sign = 1.0
         if cfg.objective == "turn":
             r0, _, _ = ev.steady(x0[None], nom_res.r_p) if kind != "nominal" else (nom_res, None, None)
             sign = 1.0 if r0.g_c[0, 2] >= 0 else -1.0
         prob = SteadyStateProblem(ev, cfg, nom_vals["speed"], scale, sign, nom_res.r_p[0], free)
         cons = [{"type": "ineq", "fun": lambda z: b - Mf @ z, "jac": lambda z: -Mf},
-                {"type": "ineq", "fun": lambda z, p=prob: p.values(embed(z))[1:],
-                 "jac": lambda z, p=prob: np.ascontiguousarray(p.grads(embed(z))[:, 1:].T)}]
+                {"type": "ineq", "fun": lambda z: prob.values(embed(z))[1:],
+                 "jac": lambda z: np.ascontiguousarray(prob.grads(embed(z))[:, 1:].T)}]
         try:
-            sol = minimize(lambda z, p=prob: float(p.values(embed(z))[0]), x0[free],
-                           jac=lambda z, p=prob: np.ascontiguousarray(p.grads(embed(z))[:, 0]),
+            sol = minimize(lambda z: float(prob.values(embed(z))[0]), x0[free],
+                           jac=lambda z: np.ascontiguousarray(prob.grads(embed(z))[:, 0]),
                            method="SLSQP", constraints=cons,
                            options={"maxiter": cfg.maxiter, "ftol": cfg.ftol})
             x_end, msg, nit = embed(sol.x), str(sol.message), int(sol.nit)
@@ -615,7 +671,7 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
             report.append({"kind": kind, "value": None, "feasible": False, "iterations": None, "message": str(exc)})
             if log is not None:
                 log(f"start {len(report)} ({kind}): failed ({exc})")
-            continue
+            return None
         g_end = nominal.from_vector(x_end, K)
         x_end = x_end * feasible_scale(g_end, limits)
         vals = prob.values(x_end)
@@ -631,13 +687,33 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         if log is not None:
             log(f"start {len(report)} ({kind}): {cfg.objective} {value:.6g}, "
                 f"{'feasible' if feasible else 'infeasible'}, {nit} iterations ({msg})")
-        if feasible and (best is None or value > best[0]):
-            best = (value, x_end)
-    if best is None:
+        return (value, x_end) if feasible else None
+
+    ends = [e for kind, x0 in starts if (e := solve(kind, phase_pinned(x0, na, K), pinned)) is not None]
+    if not ends:
         extra = {"speed": "", "turn": " and a speed ≥ the nominal gait's",
                  "efficiency": " and a speed ≥ the nominal gait's"}[cfg.objective]
         raise SudsConfigError(f"`objective` {cfg.objective}: no start reached a gait within the joint bounds"
                               f"{extra} ({len(starts)} starts, order {K}); try a higher --order or more --starts")
+    best = max(ends, key=lambda e: e[0])
+    if cfg.free_origin and cfg.objective != "turn":
+        # the pinned origin is one point of the cycle; a turning end may go further counted from another
+        # one (origin_distances): shift each end that would then beat the best there, and go on from it
+        # with every coefficient free (the shift is a direction of the coefficients)
+        every = np.arange(p_all)
+        queue = sorted(ends, key=lambda e: -e[0])
+        for _ in range(cfg.origin_rounds):
+            moved = []
+            for value, x in queue:
+                shifted, gain = best_origin(ev, x, nom_res.r_p)
+                if value * gain > best[0] * (1 + ORIGIN_GAIN):
+                    end = solve("origin", shifted, every)
+                    if end is not None:
+                        moved.append(end)
+                        best = max(best, end, key=lambda e: e[0])
+            if not moved:
+                break
+            queue = moved
     gait = nominal.from_vector(best[1], K)
     res, _, _ = ev.steady(best[1][None], nom_res.r_p)
     vals = {k: float(v[0]) for k, v in objective_values(res, nominal.gait_hz).items()}
@@ -646,11 +722,8 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
     gait = with_predicted(gait, cfg.objective, predicted)
     origins = None
     if cfg.objective != "turn":
-        origins = (vals["speed"], vals["speed"])
-        if abs(vals["rotation"]) > ORIGIN_ROTATION:  # a turning gait's speed depends on the cycle's start
-            X = np.stack([time_shifted(gait, k / ORIGINS).to_vector(K) for k in range(ORIGINS)])
-            sp = objective_values(ev.steady(X, np.repeat(res.r_p, ORIGINS, axis=0))[0], nominal.gait_hz)["speed"]
-            origins = (float(min(sp.min(), vals["speed"])), float(max(sp.max(), vals["speed"])))
+        d = origin_distances(ev, best[1], res) * nominal.gait_hz
+        origins = (float(min(d.min(), vals["speed"])), float(max(d.max(), vals["speed"])))
     return OptimizeResult(gait=gait, value=value, nominal_value=nominal_value, values=vals,
                           nominal_values=nom_vals, starts=report, seconds=time.perf_counter() - t_start,
                           cycles=ev.cycles_run, limits=limits, speed_over_origins=origins)
