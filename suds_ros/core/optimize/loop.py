@@ -110,6 +110,7 @@ from suds_ros.core.physics.gait import (
     check_gait,
     gait_limits,
     nominal_gait,
+    time_shifted,
     with_predicted,
 )
 from suds_ros.core.physics.sim import SimConfig, effort_by_joint
@@ -183,6 +184,16 @@ class LoopConfig:
         the default excitation a few cycles' rotation of a straight gait scatters by about 0.1
         rad/cycle on swimmer9, twice the bound, so a strict test refuses straight gaits on a coin
         toss; on a robot with a bent spring the same gaits truly turn, and the bound is kept strictly.
+    origin_sigmas : float
+        For ``speed`` and ``efficiency``, the gait returned is counted from the point of its cycle it
+        measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
+        many standard errors of zero: a turning gait's chord from its time zero depends on that
+        point, and the spec counts from the gait file's time zero.  The motion is the same, so no
+        cycle is run for it, and its measurement is the same cycles counted from there.  The choice
+        goes wrong only when the measured rotation has the wrong sign; for an unbiased measurement
+        that is the less likely side at any noise, so the expected gain is never negative, and the
+        threshold only keeps a noisy choice from being made where the gain is small.  ``inf``: the
+        gait as run.
     accept_sigmas : float
         A candidate is kept only if its measured gain exceeds this many standard errors of the
         difference of the two measurements (√(se_new² + se_old²)); 0: any measured gain (≥ 0).
@@ -273,6 +284,7 @@ class LoopConfig:
     model_miss: float = 0.15
     half_wave: bool = True
     rotation_sigmas: float = 1.0
+    origin_sigmas: float = 1.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
     kappa: float = 8.0
@@ -296,6 +308,7 @@ class LoopConfig:
                   ("rotation_margin", 0 < self.rotation_margin <= 1, "in (0, 1]"),
                   ("floor_sigmas", math.isfinite(self.floor_sigmas) and self.floor_sigmas >= 0, "≥ 0"),
                   ("rotation_sigmas", math.isfinite(self.rotation_sigmas) and self.rotation_sigmas >= 0, "≥ 0"),
+                  ("origin_sigmas", self.origin_sigmas >= 0, "≥ 0"),
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
                   ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
                   ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
@@ -459,15 +472,57 @@ def actuator_drive(rec: Recording) -> tuple[FloatArray, FloatArray]:
 
 
 def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: int,
-                      gait_hz: float, *, work: bool = False) -> Measurement:
+                      gait_hz: float, *, work: bool = False, origin: int = 0) -> Measurement:
     """:func:`measure_cycles` of recordings' pose streams, at any pose rate and with any stamps.
 
     A pose stream sampled at exactly ``samples_per_cycle`` per cycle (the simulator's) is measured as
     it is; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
     linearly, in x, y and the unwrapped yaw, onto that many samples per cycle from its first stamp.
     With ``work`` the actuated angles and efforts (:func:`actuator_drive`, at the shape stamps) are
-    interpolated onto the same samples, and the efficiency is measured too.
+    interpolated onto the same samples, and the efficiency is measured too.  ``origin`` > 0 counts
+    the cycles from that sample of the cycle on (each stretch loses the samples before it).
     """
+    poses, drives = _resampled(data, samples_per_cycle, gait_hz, work)
+    if origin:
+        poses = [p[origin:] for p in poses]
+        drives = [(a[origin:], b[origin:]) for a, b in drives]
+    return measure_cycles(poses, samples_per_cycle, gait_hz, drives if work else None)
+
+
+def measured_origin(data: Recording | Sequence[Recording], samples_per_cycle: int, gait_hz: float) -> int:
+    """The sample of the cycle (0 … ``samples_per_cycle`` − 1) that a gait's recorded cycles go furthest from.
+
+    At a periodic steady state the cycle counted from s is g(s)⁻¹ g_c g(s) (as
+    :func:`~suds_ros.core.optimize.physics.origin_distances` on the physics): its length is
+    |q + (R_θ − I) p_s|, with g_c = (q, θ) the net motion from the cycle starts and p_s the position
+    at s in the frame of its cycle's start.  Each is measured as the mean over the recorded cycles
+    (θ over every window, as :func:`measure_cycles`), so only the rotation's noise moves the choice;
+    counting the cycles of a stretch from each point instead would pick the luckiest few.
+    """
+    poses, _ = _resampled(data, samples_per_cycle, gait_hz, False)
+    spc = samples_per_cycle
+    chords, inside, turns = [], [], []
+    for p in poses:
+        k = (p.shape[0] - 1) // spc
+        if k < 1:
+            continue
+        starts = np.arange(k) * spc
+        chords.append(se2.relative(p[starts], p[starts + spc])[:, :2])
+        inside.append(se2.relative(p[starts][:, None, :], p[starts[:, None] + np.arange(spc)[None]])[..., :2])
+        turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
+    if not chords:
+        return 0
+    q = np.concatenate(chords).mean(axis=0)
+    ps = np.concatenate(inside).mean(axis=0)  # (spc, 2)
+    th = float(np.mean(np.concatenate(turns)))
+    c, sn = math.cos(th) - 1.0, math.sin(th)
+    d = np.hypot(q[0] + c * ps[:, 0] - sn * ps[:, 1], q[1] + sn * ps[:, 0] + c * ps[:, 1])
+    return int(np.argmax(d))
+
+
+def _resampled(data: Recording | Sequence[Recording], samples_per_cycle: int, gait_hz: float,
+               work: bool) -> tuple[list[FloatArray], list[tuple[FloatArray, FloatArray]]]:
+    """Each recording's pose (and with ``work`` its actuated angles and efforts) on ``samples_per_cycle`` per cycle."""
     recs = list(data) if isinstance(data, (list, tuple)) else [data]
     dt = 1.0 / (gait_hz * samples_per_cycle)
     poses, drives = [], []
@@ -488,7 +543,7 @@ def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: 
             same = ts.shape == grid.shape and np.array_equal(ts, grid)
             drives.append((ra, tau) if same else tuple(
                 np.column_stack([np.interp(grid, ts, a[:, j]) for j in range(a.shape[1])]) for a in (ra, tau)))
-    return measure_cycles(poses, samples_per_cycle, gait_hz, drives if work else None)
+    return poses, drives
 
 
 @dataclass(frozen=True)
@@ -1128,8 +1183,17 @@ class GaitSearch:
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
                                                                  self._best_pred, None)
         pred = self._best_pred
-        out = with_predicted(self._best_gait, cfg.objective, {cfg.objective: pred})
-        return LoopResult(gait=out, measured=self._best_meas, predicted=pred, index=self._best_index,
+        gait, meas = self._best_gait, self._best_meas
+        if (cfg.objective != "turn" and math.isfinite(meas.rotation_se)
+                and abs(meas.rotation) > cfg.origin_sigmas * meas.rotation_se):
+            # it turns: count its cycle from the point it went furthest from (the same motion)
+            j = measured_origin(self._best_data, cfg.samples_per_cycle, gait.gait_hz)
+            if j:
+                gait = time_shifted(gait, j / cfg.samples_per_cycle)
+                meas = measure_recording(self._best_data, cfg.samples_per_cycle, gait.gait_hz,
+                                         work=self._work, origin=j)
+        out = with_predicted(gait, cfg.objective, {cfg.objective: pred})
+        return LoopResult(gait=out, measured=meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,
                           stopped=self.stopped or "stopped by the caller", limits=self.limits, seconds=seconds,
                           changes=tuple(self.changes))
