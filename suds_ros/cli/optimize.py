@@ -110,6 +110,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="steps move only the odd harmonics, so a half-wave symmetric gait (a travelling sine) stays "
                         "one and runs straight on a mirror-symmetric robot. auto: with --simulate from a half-wave "
                         "incumbent measured on course (speed, efficiency), never with BAG; yes: BAG too; no: never")
+    p.add_argument("--scale-step", type=float, default=1.25, metavar="S",
+                   help="--simulate: right after the start, a start whose oscillation can grow by S or more inside "
+                        "the joint bounds is run scaled to them (speed, turn; default 1.25; inf: never)")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
@@ -328,7 +331,7 @@ def _loop(args: argparse.Namespace) -> int:
         cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
-                         half_wave=args.half_wave != "no")
+                         half_wave=args.half_wave != "no", scale_step=args.scale_step)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

@@ -106,6 +106,8 @@ class OptimizerNodeConfig:
                                     "robot whatever the model's yaw says (speed, efficiency)")
     rotation_sigmas: float = setting(1.0, "a measured rotation counts as over the straight-course bound only when "
                                           "over it by more than this many standard errors", ge=0.0)
+    scale_step: float = setting(1.25, "right after the start, a start whose oscillation can grow this much inside "
+                                      "the joint bounds is run scaled to them (speed, turn; .inf: never)", gt=1.0)
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -132,7 +134,7 @@ class OptimizerNodeConfig:
                           settle_cycles=self.settle_cycles, order=self.order,
                           samples_per_cycle=self.samples_per_cycle, watch=self.watch,
                           change_sigmas=self.change_sigmas, model_miss=self.model_miss, half_wave=self.half_wave,
-                          rotation_sigmas=self.rotation_sigmas)
+                          rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

@@ -13,7 +13,10 @@ One iteration
    became the incumbent: they lie inside its trust region, so the model stays local while its
    data spread wider.  Gaits further back are not pooled: the gait template and the model are
    local.  Stretches are fitted together (no interval spans two stretches).
-2. **Step**: one trust-region step on that model
+2. **Step**: right after the start, if the start's oscillation can grow by ``scale_step`` or more
+   inside the bounds, that gait scaled to them (``speed``, ``turn``: the net motion per cycle grows
+   as the amplitude squared to leading order, so a timid start is first given its headroom; a
+   rejected one leaves the search as it was).  Otherwise one trust-region step on that model
    (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
    data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
    speed bounds; for ``speed`` the predicted rotation is held within
@@ -108,6 +111,7 @@ from suds_ros.core.physics.gait import (
     GaitLimits,
     check_constraints,
     check_gait,
+    constraint_violations,
     gait_limits,
     nominal_gait,
     time_shifted,
@@ -184,6 +188,17 @@ class LoopConfig:
         the default excitation a few cycles' rotation of a straight gait scatters by about 0.1
         rad/cycle on swimmer9, twice the bound, so a strict test refuses straight gaits on a coin
         toss; on a robot with a bent spring the same gaits truly turn, and the bound is kept strictly.
+    scale_step : float
+        For ``speed`` and ``turn``: when the start gait's oscillation can grow by at least this factor
+        inside the joint range and speed bounds (offsets kept), the first step after the start is that
+        gait scaled to its bounds (:func:`headroom`), predicted at s² times the start's measurement:
+        in a dissipative medium the net motion per cycle grows as the square of a gait's amplitude to
+        leading order (the area the shape loop encloses), so a timid start wastes the headroom its
+        bounds allow, and a trust region of its data's spread takes several steps to get there.  Judged
+        by measurement like every candidate; if rejected, the search goes on from the start as if it
+        had not been tried (radius unchanged, its cycles not pooled).  On a start that turns (or any
+        that does not look mirror-symmetric) the factor is also kept to s² |rotation| ≤
+        ``rotation_margin``·``max_rotation``.  ``inf``: never.
     origin_sigmas : float
         For ``speed`` and ``efficiency``, the gait returned is counted from the point of its cycle it
         measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
@@ -284,6 +299,7 @@ class LoopConfig:
     model_miss: float = 0.15
     half_wave: bool = True
     rotation_sigmas: float = 1.0
+    scale_step: float = 1.25
     origin_sigmas: float = 1.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
@@ -309,6 +325,7 @@ class LoopConfig:
                   ("floor_sigmas", math.isfinite(self.floor_sigmas) and self.floor_sigmas >= 0, "≥ 0"),
                   ("rotation_sigmas", math.isfinite(self.rotation_sigmas) and self.rotation_sigmas >= 0, "≥ 0"),
                   ("origin_sigmas", self.origin_sigmas >= 0, "≥ 0"),
+                  ("scale_step", self.scale_step > 1, "> 1"),
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
                   ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
                   ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
@@ -781,9 +798,10 @@ class RunRequest:
     ----------
     gait : Gait, the gait to switch to (at a cycle boundary) and run.
     cycles : int, cycles to run it: ``settle_cycles`` to discard, then the cycles to measure.
-    kind : str, ``start``, ``candidate`` (a trust-region step), ``confirm`` (a candidate whose
-        measured gain was within ``confirm_sigmas``, again), ``rerun`` (the incumbent again) or
-        ``floor`` (the start gait again after a change: turn and efficiency keep its speed).
+    kind : str, ``start``, ``candidate`` (a trust-region step), ``scale`` (the start scaled to its
+        bounds, ``LoopConfig.scale_step``), ``confirm`` (a candidate whose measured gain was within
+        ``confirm_sigmas``, again), ``rerun`` (the incumbent again) or ``floor`` (the start gait
+        again after a change: turn and efficiency keep its speed).
     """
 
     gait: Gait
@@ -791,6 +809,50 @@ class RunRequest:
     kind: str
     note: str = ""
     step: Any = None  # the DataStepResult of a candidate (its prediction), None otherwise
+
+
+@dataclass(frozen=True)
+class ScaleStep:
+    """The prediction of a ``scale`` run, in the fields :class:`GaitSearch` reads of a data step.
+
+    value = s²·recorded_value (``LoopConfig.scale_step``); no model, so no spread, and no trust used.
+    """
+
+    factor: float
+    value: float
+    recorded_value: float
+    trust_radius: float
+    value_std: float | None = None
+    trust_used: float = 0.0
+
+
+def headroom(gait: Gait, limits: GaitLimits, s_max: float = 8.0) -> float:
+    """The largest s ≤ ``s_max`` with the gait's offsets kept and its harmonics × s within the bounds.
+
+    The speed bound is homogeneous in s; the range bound |o_j + s·h_j(t)| ≤ L_j is checked on the
+    4096-point grid of :func:`~suds_ros.core.physics.gait.gait_extremes` and the result confirmed on
+    the constraint grid (:func:`~suds_ros.core.physics.gait.constraint_violations`).
+    """
+    off, _, _ = gait.arrays()
+    t = np.arange(4096) / (4096 * gait.gait_hz)
+    h = gait.r(t) - off[None]
+    v = np.abs(gait.rdot(t)).max(axis=0)
+    lim, vlim = np.asarray(limits.limit, dtype=float), np.asarray(limits.speed_limit, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        up = np.where(h > 0, (lim - off)[None] / h, np.inf)
+        down = np.where(h < 0, (lim + off)[None] / -h, np.inf)
+        speed = np.where(v > 0, vlim / v, np.inf)
+    s = float(min(s_max, np.min(up), np.min(down), np.min(speed))) * (1 - 1e-6)
+    while s > 1.0 and constraint_violations(_scaled(gait, s), limits):
+        s *= 0.999
+    return s
+
+
+def _scaled(gait: Gait, s: float) -> Gait:
+    """The gait with its harmonics × s and its offsets kept."""
+    m = gait.to_vector().reshape(len(gait.joints), 2 * gait.order + 1).copy()
+    m[:, 1:] *= s
+    return gait.from_vector(m.ravel(), gait.order, objective=None, predicted=())
 
 
 class GaitSearch:
@@ -854,6 +916,7 @@ class GaitSearch:
         self._confirming: list[Recording] = []  # a candidate's first stretch while it is run again
         self._symmetric = False  # a half-wave gait of this robot measured straight: it looks mirror-symmetric
         self._strict = dataclasses.replace(config, rotation_sigmas=0.0)
+        self._scale_tried = False  # the start scaled to its bounds was proposed (or could not be)
 
     @property
     def best(self) -> Gait:
@@ -900,6 +963,9 @@ class GaitSearch:
             self.stopped = (f"budget spent: a candidate needs {n} more cycles, "
                             f"{cfg.budget_cycles - self.cycles_used} left")
             return None
+        scale = self._scale_request()
+        if scale is not None:
+            return scale
         if self._model is None:
             self._model = learn_model([*self._best_data, *self._near], torque=self._work)
         kappa = self._kappa
@@ -942,6 +1008,33 @@ class GaitSearch:
             return None
         check_constraints(cand, self.limits)  # never run a gait outside the bounds
         return RunRequest(cand, n, "candidate", step=step)
+
+    def _scale_request(self) -> RunRequest | None:
+        """The start gait scaled to its bounds, once, right after the start (``LoopConfig.scale_step``)."""
+        cfg, gait, meas = self.config, self._best_gait, self._best_meas
+        if (self._scale_tried or cfg.objective not in ("speed", "turn") or gait is not self._start
+                or meas is None or not math.isfinite(cfg.scale_step)):
+            return None
+        self._scale_tried = True
+        s = headroom(gait, self.limits)
+        if cfg.objective == "speed" and not (self._symmetric and gait.is_half_wave()) and meas.rotation:
+            s = min(s, math.sqrt(cfg.rotation_margin * cfg.max_rotation / abs(meas.rotation)))  # θ grows as s²
+        if s < cfg.scale_step:
+            return None
+        cand = _scaled(gait, s)
+        check_constraints(cand, self.limits)  # never run a gait outside the bounds
+        if self._best_pred is None:  # the start's model prediction, as a trust-region step would have set it
+            try:
+                self._model = learn_model(self._best_data, torque=self._work)
+                self._best_pred = predict_value(self._model, gait, cfg.objective)
+                self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
+                                                                     self._best_pred, None)
+            except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+                self._model = None
+        value = meas.value(cfg.objective)
+        step = ScaleStep(factor=s, value=s * s * value, recorded_value=value, trust_radius=self._kappa)
+        return RunRequest(cand, self._step_cycles, "scale", f"the start's oscillation × {s:.3g}, to its bounds",
+                          step=step)
 
     def observe(self, data: Recording) -> LoopIteration:
         """Take the measured cycles of the requested run (settling cut) and decide; return its iteration.
@@ -1116,6 +1209,15 @@ class GaitSearch:
                                          note=f"to be confirmed: measured gain {meas_gain:+.4g} is {z:.2f} se "
                                               f"(< {cfg.confirm_sigmas:g}); run again before it is kept")
                 accepted, confirm = False, f"gain {z:.2f} se unconfirmed: no budget to run it again"
+        if not accepted and req.kind == "scale":  # the search goes on from the start as if it was not tried
+            why = ("measured objective not higher" if self._feasible(meas, cand)
+                   else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
+            return LoopIteration(index=len(self.iterations), gait=cand, cycles=req.cycles,
+                                 cycles_used=self.cycles_used, predicted=step.value, predicted_std=None,
+                                 predicted_incumbent=step.recorded_value, measured=meas, accepted=False,
+                                 trust=kappa_used, trust_used=step.trust_used,
+                                 note=f"scaled start rejected ({why}; measured gain {meas_gain:+.4g} vs predicted "
+                                      f"{pred_gain:+.4g}); the search goes on from the start")
         if accepted:
             ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
             grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius

@@ -234,7 +234,7 @@ def test_a_step_predicted_to_gain_beyond_the_noise_is_kept_on_its_first_measurem
     standard errors and is kept at once although its measured gain is within 3 of them."""
     system = make_system("purcell3")
     nom = nominal_gait(system)
-    cfg = LoopConfig(budget_cycles=30, seed=0, confirm_sigmas=3.0)
+    cfg = LoopConfig(budget_cycles=30, seed=0, confirm_sigmas=3.0, scale_step=math.inf)  # (trust-region steps)
     its = optimize_loop(system, cfg, start=nom.from_vector(0.5 * nom.to_vector(), nom.order)).iterations
     at_once = confirmed = 0
     incumbent = its[0]
@@ -357,3 +357,65 @@ def _start_data(system: Any, gait: Any, cfg: LoopConfig) -> Any:
 
     rec, _ = _Robot(system, gait, cfg).run(gait, cfg.settle_cycles + cfg.first_cycles)
     return _trim(rec, cfg.settle_cycles, cfg.samples_per_cycle)
+
+
+def test_headroom_scales_the_oscillation_to_the_tightest_bound_and_keeps_the_offsets() -> None:
+    from suds_ros.core.optimize.loop import _scaled, headroom
+
+    system = make_system("purcell3")
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    assert headroom(half, limits) == pytest.approx(2.0, rel=1e-5)
+    assert headroom(nom, limits) == pytest.approx(1.0, rel=1e-5)
+    x = 0.5 * nom.to_vector()
+    x[0] = 0.1  # an offset: the range bound on that side is reached first
+    bent = nom.from_vector(x, nom.order)
+    s = headroom(bent, limits)
+    grown = _scaled(bent, s)
+    assert grown.offset == bent.offset and constraint_violations(grown, limits) == []
+    assert 1.5 < s < 2.0 and constraint_violations(_scaled(bent, s * 1.001), limits)
+
+
+def test_a_timid_start_is_first_scaled_to_its_bounds() -> None:
+    """purcell3 at half its nominal amplitude: the first step is the same gait at full range (3× faster here)."""
+    system = make_system("purcell3")
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    res = optimize_loop(system, LoopConfig(budget_cycles=10, seed=0), start=half, limits=limits)
+    first = res.iterations[1]
+    assert first.accepted and first.note.startswith("accepted")
+    assert first.gait.to_vector() == pytest.approx(nom.to_vector(), rel=1e-4)
+    assert first.predicted == pytest.approx(4 * res.iterations[0].measured.speed, rel=1e-3)  # s² with s = 2
+    assert evaluate_gait(system, res.gait)["speed"] > 3 * evaluate_gait(system, half)["speed"]
+    # off: the first step is the trust region's, which stays near the data
+    off = optimize_loop(system, LoopConfig(budget_cycles=10, seed=0, scale_step=math.inf), start=half, limits=limits)
+    assert evaluate_gait(system, off.iterations[1].gait)["speed"] < 0.9 * evaluate_gait(system, first.gait)["speed"]
+    # a start at its bounds is not scaled, nor one that cannot grow by scale_step
+    for start, cfg in ((nom, LoopConfig(budget_cycles=10)), (half, LoopConfig(budget_cycles=10, scale_step=2.1)),
+                       (half, LoopConfig(budget_cycles=10, scale_step=math.inf))):
+        search = GaitSearch(start, limits, cfg)
+        search.observe(_start_data(system, start, cfg))
+        assert search.request().kind == "candidate"
+
+
+def test_a_rejected_scaled_start_leaves_the_search_as_it_was() -> None:
+    """Told that the scaled gait measured no better (its run fed the start's own cycles), the search goes on
+    from the start: the radius is unchanged, nothing is pooled, and the next request is a trust-region step."""
+    from suds_ros.core.optimize.loop import _Robot, _trim
+
+    system = make_system("purcell3")
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    cfg = LoopConfig(budget_cycles=30, seed=0)
+    search = GaitSearch(half, limits, cfg)
+    robot = _Robot(system, half, cfg)
+    req = search.request()
+    rec, _ = robot.run(req.gait, req.cycles)
+    data = _trim(rec, cfg.settle_cycles, cfg.samples_per_cycle)
+    search.observe(data)
+    req = search.request()
+    assert req.kind == "scale" and req.step.factor == pytest.approx(2.0, rel=1e-5)
+    it = search.observe(data)  # the same cycles: not higher
+    assert not it.accepted and "scaled start rejected" in it.note and search.best is half
+    assert search._kappa == cfg.trust and search._near == [] and search._rejected == []
+    assert search.request().kind == "candidate"
