@@ -13,7 +13,7 @@ so no gait outside the bounds is ever run; the fitness is the measured speed, mi
 measured |rotation| beyond the 0.05 rad/cycle bound.  The gait it would return at a budget is the
 best *measured* feasible gait so far (the loop's rule).  The loop's figures are its runs in
 `docs/results/optimize_loop_<robot>.json` (nominal start, same seeds).  Every returned gait is then
-evaluated on the true physics against the limit stored there.
+evaluated on the true physics against the limit stored there (the loop's, read at report time).
 
     pip install cma                                  # benchmarks/requirements-peers.txt
     python benchmarks/optimize_cma.py run purcell3 snake5    # → docs/results/optimize_cma_<robot>.json
@@ -103,7 +103,7 @@ def _at(rows: list[dict], cycles: int, key: str) -> float | None:
 
 def _cells(doc: dict, loop: dict, cps: tuple[int, ...]) -> tuple[list[str], int, int]:
     """Table rows (loop / CMA-ES at each checkpoint), and the cells where the loop is ahead or level, of all."""
-    lim = doc["limit"]
+    lim = loop["limit"]  # the robot's limit as the loop's runs hold it (`optimize_loop.py limit` keeps it current)
     rows, ahead, total = [], 0, 0
     for r in doc["runs"]:
         kind = r.get("start", "nominal")
@@ -135,7 +135,7 @@ def report() -> None:
             continue
         doc = json.loads(path.read_text())
         loop = json.loads((RESULTS / f"optimize_loop_{name}.json").read_text())
-        lim = doc["limit"]
+        lim = loop["limit"]
         cps = CHECKPOINTS[name]
         lines += [f"## {name} (limit {lim:.5f} m/s; cma {doc['cma_version']})", "",
                   "| start | seed | " + " | ".join(f"{c} cycles: loop / CMA-ES" for c in cps) + " |",

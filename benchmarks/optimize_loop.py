@@ -61,6 +61,10 @@ ABLATIONS = {
                 "of the candidates rejected since the incumbent was set into the incumbent's model, refitted "
                 "after each rejection): each step's model is fitted to the incumbent's own cycles only, as before "
                 "2026-11-27.", "rejections (ablation)"),
+    "no-scale": ("scale_step", math.inf, "no scaled start",
+                 "`LoopConfig.scale_step` = inf (`--ablation no-scale`; the default runs a start whose oscillation "
+                 "can grow by 1.25× or more inside the bounds scaled to them, right after the start): every step "
+                 "is the trust region's, as before 2026-12-01.", "rejections (ablation)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "
@@ -247,7 +251,7 @@ def ablation() -> list[str]:
                      else sum(not x["accepted"] for x in rb["rows"]))
                 rejected += sum(not x["accepted"] for x in rb["rows"])
                 rot_rejected += sum(not x["accepted"] and abs(x["true_rotation"]) > MAX_ROTATION for x in rb["rows"])
-                section.append(f"| {name} | {ra['start']} | {ra['seed']} | {b.get(field_name, '—')} | "
+                section.append(f"| {name} | {ra['start']} | {ra['seed']} | {value if b.get(field_name) is None else b[field_name]} | "
                                f"{100 * ta['incumbent_true'] / limit:.1f} / {100 * tb['incumbent_true'] / limit:.1f} | "
                                f"{100 * ba:.1f} / {100 * bb:.1f} | {n} |")
             section.append(f"| {name} | **sum at the budget** | | | | {100 * sums[0]:.1f} / {100 * sums[1]:.1f} | |")
