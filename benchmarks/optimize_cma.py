@@ -147,7 +147,8 @@ def report() -> None:
             if other.exists():
                 a_doc = json.loads(other.read_text())
                 _, a_ahead, a_total = _cells(doc, a_doc, cps)
-                lines += [f"With the loop's `{field_name}` = {a_doc.get(field_name, value)} "
+                shown = value if a_doc.get(field_name) is None else a_doc[field_name]  # (inf is stored as null)
+                lines += [f"With the loop's `{field_name}` = {shown} "
                           f"(`{other.name}`): ahead or level at {a_ahead} of {a_total}.", ""]
     write("optimize_cma.md", "\n".join(lines) + "\n")
 

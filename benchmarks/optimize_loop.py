@@ -251,7 +251,8 @@ def ablation() -> list[str]:
                      else sum(not x["accepted"] for x in rb["rows"]))
                 rejected += sum(not x["accepted"] for x in rb["rows"])
                 rot_rejected += sum(not x["accepted"] and abs(x["true_rotation"]) > MAX_ROTATION for x in rb["rows"])
-                section.append(f"| {name} | {ra['start']} | {ra['seed']} | {value if b.get(field_name) is None else b[field_name]} | "
+                shown = value if b.get(field_name) is None else b[field_name]  # (inf is stored as null)
+                section.append(f"| {name} | {ra['start']} | {ra['seed']} | {shown} | "
                                f"{100 * ta['incumbent_true'] / limit:.1f} / {100 * tb['incumbent_true'] / limit:.1f} | "
                                f"{100 * ba:.1f} / {100 * bb:.1f} | {n} |")
             section.append(f"| {name} | **sum at the budget** | | | | {100 * sums[0]:.1f} / {100 * sums[1]:.1f} | |")
