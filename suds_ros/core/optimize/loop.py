@@ -1290,10 +1290,13 @@ class GaitSearch:
                 and abs(meas.rotation) > cfg.origin_sigmas * meas.rotation_se):
             # it turns: count its cycle from the point it went furthest from (the same motion)
             j = measured_origin(self._best_data, cfg.samples_per_cycle, gait.gait_hz)
-            if j:
-                gait = time_shifted(gait, j / cfg.samples_per_cycle)
-                meas = measure_recording(self._best_data, cfg.samples_per_cycle, gait.gait_hz,
-                                         work=self._work, origin=j)
+            try:  # (a stretch cut to one cycle by a change holds no whole cycle from another point)
+                shifted = measure_recording(self._best_data, cfg.samples_per_cycle, gait.gait_hz,
+                                            work=self._work, origin=j) if j else None
+            except SudsConfigError:
+                shifted = None
+            if shifted is not None:
+                gait, meas = time_shifted(gait, j / cfg.samples_per_cycle), shifted
         out = with_predicted(gait, cfg.objective, {cfg.objective: pred})
         return LoopResult(gait=out, measured=meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,

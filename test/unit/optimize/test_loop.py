@@ -419,3 +419,23 @@ def test_a_rejected_scaled_start_leaves_the_search_as_it_was() -> None:
     assert not it.accepted and "scaled start rejected" in it.note and search.best is half
     assert search._kappa == cfg.trust and search._near == [] and search._rejected == []
     assert search.request().kind == "candidate"
+
+
+def test_a_stretch_of_one_cycle_keeps_the_returned_gait_as_run() -> None:
+    """Counted from another point, a one-cycle stretch (what a change can leave) holds no whole cycle:
+    the gait is returned as it ran, and result() does not fail."""
+    spec = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
+    if not spec.exists():
+        pytest.skip(f"{spec} not found")
+    system = load_system(str(spec))
+    nom = nominal_gait(system)
+    x = 0.8 * nom.to_vector()
+    x[0] += 0.2
+    bent = nom.from_vector(x, nom.order)
+    quiet = LoopConfig(budget_cycles=5, ou_std=0.0, noise_std=0.0)
+    search = GaitSearch(bent, gait_limits(system), quiet)
+    data = _start_data(system, bent, quiet)
+    search.observe(data)
+    assert search.result().gait.to_vector() != pytest.approx(x)  # shifted, as in the test above
+    search._best_data = [data.slice(0, quiet.samples_per_cycle + 1), data]
+    assert search.result().gait.to_vector() == pytest.approx(x)
