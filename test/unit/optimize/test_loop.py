@@ -320,14 +320,8 @@ def test_a_turning_gait_is_returned_counted_from_the_point_it_measured_furthest_
     from suds_ros.core.optimize.loop import measured_origin
     from suds_ros.core.optimize.physics import CycleEvaluator, origin_distances
 
-    spec = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
-    if not spec.exists():
-        pytest.skip(f"{spec} not found")
-    system = load_system(str(spec))
-    nom = nominal_gait(system)
-    x = 0.8 * nom.to_vector()
-    x[0] += 0.2
-    bent = nom.from_vector(x, nom.order)
+    system, bent = _bent_snake5()
+    x = bent.to_vector()
     quiet = LoopConfig(budget_cycles=5, ou_std=0.0, noise_std=0.0)
     res = optimize_loop(system, quiet, start=bent, limits=gait_limits(system))
     ev = CycleEvaluator(system, bent.gait_hz, bent.order, quiet.samples_per_cycle)
@@ -343,12 +337,25 @@ def test_a_turning_gait_is_returned_counted_from_the_point_it_measured_furthest_
     assert res.measured.speed > 1.05 * recorded.measured.speed
     assert constraint_violations(res.gait, gait_limits(system)) == []
     # a gait that runs straight, or an origin_sigmas no measurement reaches, is returned as it ran
+    nom = nominal_gait(system)
     straight = nom.from_vector(0.8 * nom.to_vector(), nom.order)
     assert optimize_loop(system, quiet, start=straight, limits=gait_limits(system)).gait.to_vector() \
         == pytest.approx(straight.to_vector())
     strict = dataclasses.replace(quiet, origin_sigmas=math.inf)
     assert optimize_loop(system, strict, start=bent, limits=gait_limits(system)).gait.to_vector() \
         == pytest.approx(x)
+
+
+def _bent_snake5() -> tuple[Any, Any]:
+    """snake5 (shared/robots) and its nominal gait at 0.8 of its amplitude with joint_1 bent by 0.2 rad."""
+    spec = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
+    if not spec.exists():
+        pytest.skip(f"{spec} not found")
+    system = load_system(str(spec))
+    nom = nominal_gait(system)
+    x = 0.8 * nom.to_vector()
+    x[0] += 0.2
+    return system, nom.from_vector(x, nom.order)
 
 
 def _start_data(system: Any, gait: Any, cfg: LoopConfig) -> Any:
@@ -424,14 +431,8 @@ def test_a_rejected_scaled_start_leaves_the_search_as_it_was() -> None:
 def test_a_stretch_of_one_cycle_keeps_the_returned_gait_as_run() -> None:
     """Counted from another point, a one-cycle stretch (what a change can leave) holds no whole cycle:
     the gait is returned as it ran, and result() does not fail."""
-    spec = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
-    if not spec.exists():
-        pytest.skip(f"{spec} not found")
-    system = load_system(str(spec))
-    nom = nominal_gait(system)
-    x = 0.8 * nom.to_vector()
-    x[0] += 0.2
-    bent = nom.from_vector(x, nom.order)
+    system, bent = _bent_snake5()
+    x = bent.to_vector()
     quiet = LoopConfig(budget_cycles=5, ou_std=0.0, noise_std=0.0)
     search = GaitSearch(bent, gait_limits(system), quiet)
     data = _start_data(system, bent, quiet)
