@@ -176,9 +176,12 @@ def run(args: argparse.Namespace) -> int:
             if res.limits is not None else None}))
     else:
         unit = {"speed": "m/s", "turn": "rad/s", "efficiency": "m/J"}[args.objective]
+        again = sum(x["kind"] == "origin" for x in res.starts)  # ends re-optimised from a better time origin
         print(f"wrote {out}: {system.name}, {args.objective} {res.value:.6g} {unit} "
               f"(nominal gait {res.nominal_value:.6g}, {100 * gain:+.2f} %), order {args.order}, "
-              f"{len(res.starts)} starts, {res.seconds:.1f} s")
+              f"{len(res.starts) - again} start(s)"
+              + (f" and {again} re-optimised from a better time origin" if again else "")
+              + f", {res.seconds:.1f} s")
         lo, hi = res.speed_over_origins or (0.0, 0.0)
         if hi > lo * (1 + 1e-3):
             print(f"  note: the gait turns ({res.values['rotation']:+.4f} rad/cycle), so its speed depends on where "
