@@ -154,17 +154,16 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
 
 
 def relimit(name: str) -> None:
-    """The robot's limit from the physics optimiser as it is now, into every JSON of its runs (loop, ablations, CMA).
+    """The robot's limit from the physics optimiser as it is now, into every JSON of its loop runs (and ablations).
 
     The runs never see the limit (every row holds the true speed of the gait run, not its share), so a
-    better limit re-scores them without running them again.
+    better limit re-scores them without running them again; the CMA report reads it from here too.
     """
     system = load_system(ROBOTS[name][0])
     t0 = time.perf_counter()
     limit = optimize_gait(system, OptimizeConfig(order=3, starts=4)).value
     secs = time.perf_counter() - t0
-    paths = [_path(name, None), *(_path(name, a) for a in ABLATIONS), RESULTS / f"optimize_cma_{name}.json"]
-    for path in paths:
+    for path in [_path(name, None), *(_path(name, a) for a in ABLATIONS)]:
         if path.exists():
             doc = json.loads(path.read_text())
             old = doc.get("limit")
@@ -407,7 +406,7 @@ def main() -> None:
     r.add_argument("--reuse-limit", action="store_true", help="take the limit from an earlier run's JSON")
     r.add_argument("--ablation", choices=list(ABLATIONS),
                    help="run an ablation (ABLATIONS) instead of the defaults: writes optimize_loop_<robot>_<name>.json")
-    lim = sub.add_parser("limit", help="recompute the robots' limits and store them in every JSON of their runs")
+    lim = sub.add_parser("limit", help="recompute the robots' limits and store them in every JSON of their loop runs")
     lim.add_argument("robots", nargs="+", choices=list(ROBOTS))
     sub.add_parser("report")
     args = ap.parse_args()

@@ -102,7 +102,7 @@ from suds_ros.core.optimize.data import (
     motion_miss,
     optimize_from_data,
 )
-from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values
+from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values, origin_chords
 from suds_ros.core.physics.gait import (
     DEFAULT_MAX_ORDER,
     MAX_ORDER,
@@ -529,12 +529,8 @@ def measured_origin(data: Recording | Sequence[Recording], samples_per_cycle: in
         turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
     if not chords:
         return 0
-    q = np.concatenate(chords).mean(axis=0)
-    ps = np.concatenate(inside).mean(axis=0)  # (spc, 2)
-    th = float(np.mean(np.concatenate(turns)))
-    c, sn = math.cos(th) - 1.0, math.sin(th)
-    d = np.hypot(q[0] + c * ps[:, 0] - sn * ps[:, 1], q[1] + sn * ps[:, 0] + c * ps[:, 1])
-    return int(np.argmax(d))
+    g_c = np.append(np.concatenate(chords).mean(axis=0), np.mean(np.concatenate(turns)))
+    return int(np.argmax(origin_chords(g_c, np.concatenate(inside).mean(axis=0))))
 
 
 def _resampled(data: Recording | Sequence[Recording], samples_per_cycle: int, gait_hz: float,
@@ -1209,15 +1205,6 @@ class GaitSearch:
                                          note=f"to be confirmed: measured gain {meas_gain:+.4g} is {z:.2f} se "
                                               f"(< {cfg.confirm_sigmas:g}); run again before it is kept")
                 accepted, confirm = False, f"gain {z:.2f} se unconfirmed: no budget to run it again"
-        if not accepted and req.kind == "scale":  # the search goes on from the start as if it was not tried
-            why = ("measured objective not higher" if self._feasible(meas, cand)
-                   else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
-            return LoopIteration(index=len(self.iterations), gait=cand, cycles=req.cycles,
-                                 cycles_used=self.cycles_used, predicted=step.value, predicted_std=None,
-                                 predicted_incumbent=step.recorded_value, measured=meas, accepted=False,
-                                 trust=kappa_used, trust_used=step.trust_used,
-                                 note=f"scaled start rejected ({why}; measured gain {meas_gain:+.4g} vs predicted "
-                                      f"{pred_gain:+.4g}); the search goes on from the start")
         if accepted:
             ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
             grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
@@ -1231,6 +1218,11 @@ class GaitSearch:
                 note += f"; under {POOR_RATIO:g} of the prediction, trust → {self._kappa:.3g}"
             self._take(cand, meas, list(stretches), step.value)
             self._fresh = False  # measured on the robot as it is now
+        elif req.kind == "scale":  # the search goes on from the start as if it was not tried
+            why = ("measured objective not higher" if self._feasible(meas, cand)
+                   else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
+            note = (f"scaled start rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
+                    "the search goes on from the start")
         else:
             miss = ""
             if self._model is not None and math.isfinite(cfg.model_miss) and not self._fresh \

@@ -63,6 +63,7 @@ from suds_ros.core.physics.gait import (
     gait_limits,
     nominal_gait,
     shifted_harmonics,
+    time_shifted,
     with_predicted,
 )
 from suds_ros.core.physics.sim import _rest_angles, _still, passive_rate
@@ -337,18 +338,27 @@ def origin_distances(ev: CycleEvaluator, x: FloatArray, res: CycleResult) -> Flo
     poses: list[FloatArray] = []
     ev.cycle(np.atleast_2d(x)[:1], res.r_p[:1], poses=poses)
     p = np.concatenate([np.zeros((1, 2)), np.stack(poses[:-1])[:, 0, :2]])  # (steps, 2): p_s at s = k/steps
-    q, th = res.g_c[0, :2], float(res.g_c[0, 2])
+    return origin_chords(res.g_c[0], p)
+
+
+def origin_chords(g_c: FloatArray, p: FloatArray) -> FloatArray:
+    """|q + (R_θ − I) p_s|: the length of a cycle g_c = (q, θ) counted from points at positions p (n, 2).
+
+    p_s is the position at s in the frame of the cycle's start (:func:`origin_distances`; measured,
+    :func:`~suds_ros.core.optimize.loop.measured_origin`).
+    """
+    q, th = np.asarray(g_c[:2], dtype=float), float(g_c[2])
     c, sn = math.cos(th) - 1.0, math.sin(th)
-    chord = q[None] + np.stack([c * p[:, 0] - sn * p[:, 1], sn * p[:, 0] + c * p[:, 1]], axis=1)
-    return np.hypot(chord[:, 0], chord[:, 1])
+    return np.hypot(q[0] + c * p[:, 0] - sn * p[:, 1], q[1] + sn * p[:, 0] + c * p[:, 1])
 
 
-def best_origin(ev: CycleEvaluator, x: FloatArray, rp_guess: FloatArray) -> tuple[FloatArray, float]:
-    """The gait x counted from the point of its cycle it goes furthest from, and the distance's gain there.
+def best_origin(ev: CycleEvaluator, x: FloatArray, rp_guess: FloatArray) -> tuple[float, float]:
+    """Where the gait x's cycle goes furthest from, in cycles, and the distance's gain there.
 
     The best of the step times (:func:`origin_distances`), refined by a parabola through it and its
-    neighbours.  Returns the shifted gait vector (the same motion, :func:`~suds_ros.core.physics.gait.
-    time_shifted`) and the ratio of its estimated distance per cycle to the unshifted one's.
+    neighbours.  Returns the shift s0 (the gait counted from there is
+    :func:`~suds_ros.core.physics.gait.time_shifted` by s0) and the ratio of its estimated distance
+    per cycle to the unshifted one's.
     """
     res, _, _ = ev.steady(np.atleast_2d(x)[:1], rp_guess)
     d = origin_distances(ev, x, res)
@@ -357,11 +367,7 @@ def best_origin(ev: CycleEvaluator, x: FloatArray, rp_guess: FloatArray) -> tupl
     curv = lo - 2 * mid + hi
     frac = 0.0 if curv >= 0 else float(np.clip(0.5 * (lo - hi) / curv, -0.5, 0.5))
     peak = mid + 0.25 * (hi - lo) * frac  # the parabola's vertex
-    s0 = (k + frac) / n
-    m = np.array(x, dtype=float).reshape(ev.na, 2 * ev.order + 1)
-    K = ev.order
-    m[:, 1:K + 1], m[:, K + 1:] = shifted_harmonics(m[:, 1:K + 1], m[:, K + 1:], 2 * np.pi * np.arange(1, K + 1) * s0)
-    return m.ravel(), float(peak / max(d[0], 1e-300))
+    return (k + frac) / n, float(peak / max(d[0], 1e-300))
 
 
 def auto_steps(system: SudsSystem, gait_hz: float) -> int:
@@ -705,9 +711,9 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         for _ in range(cfg.origin_rounds):
             moved = []
             for value, x in queue:
-                shifted, gain = best_origin(ev, x, nom_res.r_p)
+                s0, gain = best_origin(ev, x, nom_res.r_p)
                 if value * gain > best[0] * (1 + ORIGIN_GAIN):
-                    end = solve("origin", shifted, every)
+                    end = solve("origin", time_shifted(nominal.from_vector(x, K), s0).to_vector(K), every)
                     if end is not None:
                         moved.append(end)
                         best = max(best, end, key=lambda e: e[0])
