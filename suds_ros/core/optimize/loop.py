@@ -1223,6 +1223,8 @@ class GaitSearch:
                    else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
             note = (f"scaled start rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
                     "the search goes on from the start")
+            if self._fresh:  # robot_changed() while it ran: the start is measured afresh first
+                self._pending = self._rerun(f"robot changed: {self._change_reason}")
         else:
             miss = ""
             if self._model is not None and math.isfinite(cfg.model_miss) and not self._fresh \

@@ -440,3 +440,23 @@ def test_a_stretch_of_one_cycle_keeps_the_returned_gait_as_run() -> None:
     assert search.result().gait.to_vector() != pytest.approx(x)  # shifted, as in the test above
     search._best_data = [data.slice(0, quiet.samples_per_cycle + 1), data]
     assert search.result().gait.to_vector() == pytest.approx(x)
+
+
+def test_a_robot_said_changed_during_a_rejected_scaled_start_is_measured_afresh_next() -> None:
+    """robot_changed() while the scaled start runs: when that run is rejected, the incumbent is re-run next."""
+    from suds_ros.core.optimize.loop import _Robot, _trim
+
+    system = make_system("purcell3")
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    cfg = LoopConfig(budget_cycles=30, seed=0)
+    search = GaitSearch(half, limits, cfg)
+    req = search.request()
+    rec, _ = _Robot(system, half, cfg).run(req.gait, req.cycles)
+    data = _trim(rec, cfg.settle_cycles, cfg.samples_per_cycle)
+    search.observe(data)
+    assert search.request().kind == "scale"
+    search.robot_changed("the monitor's alarm")
+    assert not search.observe(data).accepted  # the same cycles: not higher
+    nxt = search.request()
+    assert nxt.kind == "rerun" and "the monitor's alarm" in nxt.note
