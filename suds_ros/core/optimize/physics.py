@@ -349,7 +349,7 @@ def origin_chords(g_c: FloatArray, p: FloatArray) -> FloatArray:
     """
     q, th = np.asarray(g_c[:2], dtype=float), float(g_c[2])
     c, sn = math.cos(th) - 1.0, math.sin(th)
-    return np.hypot(q[0] + c * p[:, 0] - sn * p[:, 1], q[1] + sn * p[:, 0] + c * p[:, 1])
+    return np.hypot(q[0] + (c * p[:, 0] - sn * p[:, 1]), q[1] + (sn * p[:, 0] + c * p[:, 1]))  # q + ((R_θ − I) p)
 
 
 def best_origin(ev: CycleEvaluator, x: FloatArray, rp_guess: FloatArray) -> tuple[float, float]:
