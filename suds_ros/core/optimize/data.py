@@ -445,8 +445,13 @@ class LearnedCycle(PeriodicShooting):
         X = regressor_input(np.full(B, self._phase[i]), r - self._theta[i], rdot_a - self._dtheta_a[i], r, rdot_a)
         return regressor_design(m.suds, X, self.na, m.kernel_scale) @ self.coef
 
-    def cycle(self, X: FloatArray, rp0: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Predict one cycle from r_p(0) = ``rp0`` (B, np) and the identity pose: r_p(T), g_c (B, 3), work (B,)."""
+    def cycle(self, X: FloatArray, rp0: FloatArray, poses: list[FloatArray] | None = None
+              ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Predict one cycle from r_p(0) = ``rp0`` (B, np) and the identity pose: r_p(T), g_c (B, 3), work (B,).
+
+        ``poses``, if given, receives the pose (B, 3) after every step (``steps`` arrays), as
+        :meth:`~suds_ros.core.optimize.physics.CycleEvaluator.cycle` does.
+        """
         X = np.atleast_2d(X)
         B, m = X.shape[0], self.model
         coef = X.reshape(B, self.na, 2 * self.order + 1)
@@ -470,6 +475,8 @@ class LearnedCycle(PeriodicShooting):
                     out = self._outputs(i, rm, rdot_a)
             rp = rp + h * out[:, 3:3 + npas]
             pose = se2.exp_step(pose, h * out[:, :3])
+            if poses is not None:
+                poses.append(pose)
             if self.with_work:
                 work = work + h * np.einsum("bj,bj->b", out[:, 3 + npas:3 + npas + self.na], rdot_a)
         self.cycles_run += B
@@ -492,7 +499,19 @@ def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gai
 
     The phaser's phase zero is arbitrary; a gait given in the robot's own time (the drive that made
     the recording) is moved onto the model's phase by the shift that brings its actuated joints
-    closest to the template θ_a.
+    closest to the template θ_a: :func:`~suds_ros.core.physics.gait.time_shifted` by
+    :func:`align_shift`.
+
+    Raises
+    ------
+    SudsConfigError
+        A gait of other joints than the model's actuated joints.
+    """
+    return time_shifted(gait, align_shift(model, gait, n_shifts))
+
+
+def align_shift(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> float:
+    """The shift s0 in cycles (on a grid of ``n_shifts``) at which ``gait``'s time s0 is the model's phase 0.
 
     Raises
     ------
@@ -506,7 +525,7 @@ def align_to_model(model: LearnedModel, gait: Gait, n_shifts: int = 1440) -> Gai
     target = model.theta(2 * np.pi * s)[0][:, model.act]  # (256, na)
     shifts = np.arange(n_shifts) / n_shifts
     err = [float(np.sum((gait.at_phase(s + s0) - target) ** 2)) for s0 in shifts]
-    return time_shifted(gait, float(shifts[int(np.argmin(err))]))
+    return float(shifts[int(np.argmin(err))])
 
 
 def _centre(model: LearnedModel, t: FloatArray, hz: float,

@@ -97,12 +97,12 @@ from suds_ros.core.optimize.data import (
     LearnedCycle,
     LearnedModel,
     MotionMiss,
-    align_to_model,
+    align_shift,
     learn_model,
     motion_miss,
     optimize_from_data,
 )
-from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values, origin_chords
+from suds_ros.core.optimize.physics import UNSUPPORTED_OBJECTIVE, objective_values, origin_chords, origin_distances
 from suds_ros.core.physics.gait import (
     DEFAULT_MAX_ORDER,
     MAX_ORDER,
@@ -897,6 +897,7 @@ class GaitSearch:
         self._start = start
         self._best_meas: Measurement | None = None
         self._best_pred: float | None = None
+        self._pred_model: LearnedModel | None = None  # the model that made _best_pred (None: not a model's)
         self._speed_floor, self._floor_se = 0.0, 0.0
         self._work = config.objective == "efficiency"  # measure the actuators' work, learn their torques
         self._kappa = config.trust
@@ -979,9 +980,10 @@ class GaitSearch:
             self._model = None
             return self._rerun(f"the incumbent's model cannot be used ({exc})")
         if self._best_pred is None:
-            self._best_pred = step.recorded_value
+            # (the step's recorded value counts the incumbent's cycle from the model's phase zero; its own zero:)
+            self._best_pred, self._pred_model = predict_value(self._model, self._best_gait, cfg.objective), self._model
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
-                                                                 step.recorded_value, step.recorded_std)
+                                                                 self._best_pred, step.recorded_std)
         if not step.step_taken:
             if kappa >= cfg.trust:
                 if len(self._best_data) < 2:
@@ -1022,7 +1024,7 @@ class GaitSearch:
         if self._best_pred is None:  # the start's model prediction, as a trust-region step would have set it
             try:
                 self._model = learn_model(self._best_data, torque=self._work)
-                self._best_pred = predict_value(self._model, gait, cfg.objective)
+                self._best_pred, self._pred_model = predict_value(self._model, gait, cfg.objective), self._model
                 self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
                                                                      self._best_pred, None)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
@@ -1093,6 +1095,7 @@ class GaitSearch:
                 meas = self._measure(data, req.gait)
                 note += f", and its own first {first} cycle{'s' if first > 1 else ''} (the robot before the change)"
             self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
+            self._pred_model = None
             self.changes.append(len(self.iterations))
             self._symmetric = self._looks_symmetric(req.gait, meas)  # the changed robot may not be
         else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
@@ -1148,9 +1151,14 @@ class GaitSearch:
         return (f"turned {m.rotation:.3g} rad/cycle away from the model's prediction along its own shapes "
                 f"({m.rotation_sigmas:.1f} se)"), m
 
-    def _take(self, gait: Gait, meas: Measurement, data: list[Recording], predicted: float | None) -> None:
-        """``gait`` becomes the incumbent (the iteration about to be logged): its data, a model to fit afresh."""
+    def _take(self, gait: Gait, meas: Measurement, data: list[Recording], predicted: float | None,
+              model: LearnedModel | None = None) -> None:
+        """``gait`` becomes the incumbent (the iteration about to be logged): its data, a model to fit afresh.
+
+        ``model``: the model that made ``predicted`` (None: not a model's, as a scaled start's s² law).
+        """
         self._best_gait, self._best_meas, self._best_data, self._best_pred = gait, meas, data, predicted
+        self._pred_model = model
         self._best_index = len(self.iterations)
         self._model, self._rejected, self._near, self._low_streak = None, [], [], 0
 
@@ -1216,7 +1224,7 @@ class GaitSearch:
                 # a gain, but far short of the prediction: the model was wrong that far out
                 self._kappa = max(self._kappa * cfg.shrink, cfg.trust)
                 note += f"; under {POOR_RATIO:g} of the prediction, trust → {self._kappa:.3g}"
-            self._take(cand, meas, list(stretches), step.value)
+            self._take(cand, meas, list(stretches), step.value, None if req.kind == "scale" else self._model)
             self._fresh = False  # measured on the robot as it is now
         elif req.kind == "scale":  # the search goes on from the start as if it was not tried
             why = ("measured objective not higher" if self._feasible(meas, cand)
@@ -1274,8 +1282,8 @@ class GaitSearch:
                                   code=NO_REQUEST)
         cfg = self.config
         if self._best_pred is None:  # no step was taken (the budget held only the start): the model's view anyway
-            self._best_pred = predict_value(learn_model(self._best_data, torque=self._work), self._best_gait,
-                                            cfg.objective)
+            self._pred_model = learn_model(self._best_data, torque=self._work)
+            self._best_pred = predict_value(self._pred_model, self._best_gait, cfg.objective)
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index],
                                                                  self._best_pred, None)
         pred = self._best_pred
@@ -1290,7 +1298,15 @@ class GaitSearch:
             except SudsConfigError:
                 shifted = None
             if shifted is not None:
-                gait, meas = time_shifted(gait, j / cfg.samples_per_cycle), shifted
+                # the prediction counted from there too: its model's distance from that point over from zero
+                u = j / cfg.samples_per_cycle
+                try:
+                    model = (self._pred_model if self._pred_model is not None
+                             else learn_model(self._best_data, torque=self._work))
+                    pred = pred * origin_ratio(model, gait, u)
+                except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+                    pass  # (the model cannot say: the prediction stays that of the cycle from zero)
+                gait, meas = time_shifted(gait, u), shifted
         out = with_predicted(gait, cfg.objective, {cfg.objective: pred})
         return LoopResult(gait=out, measured=meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,
@@ -1341,11 +1357,47 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
 
 
 def predict_value(model: LearnedModel, gait: Gait, objective: str) -> float:
-    """The learned model's objective of ``gait`` at its predicted passive periodic steady state (turn as |rate|)."""
-    g = align_to_model(model, gait)
+    """The learned model's objective of ``gait`` at its predicted passive periodic steady state (turn as |rate|).
+
+    Counted from the gait's own time zero, as the spec counts a cycle: the model's cycle runs from
+    its phase zero, which is the gait's time :func:`~suds_ros.core.optimize.data.align_shift`, and a
+    turning cycle's distance depends on where it is counted from (:func:`origin_ratio`).
+    """
+    value, d, s0 = _model_cycle(model, gait, objective)
+    return value if d is None else value * _chord_at(d, -s0) / max(float(d[0]), 1e-300)
+
+
+def origin_ratio(model: LearnedModel, gait: Gait, at: float) -> float:
+    """The model's distance per cycle of ``gait`` counted from its time ``at`` (cycles) over that from its zero.
+
+    1 for a cycle the model predicts straight.  The objectives that scale with the distance (speed,
+    efficiency) scale with it when a turning gait is counted from another point
+    (:func:`~suds_ros.core.physics.gait.time_shifted` by ``at``).
+    """
+    _, d, s0 = _model_cycle(model, gait, "speed")
+    return 1.0 if d is None else _chord_at(d, at - s0) / max(_chord_at(d, -s0), 1e-300)
+
+
+def _model_cycle(model: LearnedModel, gait: Gait, objective: str) -> tuple[float, FloatArray | None, float]:
+    """(objective counted from the model's phase zero, distances from each step of it or None if straight, s0)."""
+    s0 = align_shift(model, gait)
+    g = time_shifted(gait, s0)
     ev = LearnedCycle(model, g.gait_hz, g.order, work=objective == "efficiency")
-    vals = objective_values(ev.steady_of(g.to_vector()), g.gait_hz)
-    return float(abs(vals["turn"][0]) if objective == "turn" else vals[objective][0])
+    x = g.to_vector()
+    res = ev.steady_of(x)
+    vals = objective_values(res, g.gait_hz)
+    if objective == "turn":
+        return float(abs(vals["turn"][0])), None, s0
+    d = origin_distances(ev, x, res) if res.g_c[0, 2] != 0.0 else None  # type: ignore[arg-type]
+    return float(vals[objective][0]), d, s0
+
+
+def _chord_at(d: FloatArray, at: float) -> float:
+    """Linear interpolation of the distances ``d`` (from each of n step times) at ``at`` cycles (mod 1)."""
+    u = (at % 1.0) * d.size
+    k = int(u) % d.size
+    w = u - math.floor(u)
+    return float((1 - w) * d[k] + w * d[(k + 1) % d.size])
 
 
 def _with_prediction(it: LoopIteration, value: float, std: float | None) -> LoopIteration:

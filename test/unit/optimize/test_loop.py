@@ -346,6 +346,53 @@ def test_a_turning_gait_is_returned_counted_from_the_point_it_measured_furthest_
         == pytest.approx(x)
 
 
+def test_the_prediction_of_a_gait_counts_from_its_own_time_zero() -> None:
+    """The model's speed of a turning gait is its chord from the gait's time zero, not from the model's phase zero.
+
+    Checked against two predicted cycles integrated on from the model's periodic steady state: the
+    chord g(s)⁻¹ g(s + T) from several points s of the motion, each the time zero of the gait
+    time-shifted there.  The returned gait of a loop that shifts its origin carries the prediction
+    counted from its new zero.
+    """
+    from suds_ros.core import se2
+    from suds_ros.core.optimize.data import LearnedCycle, align_shift, learn_model
+    from suds_ros.core.optimize.loop import origin_ratio, predict_value
+    from suds_ros.core.physics.gait import time_shifted
+
+    system, bent = _bent_snake5()
+    quiet = LoopConfig(budget_cycles=5, ou_std=0.0, noise_std=0.0)
+    model = learn_model(_start_data(system, bent, quiet))
+    s0 = align_shift(model, bent)
+    g = time_shifted(bent, s0)
+    ev = LearnedCycle(model, g.gait_hz, g.order)
+    x = g.to_vector()
+    steady = ev.steady_of(x)
+    first: list[Any] = []
+    second: list[Any] = []
+    rp, g_c, _ = ev.cycle(x[None], steady.r_p, poses=first)
+    assert np.asarray(first[-1]) == pytest.approx(g_c)
+    ev.cycle(x[None], rp, poses=second)
+    n = ev.steps
+    speeds = []
+    for k in (0, n // 4, n // 2, 3 * n // 4):
+        a = np.zeros((1, 3)) if k == 0 else first[k - 1]
+        q = np.zeros((1, 3)) if k == 0 else second[k - 1]  # g(T + s) = g_c · g(s) in the first cycle's frame
+        c, sn = math.cos(g_c[0, 2]), math.sin(g_c[0, 2])
+        b = np.array([[g_c[0, 0] + c * q[0, 0] - sn * q[0, 1], g_c[0, 1] + sn * q[0, 0] + c * q[0, 1],
+                       g_c[0, 2] + q[0, 2]]])
+        want = float(np.hypot(*se2.relative(a, b)[0, :2])) * g.gait_hz
+        shifted = time_shifted(bent, s0 + k / n)
+        assert predict_value(model, shifted, "speed") == pytest.approx(want, rel=3e-3)
+        from_zero = predict_value(model, bent, "speed") * origin_ratio(model, bent, s0 + k / n)
+        assert from_zero == pytest.approx(want, rel=3e-3)
+        speeds.append(want)
+    assert max(speeds) > 1.02 * min(speeds)  # it turns: the origin matters
+    res = optimize_loop(system, quiet, start=bent, limits=gait_limits(system))
+    assert res.gait.to_vector() != pytest.approx(bent.to_vector())  # shifted (the test above)
+    assert res.predicted == pytest.approx(predict_value(model, res.gait, "speed"), rel=3e-3)
+    assert res.predicted > 1.02 * predict_value(model, bent, "speed")
+
+
 def _bent_snake5() -> tuple[Any, Any]:
     """snake5 (shared/robots) and its nominal gait at 0.8 of its amplitude with joint_1 bent by 0.2 rad."""
     spec = Path(__file__).resolve().parents[3].parent / "shared" / "robots" / "snake5.yaml"
