@@ -30,9 +30,18 @@ def machine() -> str:
     """One line describing the machine the figures were measured on."""
     import os
 
+    import numpy
+    import scipy
+
     cpu = platform.processor() or platform.machine()
-    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-            f"BLAS threads {BLAS.threads or 'unpinned'}")
+    try:  # the model name: BLAS picks its kernels by it
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            cpu += next((f" ({ln.split(':', 1)[1].strip()})" for ln in f if ln.startswith("model name")), "")
+    except OSError:
+        pass
+    # the versions: a loop's accept/reject path turns on last bits (SLSQP, BLAS), so its runs differ between them
+    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {numpy.__version__}, "
+            f"scipy {scipy.__version__}, BLAS threads {BLAS.threads or 'unpinned'}")
 
 
 def stamp() -> str:

@@ -17,13 +17,14 @@ physics optimiser's best gaits (order 3, 4 starts) on the nominal and the change
 from __future__ import annotations
 
 import json
+import statistics
 import time
 
 from _common import RESULTS, SNAKE5, machine, run_report_cli, stamp, write
 
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.data import learn_model, motion_miss
-from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
+from suds_ros.core.optimize.loop import LoopConfig, measure_recording, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.gait import Gait, gait_limits, nominal_gait
@@ -40,6 +41,8 @@ CASES = {
 }
 AFTER = (5, 10, 15, 20, 30, 40)  # cycles after the change at which the incumbent is read
 MISS_TRAIN, MISS_SEEDS = (100, 101, 102), tuple(range(6))  # the change test's calibration: model and stretch seeds
+#: where the changed robot's limit sits on the rotation bound: the best gait under these tighter bounds
+TIGHT_BOUNDS, SCATTER_SEEDS = (0.015, 0.025, 0.035), tuple(range(12))
 
 
 def _true(system, gait):  # type: ignore[no-untyped-def]
@@ -75,6 +78,29 @@ def miss_calibration(nominal, changed) -> dict:  # type: ignore[no-untyped-def]
     return out
 
 
+def rotation_window(changed, limit_new, gait: Gait) -> dict:  # type: ignore[no-untyped-def]
+    """How narrow the band of fast, straight enough gaits is, against how well a stretch reads a rotation.
+
+    When the changed robot's best gait turns at the speed objective's bound, a gait within some
+    fraction of that limit must turn by nearly as much: the limit under tighter bounds (order 3,
+    8 starts) gives the band.  Against it, the scatter of the rotation the loop measures over one
+    candidate's 4 cycles (after 1 settling cycle; seeds 0–11) of ``gait`` on the changed robot.
+    """
+    bound = OptimizeConfig().max_rotation
+    out: dict = {"bound": bound, "limit_rotation": _true(changed, limit_new.gait)["rotation"], "tight": [],
+                 "scatter": []}
+    if abs(out["limit_rotation"]) >= 0.9 * bound:
+        for b in TIGHT_BOUNDS:
+            r = optimize_gait(changed, OptimizeConfig(order=3, starts=8, max_rotation=b))
+            out["tight"].append({"max_rotation": b, "speed": r.value})
+    spc = SimConfig().samples_per_cycle
+    for seed in SCATTER_SEEDS:
+        rec = simulate(changed, SimConfig(cycles=5, seed=seed, gait=gait, gait_hz=gait.gait_hz))
+        m = measure_recording(rec.slice(spc - 1, rec.n_samples), spc, gait.gait_hz)
+        out["scatter"].append(m.rotation)
+    return out
+
+
 def run(name: str, seeds: list[int]) -> None:
     spec, change, effects, budget, _ = CASES[name]
     nominal = load_system(spec)
@@ -89,7 +115,8 @@ def run(name: str, seeds: list[int]) -> None:
     doc = {"case": name, "robot": spec, "change": change, "effects": effects, "budget": budget,
            "limit_old": limit_old.value, "limit_new": limit_new.value,
            "old_best_on_new": _true(changed, limit_old.gait), "limit_seconds": time.perf_counter() - t0,
-           "miss_calibration": calibration, "runs": []}
+           "miss_calibration": calibration,
+           "rotation_window": rotation_window(changed, limit_new, nominal_gait(nominal)), "runs": []}
     print(f"{name}: limits {limit_old.value:.5f} → {limit_new.value:.5f}; the old best gait on the changed robot "
           f"{doc['old_best_on_new']['speed']:.5f} (rotation {doc['old_best_on_new']['rotation']:+.3f})", flush=True)
     limits = gait_limits(nominal)
@@ -168,6 +195,26 @@ def report() -> None:
             cells.append(str(taken[0]["cycles_used"] - c) if taken else "never")
             cells.append(r["stopped"])
             lines.append("| " + " | ".join(cells) + " |")
+        win = doc.get("rotation_window")
+        if win:
+            sd = statistics.stdev(win["scatter"])
+            lines += ["", "How narrow the target is: the changed robot's limit gait turns by "
+                      f"{win['limit_rotation']:+.3f} rad/cycle, against the bound {win['bound']:g}."]
+            if win["tight"]:
+                pts = [*((t["max_rotation"], t["speed"] / ln) for t in win["tight"]), (win["bound"], 1.0)]
+                b90 = next((b0 + (0.9 - v0) * (b1 - b0) / (v1 - v0) for (b0, v0), (b1, v1) in zip(pts, pts[1:])
+                            if v0 < 0.9 <= v1), None)  # the bound at which the best gait reaches 90 %
+                lines += [" Its best gait under tighter bounds (order 3, 8 starts): "
+                          + "; ".join(f"|rotation| ≤ {t['max_rotation']:g}: {_pct(t['speed'], ln)} %"
+                                      for t in win["tight"]) + "."]
+                if pts[0][1] >= 0.9:
+                    lines[-1] += f"  Even at |rotation| ≤ {pts[0][0]:g} the best gait is at 90 % of the limit or more."
+                elif b90 is not None:
+                    lines[-1] += (f"  So a gait at 90 % of the limit or more turns by {b90:.3f} to {win['bound']:g} "
+                                  f"rad/cycle (interpolated): a band {win['bound'] - b90:.3f} rad/cycle wide.")
+            lines[-1] += (f"  One candidate's rotation reading (4 cycles after 1 settling; {len(win['scatter'])} "
+                          f"seeds) of the nominal gait on the changed robot scatters by {sd:.3f} rad/cycle (sd), "
+                          f"mean {statistics.fmean(win['scatter']):+.3f}.")
         cal = doc.get("miss_calibration")
         if cal:
             lines += ["", f"The model's miss (`motion_miss`, the loop's change test at `model_miss` = "
