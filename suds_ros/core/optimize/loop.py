@@ -1393,11 +1393,8 @@ def _model_cycle(model: LearnedModel, gait: Gait, objective: str) -> tuple[float
 
 
 def _chord_at(d: FloatArray, at: float) -> float:
-    """Linear interpolation of the distances ``d`` (from each of n step times) at ``at`` cycles (mod 1)."""
-    u = (at % 1.0) * d.size
-    k = int(u) % d.size
-    w = u - math.floor(u)
-    return float((1 - w) * d[k] + w * d[(k + 1) % d.size])
+    """The distances ``d`` (from each of n step times k/n) interpolated linearly at ``at`` cycles (periodic)."""
+    return float(np.interp(at, np.arange(d.size) / d.size, d, period=1.0))
 
 
 def _with_prediction(it: LoopIteration, value: float, std: float | None) -> LoopIteration:
