@@ -113,6 +113,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--scale-step", type=float, default=1.25, metavar="S",
                    help="--simulate: right after the start, a start whose oscillation can grow by S or more inside "
                         "the joint bounds is run scaled to them (speed, turn; default 1.25; inf: never)")
+    p.add_argument("--reverse-trial", action=argparse.BooleanOptionalAction, default=True,
+                   help="--simulate: once, after the (scaled) start, run the incumbent backwards in time, the "
+                        "travelling wave the other way, and go on from whichever measures better (the steps are "
+                        "local: they do not turn a wave round; costs one run; default on)")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
@@ -334,7 +338,8 @@ def _loop(args: argparse.Namespace) -> int:
         cfg = LoopConfig(budget_cycles=args.budget_cycles, seed=args.seed, objective=args.objective,
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
-                         half_wave=args.half_wave != "no", scale_step=args.scale_step)
+                         half_wave=args.half_wave != "no", scale_step=args.scale_step,
+                         reverse_trial=args.reverse_trial)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

@@ -108,6 +108,8 @@ class OptimizerNodeConfig:
                                           "over it by more than this many standard errors", ge=0.0)
     scale_step: float = setting(1.25, "right after the start, a start whose oscillation can grow this much inside "
                                       "the joint bounds is run scaled to them (speed, turn; .inf: never)", gt=1.0)
+    reverse_trial: bool = setting(True, "once, after the (scaled) start, run the incumbent backwards in time (the "
+                                        "travelling wave the other way) and go on from whichever measures better")
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -134,7 +136,8 @@ class OptimizerNodeConfig:
                           settle_cycles=self.settle_cycles, order=self.order,
                           samples_per_cycle=self.samples_per_cycle, watch=self.watch,
                           change_sigmas=self.change_sigmas, model_miss=self.model_miss, half_wave=self.half_wave,
-                          rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step)
+                          rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
+                          reverse_trial=self.reverse_trial)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

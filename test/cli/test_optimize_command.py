@@ -127,6 +127,19 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert "[0] cycles   5" in cap.err and "after 5 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
 
 
+def test_loop_with_a_reverse_trial(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The reverse trial (default): the second run is the start backwards in time; on neck4 it is kept (it swims
+    faster).  --no-reverse-trial: the second run is a trust-region step."""
+    neck4 = Path(__file__).resolve().parents[1] / "data" / "robots" / "neck4.yaml"
+    for flag in ([], ["--no-reverse-trial"]):
+        assert main(["optimize", "--simulate", str(neck4), "--budget-cycles", "10", "--seed", "0", "--limit", "no",
+                     *flag, "-o", str(tmp_path / "r.yaml"), "--overwrite", "--json"]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        its = doc["iterations"]
+        assert len(its) == 2 and ("backwards in time" in its[1]["note"]) == (not flag)
+        assert (doc["simulated"]["returned"] > 3 * doc["simulated"]["start"]) == (not flag)
+
+
 def test_loop_on_a_robot_that_changes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     change = '30:[{"name": "stiffness_to_drag_error", "scale": 3.0}]'
     assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "45", "--seed", "0", "--watch",

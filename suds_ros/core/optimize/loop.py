@@ -16,7 +16,9 @@ One iteration
 2. **Step**: right after the start, if the start's oscillation can grow by ``scale_step`` or more
    inside the bounds, that gait scaled to them (``speed``, ``turn``: the net motion per cycle grows
    as the amplitude squared to leading order, so a timid start is first given its headroom; a
-   rejected one leaves the search as it was).  Otherwise one trust-region step on that model
+   rejected one leaves the search as it was).  The first step after that (the scaled start's, or
+   the start's when it is not scaled) is the incumbent run backwards in time, r(−t): the same
+   bounds, the travelling wave the other way (``reverse_trial``).  Otherwise one trust-region step on that model
    (:func:`~suds_ros.core.optimize.data.optimize_from_data`, κ the current radius in σ of the
    data's δ spread, centred on the incumbent gait: ``trust_centre``), inside the joint range and
    speed bounds; for ``speed`` the predicted rotation is held within
@@ -114,6 +116,8 @@ from suds_ros.core.physics.gait import (
     constraint_violations,
     gait_limits,
     nominal_gait,
+    reversal_shift,
+    time_reversed,
     time_shifted,
     with_predicted,
 )
@@ -199,6 +203,20 @@ class LoopConfig:
         had not been tried (radius unchanged, its cycles not pooled).  On a start that turns (or any
         that does not look mirror-symmetric) the factor is also kept to s² |rotation| ≤
         ``rotation_margin``·``max_rotation``.  ``inf``: never.
+    reverse_trial : bool
+        Once, as the step after the scaled start (or after the start, when it is not scaled), run the
+        incumbent backwards in time, r(−t) (:func:`~suds_ros.core.physics.gait.time_reversed`: the same
+        range and speed, so always inside the bounds), judged by measurement like every candidate; if
+        rejected, the search goes on as if it had not been tried.  The trust-region steps are local:
+        from a wave that runs the wrong way they climb the nearest optimum, which on a robot that is
+        not its own fore-aft mirror image can be far below the other direction's (swimmer9's
+        reversed nominal wave runs at 2 % of its limit, the nominal wave at 63 %), and the SUDS
+        model, local to a gait, cannot predict the reversed one.  No data tells beforehand which way
+        a robot swims faster (a passive head or tail joint can make the reversed wave the fast one),
+        so it is a trial of ``settle_cycles`` + ``step_cycles`` cycles.  Not tried where the reversed
+        drive is the same drive started elsewhere in its cycle
+        (:func:`~suds_ros.core.physics.gait.reversal_shift`: one actuated joint at one harmonic, as
+        purcell3's, or joints in phase).  False: never.
     origin_sigmas : float
         For ``speed`` and ``efficiency``, the gait returned is counted from the point of its cycle it
         measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
@@ -258,7 +276,13 @@ class LoopConfig:
         the miss stayed at or under 0.08, also for gaits with 15 % more or less amplitude than
         the model's data; purcell3 with its spring 3× stiffer missed by 0.19–0.99, snake5 with a
         spring rest bent by 0.7 rad by 1.4–1.7 (``docs/results/optimize_adapt.md``, the model's
-        miss).  ``inf``: never.
+        miss).  Away from a good gait it is not quiet: a re-run of the same gait on the same robot
+        read over 0.15 in 4–9 of 10 seeds for 6 of 18 robot–gait pairs (the reversed waves of swimmer9,
+        eel4 and snake5, eel4's half amplitude, neck4's nominal gait and half amplitude), in at most 3
+        of 10 for the rest (``docs/results/optimize_miss.md``): the miss is a fraction of a translation
+        that may be small, and its standard error, over 4 cycles, leaves out the model's own error
+        (the coefficients' covariance, propagated, swamps even a true change: not used).  There a
+        false change costs the incumbent's data and a re-run.  ``inf``: never.
     half_wave : bool
         When the incumbent gait is half-wave symmetric (r(t + T/2) = −r(t), as a designer's
         travelling wave is) and the objective is ``speed`` or ``efficiency``, the step moves only
@@ -300,6 +324,7 @@ class LoopConfig:
     half_wave: bool = True
     rotation_sigmas: float = 1.0
     scale_step: float = 1.25
+    reverse_trial: bool = True
     origin_sigmas: float = 1.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
@@ -795,7 +820,8 @@ class RunRequest:
     gait : Gait, the gait to switch to (at a cycle boundary) and run.
     cycles : int, cycles to run it: ``settle_cycles`` to discard, then the cycles to measure.
     kind : str, ``start``, ``candidate`` (a trust-region step), ``scale`` (the start scaled to its
-        bounds, ``LoopConfig.scale_step``), ``confirm`` (a candidate whose measured gain was within
+        bounds, ``LoopConfig.scale_step``), ``reverse`` (the incumbent run backwards in time,
+        ``LoopConfig.reverse_trial``), ``confirm`` (a candidate whose measured gain was within
         ``confirm_sigmas``, again), ``rerun`` (the incumbent again) or ``floor`` (the start gait
         again after a change: turn and efficiency keep its speed).
     """
@@ -809,9 +835,11 @@ class RunRequest:
 
 @dataclass(frozen=True)
 class ScaleStep:
-    """The prediction of a ``scale`` run, in the fields :class:`GaitSearch` reads of a data step.
+    """The prediction of a ``scale`` or ``reverse`` run, in the fields :class:`GaitSearch` reads of a data step.
 
-    value = s²·recorded_value (``LoopConfig.scale_step``); no model, so no spread, and no trust used.
+    value = s²·recorded_value (``LoopConfig.scale_step``; a reversed gait: s = 1, as fast as the
+    incumbent, which a fore-aft mirror-symmetric robot would be); no model, so no spread, and no
+    trust used.
     """
 
     factor: float
@@ -914,6 +942,7 @@ class GaitSearch:
         self._symmetric = False  # a half-wave gait of this robot measured straight: it looks mirror-symmetric
         self._strict = dataclasses.replace(config, rotation_sigmas=0.0)
         self._scale_tried = False  # the start scaled to its bounds was proposed (or could not be)
+        self._reverse_tried = not config.reverse_trial  # the incumbent run backwards in time was proposed
 
     @property
     def best(self) -> Gait:
@@ -960,9 +989,9 @@ class GaitSearch:
             self.stopped = (f"budget spent: a candidate needs {n} more cycles, "
                             f"{cfg.budget_cycles - self.cycles_used} left")
             return None
-        scale = self._scale_request()
-        if scale is not None:
-            return scale
+        trial = self._scale_request() or self._reverse_request()
+        if trial is not None:
+            return trial
         if self._model is None:
             self._model = learn_model([*self._best_data, *self._near], torque=self._work)
         kappa = self._kappa
@@ -1033,6 +1062,20 @@ class GaitSearch:
         step = ScaleStep(factor=s, value=s * s * value, recorded_value=value, trust_radius=self._kappa)
         return RunRequest(cand, self._step_cycles, "scale", f"the start's oscillation × {s:.3g}, to its bounds",
                           step=step)
+
+    def _reverse_request(self) -> RunRequest | None:
+        """The incumbent run backwards in time, once, as the step after the scaled start (``reverse_trial``)."""
+        if self._reverse_tried or self._best_meas is None:
+            return None
+        self._reverse_tried = True
+        if reversal_shift(self._best_gait) is not None:  # backwards it is the same drive: nothing to try
+            return None
+        value = self._best_meas.value(self.config.objective)
+        step = ScaleStep(factor=1.0, value=value, recorded_value=value, trust_radius=self._kappa)
+        cand = time_reversed(self._best_gait)
+        check_constraints(cand, self.limits)  # (the same range and speed: never outside the bounds)
+        return RunRequest(cand, self._step_cycles, "reverse", "the incumbent backwards in time (the wave the "
+                          "other way)", step=step)
 
     def observe(self, data: Recording) -> LoopIteration:
         """Take the measured cycles of the requested run (settling cut) and decide; return its iteration.
@@ -1216,7 +1259,8 @@ class GaitSearch:
         if accepted:
             ratio = meas_gain / pred_gain if pred_gain > 0 else float("nan")
             grew = ratio >= 0.5 and step.trust_used >= 0.9 * step.trust_radius
-            note = f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}"
+            note = (f"accepted ({req.note}): measured gain {meas_gain:+.4g}" if req.kind == "reverse"
+                    else f"accepted: measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}")
             if grew:
                 self._kappa = min(self._kappa * cfg.grow, cfg.trust_max)
                 note += f"; trust grows to {self._kappa:.3g}"
@@ -1224,13 +1268,17 @@ class GaitSearch:
                 # a gain, but far short of the prediction: the model was wrong that far out
                 self._kappa = max(self._kappa * cfg.shrink, cfg.trust)
                 note += f"; under {POOR_RATIO:g} of the prediction, trust → {self._kappa:.3g}"
-            self._take(cand, meas, list(stretches), step.value, None if req.kind == "scale" else self._model)
+            if req.kind == "reverse":  # (no model predicted it: the next step's model will)
+                self._take(cand, meas, list(stretches), None)
+            else:
+                self._take(cand, meas, list(stretches), step.value, None if req.kind == "scale" else self._model)
             self._fresh = False  # measured on the robot as it is now
-        elif req.kind == "scale":  # the search goes on from the start as if it was not tried
+        elif req.kind in ("scale", "reverse"):  # the search goes on as if it was not tried
             why = ("measured objective not higher" if self._feasible(meas, cand)
                    else _infeasible_text(meas, rules, self._speed_floor, self._floor_se))
-            note = (f"scaled start rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
-                    "the search goes on from the start")
+            what, left = ("scaled start", "start") if req.kind == "scale" else ("reversed gait", "incumbent")
+            note = (f"{what} rejected ({why}; measured gain {meas_gain:+.4g} vs predicted {pred_gain:+.4g}); "
+                    f"the search goes on from the {left}")
             if self._fresh:  # robot_changed() while it ran: the start is measured afresh first
                 self._pending = self._rerun(f"robot changed: {self._change_reason}")
         else:

@@ -204,6 +204,43 @@ def time_shifted(gait: Gait, s0: float) -> Gait:
                 predicted=gait.predicted)
 
 
+def time_reversed(gait: Gait) -> Gait:
+    """The same drive run backwards in time: r'(s) = r(−s), its sine coefficients negated.
+
+    The same range and joint speed (so the same bounds hold), and its travelling wave runs the
+    other way.  On a robot of actuated joints only the body retraces its motion backwards; with
+    passive joints, which lag their drive, the reversed drive's motion can differ in speed too.
+    """
+    off, c, sn = gait.arrays()
+    return Gait(system=gait.system, gait_hz=gait.gait_hz, joints=gait.joints, offset=tuple(off),
+                cos=tuple(map(tuple, c)), sin=tuple(map(tuple, -sn)))
+
+
+def reversal_shift(gait: Gait, atol: float = 1e-9) -> float | None:
+    """The shift s0 (cycles, in [0, 1)) with r(−s) = r(s + s0) for every s, or None if there is none.
+
+    Whether running the drive backwards only starts it elsewhere in its cycle: one joint at one
+    harmonic (purcell3's sinusoid), joints in phase; a travelling wave is not.
+
+    Harmonic k = A cos(2πk·s − ψ) runs backwards as A cos(2πk·s + ψ), the shift s0 as
+    A cos(2πk·(s + s0) − ψ): equal when 2πk·s0 ≡ 2ψ (mod 2π).  The candidates come from the largest
+    harmonic of all joints and are checked on the whole drive (to ``atol`` rad on 64 points).
+    """
+    _, c, sn = gait.arrays()
+    amp = np.hypot(c, sn)
+    if not np.any(amp > atol):
+        return 0.0  # (a constant drive)
+    j, k = np.unravel_index(int(np.argmax(amp)), amp.shape)
+    psi = math.atan2(sn[j, k], c[j, k])
+    s = np.arange(64) / 64.0
+    back = gait.at_phase(-s)
+    for m in range(k + 1):  # harmonic k + 1 (0-based k): 2π(k + 1)·s0 = 2ψ + 2πm
+        s0 = ((2 * psi / (2 * math.pi) + m) / (k + 1)) % 1.0
+        if np.allclose(back, gait.at_phase(s + s0), rtol=0, atol=atol):
+            return float(s0)
+    return None
+
+
 def shifted_harmonics(c: FloatArray, sn: FloatArray, angles: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Cosine and sine coefficients (na, K) of harmonics 1…K after a time shift, harmonic k by ``angles[k − 1]``.
 

@@ -475,6 +475,54 @@ def test_a_rejected_scaled_start_leaves_the_search_as_it_was() -> None:
     assert search.request().kind == "candidate"
 
 
+def test_a_reverse_trial_turns_a_wave_that_runs_the_slow_way_round() -> None:
+    """neck4's nominal wave swims at a quarter of what the same wave run backwards does; the trust-region
+    steps stay near it, the reverse trial (on by default) runs r(−t) once after the start and keeps it."""
+    from suds_ros.core.physics.gait import time_reversed
+
+    system = load_system(str(ROBOTS / "neck4.yaml"))
+    nom, limits = nominal_gait(system), gait_limits(system)
+    on = optimize_loop(system, LoopConfig(budget_cycles=10, seed=0), start=nom, limits=limits)
+    trial = on.iterations[1]
+    assert trial.accepted and trial.gait.to_vector() == pytest.approx(time_reversed(nom).to_vector())
+    assert evaluate_gait(system, on.gait)["speed"] > 3 * evaluate_gait(system, nom)["speed"]
+    assert constraint_violations(trial.gait, limits) == []
+    off = optimize_loop(system, LoopConfig(budget_cycles=10, seed=0, reverse_trial=False), start=nom, limits=limits)
+    assert off.iterations[1].gait.to_vector() != pytest.approx(trial.gait.to_vector(), abs=0.1)
+    assert evaluate_gait(system, off.gait)["speed"] < 2 * evaluate_gait(system, nom)["speed"]
+
+
+def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_search_as_it_was() -> None:
+    """From a timid start the scaled start runs first, then the (scaled) incumbent backwards; told that the
+    reversed gait measured no better, the search goes on from the incumbent with its radius and data kept.
+    Where backwards is the same drive started elsewhere (purcell3: one joint, one harmonic) it is not tried."""
+    from suds_ros.core.optimize.loop import _Robot, _trim
+    from suds_ros.core.physics.gait import time_reversed
+
+    p3 = make_system("purcell3")
+    search = GaitSearch(nominal_gait(p3), gait_limits(p3), LoopConfig(budget_cycles=30))
+    search.observe(_start_data(p3, nominal_gait(p3), LoopConfig(budget_cycles=30)))
+    assert search.request().kind == "candidate"
+    system = load_system(str(ROBOTS / "neck4.yaml"))
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    cfg = LoopConfig(budget_cycles=30, seed=0)
+    search = GaitSearch(half, limits, cfg)
+    robot = _Robot(system, half, cfg)
+    for kind in ("start", "scale"):
+        req = search.request()
+        assert req.kind == kind
+        rec, _ = robot.run(req.gait, req.cycles)
+        search.observe(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle))
+    best, kappa = search.best, search._kappa  # (the start, or the scaled start if it measured better)
+    req = search.request()
+    assert req.kind == "reverse" and req.gait.to_vector() == pytest.approx(time_reversed(best).to_vector())
+    it = search.observe(search._best_data[-1])  # the incumbent's own cycles: not higher
+    assert not it.accepted and "reversed gait rejected" in it.note and search.best is best
+    assert search._kappa == kappa and search._near == [] and search._rejected == []
+    assert search.request().kind == "candidate"
+
+
 def test_a_stretch_of_one_cycle_keeps_the_returned_gait_as_run() -> None:
     """Counted from another point, a one-cycle stretch (what a change can leave) holds no whole cycle:
     the gait is returned as it ran, and result() does not fail."""

@@ -223,3 +223,51 @@ def test_a_time_shift_keeps_the_motion_and_moves_a_turning_gaits_chord() -> None
         a, b = evaluate_gait(system, gait), evaluate_gait(system, time_shifted(gait, 0.3))
         assert b["rotation"] == pytest.approx(a["rotation"], abs=1e-9)
         assert (abs(b["speed"] / a["speed"] - 1) > 1e-3) == turns, (a, b)
+
+
+def test_a_time_reversal_runs_the_drive_backwards_within_the_same_bounds(tmp_path: Path) -> None:
+    """time_reversed is r'(s) = r(−s): the same range and joint speed; on a robot of actuated joints only
+    (principally kinematic) the body retraces its cycle, as fast and turning the other way."""
+    from suds_ros.core.optimize.physics import evaluate_gait
+    from suds_ros.core.physics.gait import gait_extremes, time_reversed
+    from suds_ros.core.physics.systems import load_system
+
+    model = tmp_path / "driven3.yaml"
+    model.write_text("format: suds-robot/1\nname: driven3\nlinks: [{length: 0.3}, {length: 0.3}, {length: 0.3}]\n"
+                     "joints:\n  - {actuated: true, gait: {amplitude: 0.6, phase: 0.0, offset: 0.2}}\n"
+                     "  - {actuated: true, gait: {amplitude: 0.6, phase: 1.3}}\n")
+    system = load_system(str(model))
+    nom = nominal_gait(system)
+    x = nom.to_vector(3)
+    x[[2, 5, 9, 12]] = [0.05, -0.04, 0.03, 0.02]  # second and third harmonics too
+    gait = nom.from_vector(x, 3)
+    back = time_reversed(gait)
+    s = np.linspace(0.0, 1.0, 101)
+    np.testing.assert_allclose(back.r(s), gait.r(-s), atol=1e-12)
+    np.testing.assert_allclose(back.rdot(s), -gait.rdot(-s), atol=1e-12)
+    np.testing.assert_allclose(gait_extremes(back), gait_extremes(gait), rtol=1e-3)
+    a, b = evaluate_gait(system, gait, work=False), evaluate_gait(system, back, work=False)
+    assert abs(a["rotation"]) > 1e-3  # (the offset makes it turn)
+    assert b["speed"] == pytest.approx(a["speed"], rel=1e-6)
+    assert b["rotation"] == pytest.approx(-a["rotation"], rel=1e-6)
+
+
+def test_a_reversal_is_a_time_shift_only_for_one_joint_at_one_harmonic_or_joints_in_phase() -> None:
+    """reversal_shift: purcell3's single driven sinusoid runs backwards as itself started elsewhere (with a
+    second harmonic in cosine still, in sine not), so do two joints in phase; a travelling wave does not."""
+    from suds_ros.core.physics.gait import reversal_shift, time_reversed, time_shifted
+
+    p3 = nominal_gait(make_system("purcell3"))
+    s0 = reversal_shift(p3)
+    assert s0 is not None
+    np.testing.assert_allclose(time_shifted(p3, s0).to_vector(), time_reversed(p3).to_vector(), atol=1e-12)
+    two = Gait(system="x", gait_hz=1.0, joints=("a", "b"), offset=(0.1, 0.0), cos=((0.3,), (0.6,)),
+               sin=((0.4,), (0.8,)))  # in phase: one shape loop of zero area
+    assert reversal_shift(two) is not None
+    wave = Gait(system="x", gait_hz=1.0, joints=("a", "b"), offset=(0.1, 0.0), cos=((0.3,), (0.6,)),
+                sin=((0.4,), (-0.8,)))
+    assert reversal_shift(wave) is None
+    x = p3.to_vector(2)  # [offset, cos 1, cos 2, sin 1, sin 2]
+    assert reversal_shift(p3.from_vector(np.r_[x[:2], 0.05, x[3:]], 2)) is not None  # cos 2: still a shift
+    harmonics = p3.from_vector(np.r_[x[:4], 0.05], 2)  # sin 2: not
+    assert reversal_shift(harmonics) is None
