@@ -67,9 +67,10 @@ ABLATIONS = {
     "no-reverse": ("reverse_trial", False, "no trial of the wave run backwards",
                    "`LoopConfig.reverse_trial` = False (`--ablation no-reverse`, `--no-reverse-trial`; the default "
                    "runs the incumbent backwards in time, r(−t), the travelling wave the other way, as the step "
-                   "after the scaled start or, when the start is not scaled, after the start, judged by "
-                   "measurement like every candidate; not where backwards is the same drive started elsewhere, "
-                   "as purcell3's): every step is the trust region's, as before 2026-12-02.",
+                   "after the scaled start or, when the start is not scaled, after the start, when the model of "
+                   "the incumbent's cycles predicts it better, judged by measurement like every candidate; not "
+                   "where backwards is the same drive started elsewhere, as purcell3's): every step is the trust "
+                   "region's, as before 2026-12-02.",
                    "rejections (ablation)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
@@ -320,9 +321,10 @@ def report() -> None:
              f"settling + {DEFAULTS.first_cycles} measured cycles; each candidate {DEFAULTS.settle_cycles} settling "
              f"+ {DEFAULTS.step_cycles} measured cycles (every cycle counted); right after the start, a start "
              f"whose oscillation can grow by {DEFAULTS.scale_step:g}× inside its bounds is run scaled to them, and "
-             "the step after that runs the incumbent backwards in time, the travelling wave the other way "
-             "(`reverse_trial`; not where backwards is the same drive started elsewhere, as purcell3's single "
-             "sinusoid); each is kept if it measures better; then the SUDS model is fitted "
+             "the step after that runs the incumbent backwards in time, the travelling wave the other way, "
+             "when the model of its cycles predicts that better (`reverse_trial`; not where backwards is the "
+             "same drive started elsewhere, as purcell3's single sinusoid); each is kept if it measures better; "
+             "then the SUDS model is fitted "
              "to the incumbent gait's measured cycles and to the newest 2 stretches of the candidates rejected "
              "since it became the incumbent (refitted after each rejection); one trust-region step (κ = 2 σ, "
              "doubled after a confirmed full step up to 8, halved after a rejection and after an accepted step "

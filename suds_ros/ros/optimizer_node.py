@@ -108,8 +108,9 @@ class OptimizerNodeConfig:
                                           "over it by more than this many standard errors", ge=0.0)
     scale_step: float = setting(1.25, "right after the start, a start whose oscillation can grow this much inside "
                                       "the joint bounds is run scaled to them (speed, turn; .inf: never)", gt=1.0)
-    reverse_trial: bool = setting(True, "once, after the (scaled) start, run the incumbent backwards in time (the "
-                                        "travelling wave the other way) and go on from whichever measures better")
+    reverse_trial: bool = setting(True, "once, after the (scaled) start, when its model predicts it better, run the "
+                                        "incumbent backwards in time (the travelling wave the other way) and go on "
+                                        "from whichever measures better")
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
