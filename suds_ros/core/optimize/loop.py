@@ -1080,13 +1080,15 @@ class GaitSearch:
         if reversal_shift(gait) is not None:  # backwards it is the same drive: nothing to try
             return None
         cand = time_reversed(gait)
-        try:
-            if self._model is None:
+        if self._model is None:
+            try:
                 self._model = learn_model([*self._best_data, *self._near], torque=self._work)
+            except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+                return None  # (the trust-region step tries the fit again, or finds it unusable)
+        try:
             here, there = predict_value(self._model, gait, objective), predict_value(self._model, cand, objective)
         except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
-            self._model = None  # (the trust-region step refits it, or finds it unusable)
-            return None
+            return None  # no steady state for either drive: no hint (the fitted model is kept for the step)
         if self._best_pred is None:  # the incumbent's model prediction, as a trust-region step would have set it
             self._best_pred, self._pred_model = here, self._model
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index], here, None)

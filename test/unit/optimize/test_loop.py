@@ -557,3 +557,22 @@ def test_a_robot_said_changed_during_a_rejected_scaled_start_is_measured_afresh_
     assert not search.observe(data).accepted  # the same cycles: not higher
     nxt = search.request()
     assert nxt.kind == "rerun" and "the monitor's alarm" in nxt.note
+
+
+def test_a_reverse_hint_without_a_steady_state_keeps_the_fitted_model(monkeypatch: pytest.MonkeyPatch) -> None:
+    """swimmer9's model of its nominal wave has no steady state for the reversed drive: no trial, and the
+    trust-region step uses the model the hint fitted (one fit, not two)."""
+    from suds_ros.core.optimize import loop
+
+    fits = []
+    real = loop.learn_model
+    monkeypatch.setattr(loop, "learn_model", lambda *a, **k: fits.append(1) or real(*a, **k))
+    predicted = []
+    real_predict = loop.predict_value
+    monkeypatch.setattr(loop, "predict_value", lambda *a, **k: predicted.append(1) or real_predict(*a, **k))
+    system = make_system("swimmer9")
+    cfg = LoopConfig(budget_cycles=30, seed=0)
+    search = GaitSearch(nominal_gait(system), gait_limits(system), cfg)
+    search.observe(_start_data(system, nominal_gait(system), cfg))
+    assert search.request().kind == "candidate"
+    assert predicted and len(fits) == 1  # the hint was asked (and said nothing); the step fitted nothing again
