@@ -375,7 +375,7 @@ def _loop(args: argparse.Namespace) -> int:
             "budget_cycles": args.budget_cycles, "cycles_used": res.cycles_used, "stopped": res.stopped,
             "changes": [{"cycle": c, "effects": e} for c, e in changes],
             "changes_taken": [res.iterations[i].cycles_used for i in res.changes],
-            "predicted": res.predicted, "measured": m.value(key),
+            "predicted": res.predicted, "predicted_std": res.predicted_std, "measured": m.value(key),
             "measured_detail": _measurement(m), "simulated": {"returned": true_final, "start": true_start},
             "limit": limit, "limit_note": limit_note,
             "percent_of_limit": None if not limit else 100 * true_final / limit,
@@ -389,10 +389,12 @@ def _loop(args: argparse.Namespace) -> int:
             "limits": {"limit": list(res.limits.limit), "speed_limit": list(res.limits.speed_limit)}}))
         return 0
     pred = "n/a" if res.predicted is None else f"{res.predicted:.5g}"
+    if res.predicted is not None and res.predicted_std is not None:
+        pred += f" ± {res.predicted_std:.2g}"
     print(f"wrote {out}: {system.name}, {key} after {res.cycles_used} of {args.budget_cycles} cycles "
           f"({len(res.iterations)} gaits run), {res.seconds:.1f} s; {res.stopped}")
     print(f"  returned gait (run {res.index}): measured {m.value(key):.5g} {unit} (rotation "
-          f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit}")
+          f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit} (± the sd over the model's coefficient draws)")
     lim = "" if not limit else f", {100 * true_final / limit:.1f} % of the limit {limit:.5g} {unit}"
     print(f"  on the physics (not seen by the loop): {true_final:.5g} {unit}, start gait {true_start:.5g} "
           f"{unit}{lim}")

@@ -339,7 +339,8 @@ class OptimizerNode(Node):
         self._status_pub.publish(self._string(data=dumps({
             "done": True, "stopped": why, "objective": self.params.objective, "index": res.index,
             "measured": res.measured.value(self.params.objective), "predicted": res.predicted,
-            "cycles_requested": res.cycles_used, "cycles_elapsed": round(live.cycles_elapsed, 3),
+            "predicted_std": res.predicted_std, "cycles_requested": res.cycles_used,
+            "cycles_elapsed": round(live.cycles_elapsed, 3),
             "gait": dump_gait(res.gait)}, sort_keys=True)))
         self.get_logger().info(f"done ({why}): best gait from run {res.index}, measured "
                                f"{self.params.objective} {res.measured.value(self.params.objective):.4g}; "

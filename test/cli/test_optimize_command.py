@@ -115,6 +115,7 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert all(it["predicted"] > 0 and it["measured"] > 0 for it in its)
     best = max((it for it in its if it["accepted"]), key=lambda it: it["index"])
     assert doc["measured"] == best["measured"] and doc["predicted"] == best["predicted"]
+    assert doc["predicted_std"] > 0  # the prediction's spread over the model's coefficient draws
     assert doc["limit"] is None and doc["limit_note"] == "skipped: --limit no"
     assert doc["simulated"]["returned"] > 0.5 * doc["simulated"]["start"]
     system = make_system("purcell3")
@@ -123,7 +124,7 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "6", "--limit", "no",
                  "-o", str(tmp_path / "t.yaml")]) == 0
     cap = capsys.readouterr()
-    assert re.search(r"predicted \d\.\d+ m/s", cap.out)  # the start's prediction, though no step was taken
+    assert re.search(r"predicted \d\.\d+ ± \d\.\d+ m/s", cap.out)  # the start's prediction and its spread
     assert "[0] cycles   5" in cap.err and "after 5 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
 
 

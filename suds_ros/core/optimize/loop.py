@@ -140,6 +140,8 @@ MISS_TRUST = 0.5
 #: had grown past ``trust`` (× ``shrink``, not below ``trust``): the model was far off that far out (snake5
 #: from half amplitude: at 8 σ a step predicted +0.56 m/s measured +0.03, and the next 8 σ step halted the robot)
 POOR_RATIO = 0.25
+#: coefficient draws behind the returned gait's ``predicted_std`` (:func:`predicted_std`)
+RESULT_DRAWS = 16
 
 
 @dataclass(frozen=True)
@@ -628,6 +630,9 @@ class LoopResult:
     ----------
     gait : Gait, the best gait measured (``objective``, ``predicted`` set when a model predicted it).
     measured : Measurement of it; predicted : float or None, the model's prediction of it.
+    predicted_std : float or None, the prediction's spread over ``RESULT_DRAWS`` coefficient draws of the
+        model that made it (None: no draws; a model of few cycles on a robot that barely moves predicts
+        far off its measured value, and says so here).
     index : int, the iteration that ran it.
     iterations : tuple of LoopIteration; cycles_used : int; stopped : str, why the loop ended.
     limits : GaitLimits; seconds : float.
@@ -644,6 +649,7 @@ class LoopResult:
     limits: GaitLimits
     seconds: float
     changes: tuple[int, ...] = ()
+    predicted_std: float | None = None
 
 
 class _Robot:
@@ -1359,6 +1365,9 @@ class GaitSearch:
                                                                  self._best_pred, None)
         pred = self._best_pred
         gait, meas = self._best_gait, self._best_meas
+        pred_std = None
+        if self._pred_model is not None and pred is not None:
+            pred_std = predicted_std(self._pred_model, gait, cfg.objective, seed=cfg.seed)
         if (cfg.objective != "turn" and math.isfinite(meas.rotation_se)
                 and abs(meas.rotation) > cfg.origin_sigmas * meas.rotation_se):
             # it turns: count its cycle from the point it went furthest from (the same motion)
@@ -1374,7 +1383,8 @@ class GaitSearch:
                 try:
                     model = (self._pred_model if self._pred_model is not None
                              else learn_model(self._best_data, torque=self._work))
-                    pred = pred * origin_ratio(model, gait, u)
+                    ratio = origin_ratio(model, gait, u)
+                    pred, pred_std = pred * ratio, None if pred_std is None else pred_std * ratio
                 except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
                     pass  # (the model cannot say: the prediction stays that of the cycle from zero)
                 gait, meas = time_shifted(gait, u), shifted
@@ -1382,7 +1392,7 @@ class GaitSearch:
         return LoopResult(gait=out, measured=meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,
                           stopped=self.stopped or "stopped by the caller", limits=self.limits, seconds=seconds,
-                          changes=tuple(self.changes))
+                          changes=tuple(self.changes), predicted_std=pred_std)
 
 
 def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None = None,
@@ -1427,15 +1437,37 @@ def optimize_loop(system: SudsSystem, config: LoopConfig, *, start: Gait | None 
     return run.result(seconds=time.perf_counter() - t0)
 
 
-def predict_value(model: LearnedModel, gait: Gait, objective: str) -> float:
+def predict_value(model: LearnedModel, gait: Gait, objective: str, coef: FloatArray | None = None) -> float:
     """The learned model's objective of ``gait`` at its predicted passive periodic steady state (turn as |rate|).
 
     Counted from the gait's own time zero, as the spec counts a cycle: the model's cycle runs from
     its phase zero, which is the gait's time :func:`~suds_ros.core.optimize.data.align_shift`, and a
     turning cycle's distance depends on where it is counted from (:func:`origin_ratio`).
+    ``coef``: coefficients to predict with instead of the model's (a draw, :meth:`LearnedModel.draw`).
     """
-    value, d, s0 = _model_cycle(model, gait, objective)
+    value, d, s0 = _model_cycle(model, gait, objective, coef)
     return value if d is None else value * _chord_at(d, -s0) / max(float(d[0]), 1e-300)
+
+
+def predicted_std(model: LearnedModel, gait: Gait, objective: str, draws: int = RESULT_DRAWS,
+                  seed: int = 0) -> float | None:
+    """The spread (sd) of :func:`predict_value` over ``draws`` coefficient draws of ``model``.
+
+    The draws come from the coefficients' covariance (:meth:`LearnedModel.draw`, seeded by ``seed``);
+    a draw with no steady state is left out.  None when the model carries no covariance or fewer
+    than two draws predict.
+    """
+    if draws < 2 or model.chol is None:
+        return None
+    rng = np.random.default_rng(seed)
+    values = []
+    for _ in range(draws):
+        try:
+            values.append(predict_value(model, gait, objective, coef=model.draw(rng)))
+        except (SudsDataError, FloatingPointError, np.linalg.LinAlgError):
+            continue
+    values = [v for v in values if math.isfinite(v)]
+    return float(np.std(values, ddof=1)) if len(values) > 1 else None
 
 
 def origin_ratio(model: LearnedModel, gait: Gait, at: float) -> float:
@@ -1449,11 +1481,12 @@ def origin_ratio(model: LearnedModel, gait: Gait, at: float) -> float:
     return 1.0 if d is None else _chord_at(d, at - s0) / max(_chord_at(d, -s0), 1e-300)
 
 
-def _model_cycle(model: LearnedModel, gait: Gait, objective: str) -> tuple[float, FloatArray | None, float]:
+def _model_cycle(model: LearnedModel, gait: Gait, objective: str,
+                 coef: FloatArray | None = None) -> tuple[float, FloatArray | None, float]:
     """(objective counted from the model's phase zero, distances from each step of it or None if straight, s0)."""
     s0 = align_shift(model, gait)
     g = time_shifted(gait, s0)
-    ev = LearnedCycle(model, g.gait_hz, g.order, work=objective == "efficiency")
+    ev = LearnedCycle(model, g.gait_hz, g.order, work=objective == "efficiency", coef=coef)
     x = g.to_vector()
     res = ev.steady_of(x)
     vals = objective_values(res, g.gait_hz)

@@ -576,3 +576,23 @@ def test_a_reverse_hint_without_a_steady_state_keeps_the_fitted_model(monkeypatc
     search.observe(_start_data(system, nominal_gait(system), cfg))
     assert search.request().kind == "candidate"
     assert predicted and len(fits) == 1  # the hint was asked (and said nothing); the step fitted nothing again
+
+
+def test_the_returned_prediction_carries_its_spread_over_coefficient_draws() -> None:
+    """``predicted_std``: the sd of the prediction over seeded coefficient draws of the model that made it
+    (the model's own coefficients give its prediction back; no covariance or one draw: None)."""
+    from suds_ros.core.optimize.data import learn_model
+    from suds_ros.core.optimize.loop import predict_value, predicted_std
+
+    system = make_system("purcell3")
+    gait = nominal_gait(system)
+    cfg = LoopConfig(budget_cycles=5, seed=0)
+    model = learn_model(_start_data(system, gait, cfg))
+    assert predict_value(model, gait, "speed", coef=model.coef) == predict_value(model, gait, "speed")
+    sd = predicted_std(model, gait, "speed", seed=3)
+    assert sd is not None and 0 < sd < predict_value(model, gait, "speed")
+    assert predicted_std(model, gait, "speed", seed=3) == sd and predicted_std(model, gait, "speed", seed=4) != sd
+    assert predicted_std(model, gait, "speed", draws=1) is None
+    assert predicted_std(dataclasses.replace(model, chol=None), gait, "speed") is None
+    res = optimize_loop(system, cfg, start=gait)  # the start only: its model's prediction, with its spread
+    assert res.predicted is not None and res.predicted_std is not None and res.predicted_std > 0
