@@ -631,8 +631,8 @@ class LoopResult:
     gait : Gait, the best gait measured (``objective``, ``predicted`` set when a model predicted it).
     measured : Measurement of it; predicted : float or None, the model's prediction of it.
     predicted_std : float or None, the prediction's spread over ``RESULT_DRAWS`` coefficient draws of the
-        model that made it (None: no draws; a model of few cycles on a robot that barely moves predicts
-        far off its measured value, and says so here).
+        model that made it (None: no draws).  A model of few cycles on a robot that barely moves predicts
+        far off its measured value, and says so here; the model's bias where it extrapolates is not in it.
     index : int, the iteration that ran it.
     iterations : tuple of LoopIteration; cycles_used : int; stopped : str, why the loop ended.
     limits : GaitLimits; seconds : float.
