@@ -389,12 +389,14 @@ def _loop(args: argparse.Namespace) -> int:
             "limits": {"limit": list(res.limits.limit), "speed_limit": list(res.limits.speed_limit)}}))
         return 0
     pred = "n/a" if res.predicted is None else f"{res.predicted:.5g}"
-    if res.predicted is not None and res.predicted_std is not None:
+    spread = ""
+    if res.predicted_std is not None:  # (only a model's prediction has one)
         pred += f" ± {res.predicted_std:.2g}"
+        spread = " (± the sd over the model's coefficient draws)"
     print(f"wrote {out}: {system.name}, {key} after {res.cycles_used} of {args.budget_cycles} cycles "
           f"({len(res.iterations)} gaits run), {res.seconds:.1f} s; {res.stopped}")
     print(f"  returned gait (run {res.index}): measured {m.value(key):.5g} {unit} (rotation "
-          f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit} (± the sd over the model's coefficient draws)")
+          f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit}{spread}")
     lim = "" if not limit else f", {100 * true_final / limit:.1f} % of the limit {limit:.5g} {unit}"
     print(f"  on the physics (not seen by the loop): {true_final:.5g} {unit}, start gait {true_start:.5g} "
           f"{unit}{lim}")
