@@ -319,7 +319,7 @@ CHEAP_LIMIT_JOINTS = 5
 def _loop(args: argparse.Namespace) -> int:
     """``suds optimize --simulate ROBOT``: the offline run → fit → step loop."""
     from suds_ros.core.json_text import dumps
-    from suds_ros.core.optimize.loop import LoopConfig, optimize_loop
+    from suds_ros.core.optimize.loop import LoopConfig, motion_doubt, optimize_loop
     from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
     from suds_ros.core.physics.gait import load_gait, save_gait
     from suds_ros.core.physics.systems import load_system
@@ -369,6 +369,7 @@ def _loop(args: argparse.Namespace) -> int:
         limit_note = (f"skipped: {len(system.joint_names)} joints > {CHEAP_LIMIT_JOINTS} (minutes on 2 cores; "
                       "--limit yes computes it)")
     m = res.measured
+    doubt = motion_doubt(m, key)
     if args.json:
         print(dumps({
             "objective": key, "gait": str(out), "system": system.name, "order": args.order, "seed": args.seed,
@@ -376,7 +377,8 @@ def _loop(args: argparse.Namespace) -> int:
             "changes": [{"cycle": c, "effects": e} for c, e in changes],
             "changes_taken": [res.iterations[i].cycles_used for i in res.changes],
             "predicted": res.predicted, "predicted_std": res.predicted_std, "measured": m.value(key),
-            "measured_detail": _measurement(m), "simulated": {"returned": true_final, "start": true_start},
+            "measured_detail": _measurement(m), "motion_warning": doubt,
+            "simulated": {"returned": true_final, "start": true_start},
             "limit": limit, "limit_note": limit_note,
             "percent_of_limit": None if not limit else 100 * true_final / limit,
             "iterations": [{"index": it.index, "cycles": it.cycles, "cycles_used": it.cycles_used,
@@ -397,6 +399,8 @@ def _loop(args: argparse.Namespace) -> int:
           f"({len(res.iterations)} gaits run), {res.seconds:.1f} s; {res.stopped}")
     print(f"  returned gait (run {res.index}): measured {m.value(key):.5g} {unit} (rotation "
           f"{m.rotation:+.3f} rad/cycle), predicted {pred} {unit}{spread}")
+    if doubt:
+        print(f"  warning: {doubt}")
     lim = "" if not limit else f", {100 * true_final / limit:.1f} % of the limit {limit:.5g} {unit}"
     print(f"  on the physics (not seen by the loop): {true_final:.5g} {unit}, start gait {true_start:.5g} "
           f"{unit}{lim}")
@@ -443,7 +447,8 @@ def _changed_robot(system: object, changes: list[tuple[int, list[dict[str, objec
 
 def _measurement(m: Measurement) -> dict[str, object]:
     out: dict[str, object] = {"speed": m.speed, "speed_se": m.speed_se, "rotation": m.rotation,
-                              "rotation_se": m.rotation_se, "turn": m.turn, "cycles": m.cycles}
+                              "rotation_se": m.rotation_se, "turn": m.turn, "cycles": m.cycles,
+                              "translation_p": m.translation_p}
     if m.work is not None:  # measured from the recorded effort (objective efficiency)
         out.update(work=m.work, efficiency=m.efficiency, efficiency_se=m.efficiency_se)
     return out

@@ -22,8 +22,9 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   ``measured_rotation``, ``cycles_requested`` (what the search asked for) and ``cycles_elapsed``
   (what the robot ran, from the stamps: the wait for a cycle boundary and the time spent deciding
   included), ``window`` (stamps), ``note``, and ``gait`` (text); a last message with ``done``: true
-  and the best gait when the budget is spent or the search converged.  The best gait is then
-  commanded and left running.
+  and the best gait when the budget is spent or the search converged, with ``motion_warning`` (text,
+  or null) when its measured motion cannot be told from none (:func:`~suds_ros.core.optimize.loop.motion_doubt`).
+  The best gait is then commanded and left running.
 
 A changed robot: with ``watch`` (default) the node keeps re-measuring its incumbent after it
 converged, and a re-measurement ``change_sigmas`` standard errors off its standing value, or one
@@ -60,7 +61,7 @@ from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import SudsError
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.live import LiveGaitSearch, decide
-from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, RunRequest
+from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, RunRequest, motion_doubt
 from suds_ros.core.physics.gait import Gait, check_gait, dump_gait, gait_limits, load_gait, nominal_gait
 from suds_ros.core.physics.systems import load_system
 from suds_ros.ros.conversions import (
@@ -336,15 +337,18 @@ class OptimizerNode(Node):
         except SudsError:
             return
         self._publish_gait(res.gait, live.newest_shape)
+        doubt = motion_doubt(res.measured, self.params.objective)
         self._status_pub.publish(self._string(data=dumps({
             "done": True, "stopped": why, "objective": self.params.objective, "index": res.index,
             "measured": res.measured.value(self.params.objective), "predicted": res.predicted,
             "predicted_std": res.predicted_std, "cycles_requested": res.cycles_used,
-            "cycles_elapsed": round(live.cycles_elapsed, 3),
+            "cycles_elapsed": round(live.cycles_elapsed, 3), "motion_warning": doubt,
             "gait": dump_gait(res.gait)}, sort_keys=True)))
         self.get_logger().info(f"done ({why}): best gait from run {res.index}, measured "
                                f"{self.params.objective} {res.measured.value(self.params.objective):.4g}; "
                                "it is commanded and left running")
+        if doubt:
+            self.get_logger().warning(doubt)
 
     def close(self) -> None:
         """Stop the worker process (a step in progress is abandoned)."""

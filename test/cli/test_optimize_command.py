@@ -116,6 +116,7 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     best = max((it for it in its if it["accepted"]), key=lambda it: it["index"])
     assert doc["measured"] == best["measured"] and doc["predicted"] == best["predicted"]
     assert doc["predicted_std"] > 0  # the prediction's spread over the model's coefficient draws
+    assert doc["motion_warning"] is None and doc["measured_detail"]["translation_p"] < 0.05  # it swims
     assert doc["limit"] is None and doc["limit_note"] == "skipped: --limit no"
     assert doc["simulated"]["returned"] > 0.5 * doc["simulated"]["start"]
     system = make_system("purcell3")
@@ -126,6 +127,31 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     cap = capsys.readouterr()
     assert re.search(r"predicted \d\.\d+ ± \d\.\d+ m/s", cap.out)  # the start's prediction and its spread
     assert "[0] cycles   5" in cap.err and "after 5 of 6 cycles" in cap.out and "physics limit skipped" in cap.out
+
+
+FLAP2 = """\
+format: suds-robot/1
+name: flap2
+gait_hz: 1.0
+drag: {c_par: 1.0, c_perp: 2.0}
+links: [{length: 1.0}, {length: 1.0}]
+joints: [{name: hinge, actuated: true, gait: {amplitude: 1.0, phase: 0.0}}]
+"""
+
+
+def test_loop_warns_when_the_robot_does_not_move(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two links and one hinge cannot swim (the scallop theorem): the noise's translation is flagged."""
+    robot = tmp_path / "flap2.yaml"
+    robot.write_text(FLAP2)
+    argv = ["optimize", "--simulate", str(robot), "--budget-cycles", "6", "--seed", "0", "--limit", "no",
+            "-o", str(tmp_path / "f.yaml"), "--overwrite"]
+    assert main([*argv, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert abs(doc["simulated"]["returned"]) < 1e-9 < doc["measured"]  # the physics: none; measured: noise
+    assert doc["measured_detail"]["translation_p"] > 0.05 and "cannot be told from none" in doc["motion_warning"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "warning: the measured translation per cycle" in out and "over 4 cycles" in out
 
 
 def test_loop_with_a_reverse_trial(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -54,6 +54,7 @@ def test_optimizer_node_runs_the_loop_on_the_simulator(start_process, node_comma
     assert measured[0]["kind"] == "start" and same_gait(loads_gait(measured[0]["gait"]), nominal_gait(system))
     assert len(measured) >= 2, opt.output()  # the start gait and at least one candidate were measured
     assert final["cycles_requested"] <= 14 and final["cycles_elapsed"] > final["cycles_requested"]
+    assert final["motion_warning"] is None or "cannot be told from none" in final["motion_warning"]
     switched = [gait_switch_from_msg(m) for m in switches.messages()]
     for run in measured:
         gait = loads_gait(run["gait"])

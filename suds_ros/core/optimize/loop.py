@@ -389,6 +389,9 @@ class Measurement:
     work : float or None, the gait's actuator work per cycle, J (None: no effort measured).
     efficiency, efficiency_se : float or None, distance per cycle over work per cycle, m/J, and its
         standard error (None: no effort measured; NaN: no positive work).
+    translation_p : float or None, the p-value of Hotelling's T² test that the mean translation per
+        cycle is zero (None: fewer than 3 cycles).  Large: the measured speed cannot be told from no
+        motion at all, and a speed measured on noise is biased up (|mean| of zero-mean cycles > 0).
     """
 
     speed: float
@@ -400,6 +403,7 @@ class Measurement:
     work: float | None = None
     efficiency: float | None = None
     efficiency_se: float | None = None
+    translation_p: float | None = None
 
     def value(self, objective: str) -> float:
         """Return the objective: the speed, the efficiency, or for turn the |turn rate|."""
@@ -427,6 +431,8 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     The standard errors are those of the consecutive cycles' values; the speed's is that of the
     cycles' translations along their mean direction (|μ| changes to first order only with μ's
     component along μ: a sideways sway per cycle, large in undulators, does not blur the speed).
+    Whether the translation is there at all: Hotelling's T² of the cycles' (x, y) translations
+    against zero (:func:`translation_p`).  Both treat the cycles as independent draws.
 
     Efficiency (with ``drive``): |mean translation| per cycle over the gait's work per cycle
     W = Σ_i τ̄_i · (θ̄_i − θ̄_i−1), τ̄ and θ̄ the actuated efforts and angles averaged over the
@@ -492,7 +498,72 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
             e_loo = np.hypot(loo[:, 0], loo[:, 1]) / w_loo
             eff_se = float(np.sqrt((m - 1) / m * np.sum((e_loo - e_loo.mean()) ** 2)))
     return Measurement(speed=speed, rotation=rotation, turn=rotation * gait_hz, speed_se=speed_se,
-                       rotation_se=rot_se, cycles=int(m), work=work, efficiency=eff, efficiency_se=eff_se)
+                       rotation_se=rot_se, cycles=int(m), work=work, efficiency=eff, efficiency_se=eff_se,
+                       translation_p=translation_p(g[:, :2]))
+
+
+def translation_p(xy: FloatArray) -> float | None:
+    """P-value of Hotelling's one-sample T² test that the mean of ``xy``'s rows is zero.
+
+    T² = m x̄ᵀ S⁻¹ x̄ over the m rows (S their covariance), and (m − 2) T² / (2 (m − 1)) is F(2, m − 2)
+    distributed when the rows are independent normal draws with mean zero.  Rows that all agree (a
+    noise-free run): 0 if their mean is not zero, else 1.  None for fewer than 3 rows (no degree of
+    freedom is left for S).
+    """
+    from scipy import stats
+
+    xy = np.asarray(xy, dtype=float)
+    m = xy.shape[0]
+    if m < 3 or not np.all(np.isfinite(xy)):
+        return None
+    mean = xy.mean(axis=0)
+    cov = np.cov(xy, rowvar=False)
+    w, v = np.linalg.eigh(cov)
+    scale = float(np.max(np.abs(xy)))
+    if scale == 0.0:
+        return 1.0
+    keep = w > 1e-12 * scale ** 2
+    z = v.T @ mean
+    if np.any(np.abs(z[~keep]) > 1e-9 * scale):  # a mean off every direction the cycles spread in
+        return 0.0
+    if not np.any(keep):
+        return 1.0
+    t2 = m * float(np.sum(z[keep] ** 2 / w[keep]))
+    q = int(np.count_nonzero(keep))  # (1 where the cycles spread along one line only)
+    return float(stats.f.sf((m - q) * t2 / (q * (m - 1)), q, m - q))
+
+
+#: a returned gait whose measured motion has a p-value over this (against none at all) is flagged
+MOTION_ALPHA = 0.05
+
+
+def motion_doubt(m: Measurement, objective: str, alpha: float = MOTION_ALPHA) -> str | None:
+    """A warning when the measured motion behind ``objective`` cannot be told from none (p > ``alpha``).
+
+    ``speed`` and ``efficiency``: the translation per cycle (:attr:`Measurement.translation_p`);
+    ``turn``: the rotation per cycle, by Student's t over the cycles (m − 1 degrees of freedom).
+    None: told apart, or too few cycles to say.
+    """
+    from scipy import stats
+
+    if objective == "turn":
+        if m.cycles < 2 or not math.isfinite(m.rotation_se):
+            return None
+        if m.rotation_se == 0.0:
+            p = 1.0 if m.rotation == 0.0 else 0.0
+        else:
+            p = float(2 * stats.t.sf(abs(m.rotation) / m.rotation_se, m.cycles - 1))
+        what = f"rotation per cycle ({m.rotation:+.3g} ± {m.rotation_se:.2g} rad)"
+    else:
+        if m.translation_p is None:
+            return None
+        p = m.translation_p
+        what = f"translation per cycle (speed {m.speed:.3g} ± {m.speed_se:.2g} m/s)"
+    if p <= alpha:
+        return None
+    return (f"the measured {what} cannot be told from none over {m.cycles} cycles (p = {p:.2f}): the robot may "
+            "not move under this gait, or move too little for so few cycles to show, and a magnitude measured on "
+            "noise is biased up; run it for more cycles")
 
 
 def _phase_work(ra: FloatArray, tau: FloatArray) -> Any:

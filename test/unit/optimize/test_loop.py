@@ -21,7 +21,9 @@ from suds_ros.core.optimize.loop import (
     RunRequest,
     is_better,
     measure_cycles,
+    motion_doubt,
     optimize_loop,
+    translation_p,
 )
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait
@@ -42,8 +44,36 @@ def test_measure_cycles_reads_the_per_cycle_net_motion() -> None:
     assert m.turn == pytest.approx(w, rel=1e-9)
     chord = 2 * v / w * np.sin(w / hz / 2)  # the arc's chord per cycle
     assert m.speed == pytest.approx(chord * hz, rel=1e-6) and m.speed_se < 1e-9
+    assert m.translation_p == 0.0  # every cycle the same, and not zero
     with pytest.raises(SudsConfigError, match="expected at least one cycle"):
         measure_cycles(np.zeros((spc, 3)), spc, hz)
+
+
+def test_translation_p_is_hotellings_test_against_no_motion() -> None:
+    rng = np.random.default_rng(20261202)
+    for m in (3, 4, 8):  # under the null: p uniform, so p < 0.05 in 5 % of draws (binomial sd 0.49 % at 2000)
+        p = np.array([translation_p(rng.normal(size=(m, 2)) * [1.0, 4.0]) for _ in range(2000)])
+        assert 0.035 < np.mean(p < 0.05) < 0.065 and 0.46 < np.mean(p < 0.5) < 0.54
+    # a mean of 1.5 sd per cycle is found over 8 cycles, not over 3
+    shifted = [translation_p(rng.normal(size=(m, 2)) + [1.5, 0.0]) for m in (3, 8) for _ in range(400)]
+    assert np.mean(np.array(shifted[400:]) < 0.05) > 0.8 > np.mean(np.array(shifted[:400]) < 0.05)
+    assert translation_p(np.zeros((4, 2))) == 1.0 and translation_p(np.ones((2, 2))) is None
+    line = np.array([[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])  # spread along x only: a t test along it
+    assert translation_p(line) == pytest.approx(0.0742, abs=1e-3)
+    assert translation_p(line + [0.0, 1.0]) == 0.0  # a mean off the only direction of spread
+
+
+def test_motion_doubt_warns_when_the_motion_cannot_be_told_from_none() -> None:
+    m = Measurement(speed=0.004, rotation=0.02, turn=0.01, speed_se=0.003, rotation_se=0.015, cycles=4,
+                    translation_p=0.31)
+    text = motion_doubt(m, "speed")
+    assert text is not None and "p = 0.31" in text and "4 cycles" in text and "more cycles" in text
+    assert motion_doubt(m, "efficiency") == text
+    assert motion_doubt(dataclasses.replace(m, translation_p=0.01), "speed") is None
+    assert motion_doubt(dataclasses.replace(m, translation_p=None), "speed") is None  # too few cycles to say
+    turn = motion_doubt(m, "turn")  # |0.02| / 0.015 = 1.33 se over 3 degrees of freedom: p = 0.27
+    assert turn is not None and "p = 0.27" in turn and "rotation per cycle" in turn
+    assert motion_doubt(dataclasses.replace(m, rotation=0.2), "turn") is None
 
 
 def _m(speed: float, rotation: float) -> Measurement:
