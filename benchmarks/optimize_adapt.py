@@ -4,8 +4,9 @@ The simulated robot (default OU perturbation, 100 Hz, 1 mm / 1 mrad noise, seede
 its nominal gait; after ``change`` cycles it becomes the nominal system with catalogue effects
 (``optimize_loop(..., changes=...)``: the loop is not told).  The loop runs with ``watch`` on
 (at convergence it keeps re-measuring its incumbent, as a deployed robot would) and its default
-change tests (``change_sigmas`` = 2.5 on the measured speed and rotation, ``model_miss`` on the
-model's prediction along the run's own shapes, calibrated here on both robots).  After the run
+change tests (``change_sigmas`` = 2.5 on the measured speed and rotation; ``passive_alpha`` = 0.01
+on a rerun's passive shapes against its standing runs'; ``model_miss`` on the model's prediction
+along a rejected candidate's own shapes, which has the incumbent re-run, calibrated here on both robots).  After the run
 every incumbent is evaluated on the physics in force at that cycle (before the change the
 nominal, after it the changed one) at its passive periodic steady state; the limits are the
 physics optimiser's best gaits (order 3, 4 starts) on the nominal and the changed physics.
@@ -157,8 +158,10 @@ def report() -> None:
     lines = ["# Adaptation: the loop on a robot that changes mid-run", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_adapt.py`.", "",
              "The robot changes unannounced after the given cycle; the loop (`optimize_loop`, defaults, `watch` on; "
-             "its change tests: a re-measured incumbent 2.5 se off its standing value, or a run whose motion the "
-             "model misses by more than `model_miss`, table below) must notice from its own measurements.  "
+             "its change tests: a re-measured incumbent 2.5 se off its standing value, or whose passive shapes "
+             "differ from its standing runs' at `passive_alpha` = 0.01 (`change.passive_shift`, no model); a "
+             "rejected candidate whose motion the model misses by more than `model_miss` (table below) has the "
+             "incumbent re-run at once) must notice from its own measurements.  "
              "Percentages are of the limit of the physics in force: a gait's true speed at its passive periodic "
              "steady state over the physics "
              "optimiser's best (order 3, 4 starts).  'rotation' is the true net rotation per cycle of the "

@@ -28,7 +28,8 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
 
 A changed robot: with ``watch`` (default) the node keeps re-measuring its incumbent after it
 converged, and a re-measurement ``change_sigmas`` standard errors off its standing value, or one
-whose motion the model of the standing data cannot explain (``model_miss``), drops
+whose passive shapes differ from the standing runs' (``passive_alpha``; on a robot without passive
+joints, whose motion the model of the standing data cannot explain: ``model_miss``), drops
 the old data and starts the search afresh on the robot as it is now (see
 :class:`~suds_ros.core.optimize.loop.GaitSearch`); with ``listen_monitor`` a ``suds/mismatch``
 channel of the monitor node entering ERROR says so directly.
@@ -101,7 +102,10 @@ class OptimizerNodeConfig:
                                         "means the robot changed", gt=0.0)
     model_miss: float = setting(0.15, "a run whose motion misses the model's prediction along its own shapes by "
                                       "this much (fraction of its translation, or rad of yaw per cycle) means the "
-                                      "robot changed", gt=0.0)
+                                      "robot changed (on a robot without passive joints)", gt=0.0)
+    passive_alpha: float = setting(0.01, "a re-measured incumbent whose passive shapes differ from its standing runs' "
+                                         "at this significance (no model) means the robot changed; 0: never (the "
+                                         "model's miss instead)", ge=0.0, lt=1.0)
     half_wave: bool = setting(True, "from a half-wave symmetric incumbent (a travelling sine) measured on course, "
                                     "steps move only the odd harmonics: a straight course on a mirror-symmetric "
                                     "robot whatever the model's yaw says (speed, efficiency)")
@@ -137,7 +141,8 @@ class OptimizerNodeConfig:
                           first_cycles=self.first_cycles, step_cycles=self.step_cycles,
                           settle_cycles=self.settle_cycles, order=self.order,
                           samples_per_cycle=self.samples_per_cycle, watch=self.watch,
-                          change_sigmas=self.change_sigmas, model_miss=self.model_miss, half_wave=self.half_wave,
+                          change_sigmas=self.change_sigmas, model_miss=self.model_miss,
+                          passive_alpha=self.passive_alpha, half_wave=self.half_wave,
                           rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
                           reverse_trial=self.reverse_trial)
 

@@ -141,3 +141,11 @@ def test_the_monitors_alarm_says_the_robot_changed_once_per_episode(ros_context)
         node._future = None
         node.close()
         node.destroy_node()
+
+
+def test_the_node_passes_its_change_tests_to_the_search() -> None:
+    from suds_ros.ros.optimizer_node import OptimizerNodeConfig
+
+    cfg = OptimizerNodeConfig(passive_alpha=0.05, model_miss=0.3, change_sigmas=3.0).loop_config()
+    assert (cfg.passive_alpha, cfg.model_miss, cfg.change_sigmas) == (0.05, 0.3, 3.0)
+    assert OptimizerNodeConfig().loop_config().passive_alpha == 0.01

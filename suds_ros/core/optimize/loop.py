@@ -95,6 +95,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.optimize.change import hotelling_p, passive_shift
 from suds_ros.core.optimize.data import (
     DataOptimizeConfig,
     LearnedCycle,
@@ -289,7 +290,21 @@ class LoopConfig:
         of 10 for the rest (``docs/results/optimize_miss.md``): the miss is a fraction of a translation
         that may be small, and its standard error, over 4 cycles, leaves out the model's own error
         (the coefficients' covariance, propagated, swamps even a true change: not used).  There a
-        false change costs the incumbent's data and a re-run.  ``inf``: never.
+        false change costs the incumbent's data and a re-run.  ``inf``: never.  On a robot with
+        passive joints a rerun is judged by ``passive_alpha`` instead (a rejected candidate's miss
+        still has the incumbent re-run).
+    passive_alpha : float
+        On a robot with passive joints, a rerun of the incumbent whose passive shapes differ from those
+        of its standing stretches at this significance (:func:`~suds_ros.core.optimize.change.passive_shift`:
+        per joint, a two-sample T² of each cycle's mean, cosine and sine of the angle, Bonferroni over the
+        joints), its last cycle nearer the new shapes than the old, counts as changed, its cycles before
+        the change dropped.  No model enters, so the model's error on a slow gait cannot raise it: a
+        re-run of the same gait on the same robot read p ≥ 0.10 in every one of 56 runs of 7 slow
+        robot–gait pairs where ``model_miss`` alarmed in up to 9 of 10, and p ≤ 0.0064 in every one of 32
+        runs of purcell3 with a 3× stiffer spring and snake5 with a spring rest bent by 0.7 rad, at the
+        nominal gait and at half amplitude (``docs/results/optimize_miss.md``).  A change that leaves
+        the shapes alone (a uniform current) is left to ``change_sigmas``.  0: never (``model_miss``
+        judges the rerun instead).
     half_wave : bool
         When the incumbent gait is half-wave symmetric (r(t + T/2) = −r(t), as a designer's
         travelling wave is) and the objective is ``speed`` or ``efficiency``, the step moves only
@@ -328,6 +343,7 @@ class LoopConfig:
     watch: bool = False
     change_sigmas: float = 2.5
     model_miss: float = 0.15
+    passive_alpha: float = 0.01
     half_wave: bool = True
     rotation_sigmas: float = 1.0
     scale_step: float = 1.25
@@ -363,6 +379,7 @@ class LoopConfig:
                   ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
                   ("change_sigmas", self.change_sigmas > 0, "> 0"),
                   ("model_miss", self.model_miss > 0, "> 0"),
+                  ("passive_alpha", 0 <= self.passive_alpha < 1, "in [0, 1)"),
                   ("samples_per_cycle", self.samples_per_cycle >= 8, "≥ 8"),
                   ("ou_std", self.ou_std >= 0, "≥ 0"), ("kappa", self.kappa > 0, "> 0"),
                   ("noise_std", self.noise_std >= 0, "≥ 0")]
@@ -506,31 +523,15 @@ def translation_p(xy: FloatArray) -> float | None:
     """P-value of Hotelling's one-sample T² test that the mean of ``xy``'s rows is zero.
 
     T² = m x̄ᵀ S⁻¹ x̄ over the m rows (S their covariance), and (m − 2) T² / (2 (m − 1)) is F(2, m − 2)
-    distributed when the rows are independent normal draws with mean zero.  Rows that all agree (a
-    noise-free run): 0 if their mean is not zero, else 1.  None for fewer than 3 rows (no degree of
-    freedom is left for S).
+    distributed when the rows are independent normal draws with mean zero (:func:`change.hotelling_p`).
+    Rows that all agree (a noise-free run): 0 if their mean is not zero, else 1.  None for fewer
+    than 3 rows (no degree of freedom is left for S).
     """
-    from scipy import stats
-
     xy = np.asarray(xy, dtype=float)
     m = xy.shape[0]
     if m < 3 or not np.all(np.isfinite(xy)):
         return None
-    mean = xy.mean(axis=0)
-    cov = np.cov(xy, rowvar=False)
-    w, v = np.linalg.eigh(cov)
-    scale = float(np.max(np.abs(xy)))
-    if scale == 0.0:
-        return 1.0
-    keep = w > 1e-12 * scale ** 2
-    z = v.T @ mean
-    if np.any(np.abs(z[~keep]) > 1e-9 * scale):  # a mean off every direction the cycles spread in
-        return 0.0
-    if not np.any(keep):
-        return 1.0
-    t2 = m * float(np.sum(z[keep] ** 2 / w[keep]))
-    q = int(np.count_nonzero(keep))  # (1 where the cycles spread along one line only)
-    return float(stats.f.sf((m - q) * t2 / (q * (m - 1)), q, m - q))
+    return hotelling_p(xy.mean(axis=0), np.cov(xy, rowvar=False), m, m - 1)
 
 
 #: a returned gait whose measured motion has a p-value over this (against none at all) is flagged
@@ -975,8 +976,9 @@ class GaitSearch:
     below it, after a rejected candidate whose measured motion the model cannot explain along the
     candidate's own shapes (``model_miss``), and when :meth:`robot_changed` is called (the live
     monitor's alarm).  A rerun that measures more than ``change_sigmas`` standard errors away from
-    the standing measurement, or whose motion misses the model of the standing data by
-    ``model_miss`` (or any rerun after :meth:`robot_changed`), *replaces* the incumbent's data:
+    the standing measurement, or whose passive shapes differ from the standing stretches' at
+    ``passive_alpha`` (on a robot without passive joints: whose motion misses the model of the
+    standing data by ``model_miss``), or any rerun after :meth:`robot_changed`, *replaces* the incumbent's data:
     the old stretches are dropped (and the rerun's own cycles from before the change), and the
     model and the search start afresh on the changed robot.  Otherwise the
     stretches are pooled.  For ``turn`` and ``efficiency``, whose floor is the start gait's speed,
@@ -1222,7 +1224,17 @@ class GaitSearch:
         why = f"said changed: {self._change_reason}" if self._fresh else (
             f"measured {moved} from its standing value" if moved else "")
         first = 0  # the stretch's first cycle on the changed robot
-        if not why and math.isfinite(cfg.model_miss):
+        by_shapes = bool(data.passive) and cfg.passive_alpha > 0
+        if not why and by_shapes:  # its passive shapes against those of the standing stretches: no model
+            try:
+                shift = passive_shift(self._best_data, data, req.gait.gait_hz)
+            except SudsDataError:
+                shift = None
+            if shift is not None and shift.p < cfg.passive_alpha and shift.start is not None:
+                why = (f"passive joint {shift.joint} ran {shift.size:.3g} rad (RMS over the cycle) off its shapes "
+                       f"in the standing runs, p = {shift.p:.2g}")
+                first = shift.start
+        elif not why and math.isfinite(cfg.model_miss):
             try:  # the model of the standing data, on the new stretch of the same gait
                 text, miss = self._miss(learn_model(self._best_data), data)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):

@@ -239,7 +239,7 @@ def test_after_a_change_the_speed_floor_is_measured_on_the_changed_robot(purcell
     assert floor.accepted == (search.best is start)
 
 
-@pytest.mark.parametrize("case", ["whole", "straddle", "off"])
+@pytest.mark.parametrize("case", ["whole", "straddle", "off", "passive"])
 def test_a_candidate_the_model_cannot_explain_has_the_incumbent_run_again(purcell3, case) -> None:  # type: ignore
     """The start's cycles come from the nominal robot, the candidate's from the robot with its spring 3× stiffer:
     its motion misses the model's prediction along its own shapes by far more than the perturbations do, so the
@@ -247,10 +247,12 @@ def test_a_candidate_the_model_cannot_explain_has_the_incumbent_run_again(purcel
     old data are dropped.  When the change comes inside the rerun (``straddle``: its first 2 measured cycles
     still nominal), those cycles go too, and the 2 left have the incumbent run again for more.  With
     ``model_miss`` = inf (``off``) no miss is looked for.  The measured speeds' own change test is switched off
-    (``change_sigmas``), so only the model's miss decides."""
+    (``change_sigmas``), and so is the passive shapes' (``passive_alpha`` = 0) but in ``passive``, where it
+    judges the rerun: its spring's shapes moved."""
     stiff = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
     cfg = LoopConfig(budget_cycles=40, model_miss=float("inf") if case == "off" else 0.15, change_sigmas=1e9,
-                     trust=0.5)  # the candidate within 0.5 σ of the model's data, where a miss is looked for
+                     trust=0.5,  # the candidate within 0.5 σ of the model's data, where a miss is looked for
+                     passive_alpha=0.01 if case == "passive" else 0.0)
     search = GaitSearch(nominal_gait(purcell3), gait_limits(purcell3), cfg)
     sim = StreamingSimulator(purcell3, _stream(purcell3).config)
     names = purcell3.joint_names
@@ -277,6 +279,10 @@ def test_a_candidate_the_model_cannot_explain_has_the_incumbent_run_again(purcel
         return
     assert req.kind == "rerun" and "away from the model's prediction along its own shapes" in req.note, req.note
     it = search.observe(run(req, stiff, nominal_first=3 if case == "straddle" else 0))  # settle + 2 measured
+    if case == "passive":
+        assert "the robot changed (passive joint joint_2 ran" in it.note and search.changes == [2], it.note
+        assert it.measured.cycles == 4 and search.request().kind == "candidate"
+        return
     assert "the robot changed (moved" in it.note and search.changes == [2], it.note
     if case == "whole":
         assert it.measured.cycles == 4 and search.request().kind == "candidate"
