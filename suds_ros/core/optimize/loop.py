@@ -298,11 +298,11 @@ class LoopConfig:
         of its standing stretches at this significance (:func:`~suds_ros.core.optimize.change.passive_shift`:
         per joint, a two-sample T² of each cycle's mean, cosine and sine of the angle, Bonferroni over the
         joints), its last cycle nearer the new shapes than the old, counts as changed, its cycles before
-        the change dropped.  No model enters, so the model's error on a slow gait cannot raise it: a
-        re-run of the same gait on the same robot read p ≥ 0.10 in every one of 56 runs of 7 slow
-        robot–gait pairs where ``model_miss`` alarmed in up to 9 of 10, and p ≤ 0.0064 in every one of 32
-        runs of purcell3 with a 3× stiffer spring and snake5 with a spring rest bent by 0.7 rad, at the
-        nominal gait and at half amplitude (``docs/results/optimize_miss.md``).  A change that leaves
+        the change dropped.  No model enters, so the model's error on a slow gait cannot raise it: on
+        re-runs of the same gait on the same robot (6 robots × 3 gaits × 10 seeds) it alarmed in 1 of
+        180, where ``model_miss`` alarmed in 45 (up to 9 of 10 per pair); on purcell3 with a 3× stiffer
+        spring and snake5 with a spring rest bent by 0.7 rad, at the nominal gait and at half
+        amplitude, it saw 39 of 40 (``docs/results/optimize_miss.md``).  A change that leaves
         the shapes alone (a uniform current) is left to ``change_sigmas``.  0: never (``model_miss``
         judges the rerun instead).
     half_wave : bool
