@@ -304,7 +304,7 @@ class LoopConfig:
         spring and snake5 with a spring rest bent by 0.7 rad, at the nominal gait and at half
         amplitude, it saw 39 of 40 (``docs/results/optimize_miss.md``).  A change that leaves
         the shapes alone (a uniform current) is left to ``change_sigmas``.  0: never (``model_miss``
-        judges the rerun instead).
+        judges the rerun instead, as it does where a cycle has too few shape samples to compare).
     half_wave : bool
         When the incumbent gait is half-wave symmetric (r(t + T/2) = −r(t), as a designer's
         travelling wave is) and the objective is ``speed`` or ``efficiency``, the step moves only
@@ -1224,17 +1224,17 @@ class GaitSearch:
         why = f"said changed: {self._change_reason}" if self._fresh else (
             f"measured {moved} from its standing value" if moved else "")
         first = 0  # the stretch's first cycle on the changed robot
-        by_shapes = bool(data.passive) and cfg.passive_alpha > 0
-        if not why and by_shapes:  # its passive shapes against those of the standing stretches: no model
+        shift = None
+        if not why and data.passive and cfg.passive_alpha > 0:  # its passive shapes against the standing ones
             try:
                 shift = passive_shift(self._best_data, data, req.gait.gait_hz)
-            except SudsDataError:
+            except SudsDataError:  # (a cycle with too few shape samples: the body's test instead)
                 shift = None
             if shift is not None and shift.p < cfg.passive_alpha and shift.start is not None:
                 why = (f"passive joint {shift.joint} ran {shift.size:.3g} rad (RMS over the cycle) off its shapes "
                        f"in the standing runs, p = {shift.p:.2g}")
                 first = shift.start
-        elif not why and math.isfinite(cfg.model_miss):
+        if not why and shift is None and math.isfinite(cfg.model_miss):
             try:  # the model of the standing data, on the new stretch of the same gait
                 text, miss = self._miss(learn_model(self._best_data), data)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
