@@ -25,6 +25,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsDataError
+from suds_ros.core.fourier import fourier_basis
 from suds_ros.core.recording import Recording
 
 #: per-cycle features of a passive joint: its angle's mean, cosine and sine over the cycle's phase
@@ -84,9 +85,7 @@ def passive_features(rec: Recording, gait_hz: float) -> FloatArray:
         if np.count_nonzero(sel) < MIN_SAMPLES:
             raise SudsDataError(f"`rec`: expected at least {MIN_SAMPLES} samples in gait cycle {c}, got "
                                 f"{int(np.count_nonzero(sel))}", code=TOO_LITTLE_DATA)
-        phi = 2 * np.pi * (u[sel] - c)
-        basis = np.column_stack([np.ones(phi.size), np.cos(phi), np.sin(phi)])
-        out[c] = np.linalg.lstsq(basis, r[sel], rcond=None)[0]
+        out[c] = np.linalg.lstsq(fourier_basis(2 * np.pi * (u[sel] - c), 1), r[sel], rcond=None)[0]
     return out
 
 
