@@ -149,7 +149,8 @@ def passive_shift(standing: Recording | Sequence[Recording], new: Recording, gai
 
     nearer_new = dist(b, mb) < dist(b, ma)
     start = None
-    if nearer_new[-1]:
-        start = int(nb - np.argmin(nearer_new[::-1]) if not nearer_new.all() else 0)
+    if nearer_new[-1]:  # just after the last cycle still nearer the old shapes (0: none is)
+        older = np.flatnonzero(~nearer_new)
+        start = int(older[-1] + 1) if older.size else 0
     return PassiveShift(p=float(min(1.0, ps[j] * ps.size)), size=size, joint=new.passive[j], cycles=(na, nb),
                         start=start)
