@@ -118,6 +118,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                         "better, run the incumbent backwards in time, the travelling wave the other way, and go on "
                         "from whichever measures better (the steps are local: they do not turn a wave round; "
                         "costs one run; default on)")
+    p.add_argument("--rotation-from-model", action=argparse.BooleanOptionalAction, default=True,
+                   help="--simulate: judge the straight-course bound (speed, efficiency) on the rotation of the SUDS "
+                        "model fitted to each run's own cycles, at its steady state, where it fits; else on the "
+                        "mean of the cycles (default on: the closer reading)")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
@@ -340,7 +344,7 @@ def _loop(args: argparse.Namespace) -> int:
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
                          half_wave=args.half_wave != "no", scale_step=args.scale_step,
-                         reverse_trial=args.reverse_trial)
+                         reverse_trial=args.reverse_trial, rotation_from_model=args.rotation_from_model)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None
@@ -449,6 +453,8 @@ def _measurement(m: Measurement) -> dict[str, object]:
     out: dict[str, object] = {"speed": m.speed, "speed_se": m.speed_se, "rotation": m.rotation,
                               "rotation_se": m.rotation_se, "turn": m.turn, "cycles": m.cycles,
                               "translation_p": m.translation_p}
+    if m.model_rotation is not None:  # the rotation the straight-course bound was judged on
+        out.update(model_rotation=m.model_rotation, model_rotation_se=m.model_rotation_se)
     if m.work is not None:  # measured from the recorded effort (objective efficiency)
         out.update(work=m.work, efficiency=m.efficiency, efficiency_se=m.efficiency_se)
     return out

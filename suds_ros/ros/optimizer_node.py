@@ -116,6 +116,9 @@ class OptimizerNodeConfig:
     reverse_trial: bool = setting(True, "once, after the (scaled) start, when its model predicts it better, run the "
                                         "incumbent backwards in time (the travelling wave the other way) and go on "
                                         "from whichever measures better")
+    rotation_from_model: bool = setting(True, "judge the straight-course bound on the rotation of the SUDS model "
+                                              "fitted to each run's own cycles, where it fits (else the mean of "
+                                              "the cycles)")
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -144,7 +147,7 @@ class OptimizerNodeConfig:
                           change_sigmas=self.change_sigmas, model_miss=self.model_miss,
                           passive_alpha=self.passive_alpha, half_wave=self.half_wave,
                           rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
-                          reverse_trial=self.reverse_trial)
+                          reverse_trial=self.reverse_trial, rotation_from_model=self.rotation_from_model)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

@@ -117,6 +117,8 @@ def test_optimize_loop_on_a_simulated_robot(tmp_path: Path, capsys: pytest.Captu
     assert doc["measured"] == best["measured"] and doc["predicted"] == best["predicted"]
     assert doc["predicted_std"] > 0  # the prediction's spread over the model's coefficient draws
     assert doc["motion_warning"] is None and doc["measured_detail"]["translation_p"] < 0.05  # it swims
+    # the rotation the straight-course bound was judged on: the model of the gait's own cycles (purcell3 runs straight)
+    assert all(abs(it["measured_detail"]["model_rotation"]) < 0.05 for it in its)
     assert doc["limit"] is None and doc["limit_note"] == "skipped: --limit no"
     assert doc["simulated"]["returned"] > 0.5 * doc["simulated"]["start"]
     system = make_system("purcell3")
@@ -152,6 +154,16 @@ def test_loop_warns_when_the_robot_does_not_move(tmp_path: Path, capsys: pytest.
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "warning: the measured translation per cycle" in out and "over 4 cycles" in out
+
+
+def test_loop_reads_the_rotation_from_the_mean_of_the_cycles_on_request(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--no-rotation-from-model``: no run carries the model's rotation; the bound reads the cycles' mean."""
+    assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "10", "--seed", "1", "--limit", "no",
+                 "--no-rotation-from-model", "-o", str(tmp_path / "m.yaml"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [it["cycles_used"] for it in doc["iterations"]] == [5, 10]
+    assert all("model_rotation" not in it["measured_detail"] for it in doc["iterations"])
 
 
 def test_loop_with_a_reverse_trial(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -149,3 +149,10 @@ def test_the_node_passes_its_change_tests_to_the_search() -> None:
     cfg = OptimizerNodeConfig(passive_alpha=0.05, model_miss=0.3, change_sigmas=3.0).loop_config()
     assert (cfg.passive_alpha, cfg.model_miss, cfg.change_sigmas) == (0.05, 0.3, 3.0)
     assert OptimizerNodeConfig().loop_config().passive_alpha == 0.01
+
+
+def test_the_node_passes_how_the_rotation_is_read_to_the_search() -> None:
+    from suds_ros.ros.optimizer_node import OptimizerNodeConfig
+
+    assert OptimizerNodeConfig().loop_config().rotation_from_model
+    assert not OptimizerNodeConfig(rotation_from_model=False).loop_config().rotation_from_model
