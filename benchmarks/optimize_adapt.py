@@ -21,11 +21,13 @@ import json
 import statistics
 import time
 
+import numpy as np
 from _common import RESULTS, SNAKE5, machine, run_report_cli, stamp, write
 
+from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.json_text import dumps
 from suds_ros.core.optimize.data import learn_model, motion_miss
-from suds_ros.core.optimize.loop import LoopConfig, measure_recording, optimize_loop
+from suds_ros.core.optimize.loop import LoopConfig, measure_recording, model_rotation, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.gait import Gait, gait_limits, nominal_gait
@@ -85,11 +87,13 @@ def rotation_window(changed, limit_new, gait: Gait) -> dict:  # type: ignore[no-
     When the changed robot's best gait turns at the speed objective's bound, a gait within some
     fraction of that limit must turn by nearly as much: the limit under tighter bounds (order 3,
     8 starts) gives the band.  Against it, the scatter of the rotation the loop measures over one
-    candidate's 4 cycles (after 1 settling cycle; seeds 0–11) of ``gait`` on the changed robot.
+    candidate's 4 cycles (after 1 settling cycle; seeds 0–11) of ``gait`` on the changed robot: the
+    mean of the cycles, and the SUDS model of those cycles at δ = 0 (``model_rotation``: what the loop
+    judges the bound on where the model fits).
     """
     bound = OptimizeConfig().max_rotation
     out: dict = {"bound": bound, "limit_rotation": _true(changed, limit_new.gait)["rotation"], "tight": [],
-                 "scatter": []}
+                 "scatter": [], "model_scatter": []}
     if abs(out["limit_rotation"]) >= 0.9 * bound:
         for b in TIGHT_BOUNDS:
             r = optimize_gait(changed, OptimizeConfig(order=3, starts=8, max_rotation=b))
@@ -97,8 +101,12 @@ def rotation_window(changed, limit_new, gait: Gait) -> dict:  # type: ignore[no-
     spc = SimConfig().samples_per_cycle
     for seed in SCATTER_SEEDS:
         rec = simulate(changed, SimConfig(cycles=5, seed=seed, gait=gait, gait_hz=gait.gait_hz))
-        m = measure_recording(rec.slice(spc - 1, rec.n_samples), spc, gait.gait_hz)
-        out["scatter"].append(m.rotation)
+        cycles = rec.slice(spc - 1, rec.n_samples)
+        out["scatter"].append(measure_recording(cycles, spc, gait.gait_hz).rotation)
+        try:
+            out["model_scatter"].append(model_rotation(learn_model(cycles), gait, draws=0)[0])
+        except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+            pass  # (no model: the loop reads the mean there)
     return out
 
 
@@ -217,7 +225,11 @@ def report() -> None:
                                   f"rad/cycle (interpolated): a band {win['bound'] - b90:.3f} rad/cycle wide.")
             lines[-1] += (f"  One candidate's rotation reading (4 cycles after 1 settling; {len(win['scatter'])} "
                           f"seeds) of the nominal gait on the changed robot scatters by {sd:.3f} rad/cycle (sd), "
-                          f"mean {statistics.fmean(win['scatter']):+.3f}.")
+                          f"mean {statistics.fmean(win['scatter']):+.3f}")
+            ms = win.get("model_scatter") or []
+            lines[-1] += (f"; the model of the same cycles, which the loop judges the bound on, by "
+                          f"{statistics.stdev(ms):.3f} (sd over {len(ms)}), mean {statistics.fmean(ms):+.3f}."
+                          if len(ms) > 1 else ".")
         cal = doc.get("miss_calibration")
         if cal:
             lines += ["", f"The model's miss (`motion_miss`, the loop's change test at `model_miss` = "

@@ -96,6 +96,11 @@ def run(name: str, seeds: list[int]) -> None:
         (RESULTS / f"optimize_cma_{name}.json").write_text(dumps(doc))
 
 
+#: two true speeds this close (relative) are level: the start gait's, evaluated where the loop ran and where
+#: CMA-ES ran, differ by a few units in the last place (purcell3: 0.08664591258028093 against ...095)
+REL_LEVEL = 1e-9
+
+
 def _at(rows: list[dict], cycles: int, key: str) -> float | None:
     done = [r for r in rows if r["cycles_used"] <= cycles and r.get(key) is not None]
     return done[-1][key] if done else None
@@ -117,7 +122,8 @@ def _cells(doc: dict, loop: dict, cps: tuple[int, ...]) -> tuple[list[str], int,
             fmt = [("—" if v is None else f"{100 * v / lim:.1f}") for v in (ours, theirs)]
             cells.append(" / ".join(fmt))
             total += 1
-            ahead += int(ours is not None and (theirs is None or ours >= theirs))
+            # level within REL_LEVEL: the same gait evaluated on two machines differs in its last bits
+            ahead += int(ours is not None and (theirs is None or ours >= theirs * (1 - REL_LEVEL)))
         rows.append("| " + " | ".join(cells) + " |")
     return rows, ahead, total
 
