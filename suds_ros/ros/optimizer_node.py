@@ -157,7 +157,8 @@ def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,
     return dumps({
         "index": it.index, "kind": request.kind, "accepted": it.accepted, "objective": objective,
         "measured": m.value(objective), "measured_se": m.value_se(objective),
-        "measured_rotation": m.rotation, "predicted": it.predicted, "predicted_std": it.predicted_std,
+        "measured_rotation": m.rotation, "model_rotation": m.model_rotation,  # (the bound's reading where set)
+        "predicted": it.predicted, "predicted_std": it.predicted_std,
         "cycles_requested": live.search.cycles_used, "cycles_elapsed": round(live.cycles_elapsed, 3),
         "switched": window[0], "window": list(window[1:]), "note": it.note, "gait": dump_gait(it.gait),
         "done": False}, sort_keys=True)

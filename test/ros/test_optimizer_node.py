@@ -65,6 +65,9 @@ def test_optimizer_node_runs_the_loop_on_the_simulator(start_process, node_comma
         assert start == pytest.approx(run["switched"] + 1.0, abs=1e-6)
         assert end - start == pytest.approx(4.0, abs=1e-6)  # the start's measured cycles too (first_cycles)
         assert np.isfinite(run["measured"]) and run["measured"] > 0
+    # the rotation the straight-course bound was judged on: the model of the run's own cycles (purcell3: straight)
+    assert any(run["model_rotation"] is not None for run in measured)
+    assert all(abs(run["model_rotation"]) < 0.05 for run in measured if run["model_rotation"] is not None)
     best = loads_gait(final["gait"])
     # the best gait is commanded last, as a trajectory of one cycle for the actuated joint
     wait_for(lambda: trajectories.messages()
