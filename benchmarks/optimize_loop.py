@@ -78,6 +78,13 @@ ABLATIONS = {
                       "to its own cycles, at δ = 0, where it fits: `docs/results/optimize_rotation.md`): the "
                       "straight-course bound is judged on the mean of the measured cycles' rotations, as before "
                       "2026-12-04.", "rejections (ablation)"),
+    "pool-incumbents": ("pool_incumbents", 2, "the earlier incumbents' newest 2 stretches pooled too (an option)",
+                        "`LoopConfig.pool_incumbents` = 2 (`--ablation pool-incumbents`, `--pool-incumbents 2`; the "
+                        "default, 0, fits each step's model to the incumbent's stretches and the rejected candidates' "
+                        "only): the newest 2 stretches of the gaits that were the incumbent before the current one "
+                        "are pooled into its model too.  Not an ablation of a default but an option measured against "
+                        "it: the model of a few cycles over-predicts a step's gain on swimmer9 "
+                        "(`optimize_step_aim.md`), and more data nearby narrows that.", "rejections (option)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "

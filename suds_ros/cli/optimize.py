@@ -118,6 +118,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                         "better, run the incumbent backwards in time, the travelling wave the other way, and go on "
                         "from whichever measures better (the steps are local: they do not turn a wave round; "
                         "costs one run; default on)")
+    p.add_argument("--pool-incumbents", type=int, default=0, metavar="N",
+                   help="--simulate: also fit each step's model to the newest N stretches of the earlier incumbents "
+                        "(default 0: the incumbent's and the rejected candidates' only)")
     p.add_argument("--rotation-from-model", action=argparse.BooleanOptionalAction, default=True,
                    help="--simulate: judge the straight-course bound (speed, efficiency) on the rotation of the SUDS "
                         "model fitted to each run's own cycles, at its steady state, where it fits; else on the "
@@ -344,7 +347,8 @@ def _loop(args: argparse.Namespace) -> int:
                          order=args.order, trust=args.trust, draws=0 if args.draws is None else args.draws,
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
                          half_wave=args.half_wave != "no", scale_step=args.scale_step,
-                         reverse_trial=args.reverse_trial, rotation_from_model=args.rotation_from_model)
+                         reverse_trial=args.reverse_trial, rotation_from_model=args.rotation_from_model,
+                         pool_incumbents=args.pool_incumbents)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

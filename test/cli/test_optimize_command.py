@@ -218,6 +218,8 @@ def test_loop_on_efficiency_measures_the_work(tmp_path: Path, capsys: pytest.Cap
       "-o", "{tmp}/g.yaml"], "--change: "),
     (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--change",
       '3:[{"name": "joint_viscous_damping", "joint": "joint_1", "d": 1}]', "-o", "{tmp}/g.yaml"], "--change: "),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--pool-incumbents", "-1", "-o", "{tmp}/g.yaml"],
+     "--pool-incumbents: `pool_incumbents`: expected ≥ 0, got -1"),
 ])
 def test_loop_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
                                   message: str) -> None:

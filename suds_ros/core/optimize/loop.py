@@ -272,6 +272,13 @@ class LoopConfig:
         after each rejection.  The rejected gaits lie inside the incumbent's trust region: their cycles
         widen the data the next step is planned from, where the incumbent's few cycles alone leave
         the model guessing (``docs/results/optimize_loop.md``, ablation).
+    pool_incumbents : int
+        Also fit the step's model to the newest this many stretches of the gaits that were the
+        incumbent before the current one (0, the default: none; dropped with the rest when the robot
+        changes).  They lie a step or two away, so they widen the data as the rejected ones do: on
+        swimmer9 the model of 4 cycles predicts a step's gain 2–13× too large, one of 20 cycles
+        nearer (``optimize_step_aim.md``).  Measured as the ablation ``pool-incumbents`` (2) in
+        ``optimize_loop.md``; not yet the default.
     watch : bool
         When the model of the incumbent's pooled stretches predicts no gain (converged), run the
         incumbent again (its stretches pooled, the change test above applied) instead of stopping,
@@ -353,6 +360,7 @@ class LoopConfig:
     accept_sigmas: float = 0.0
     confirm_sigmas: float = 1.0
     pool_rejected: int = 2
+    pool_incumbents: int = 0
     watch: bool = False
     change_sigmas: float = 2.5
     model_miss: float = 0.15
@@ -391,6 +399,7 @@ class LoopConfig:
                   ("accept_sigmas", math.isfinite(self.accept_sigmas) and self.accept_sigmas >= 0, "≥ 0"),
                   ("confirm_sigmas", math.isfinite(self.confirm_sigmas) and self.confirm_sigmas >= 0, "≥ 0"),
                   ("pool_rejected", self.pool_rejected >= 0, "≥ 0"),
+                  ("pool_incumbents", self.pool_incumbents >= 0, "≥ 0"),
                   ("change_sigmas", self.change_sigmas > 0, "> 0"),
                   ("model_miss", self.model_miss > 0, "> 0"),
                   ("passive_alpha", 0 <= self.passive_alpha < 1, "in [0, 1)"),
@@ -1049,6 +1058,7 @@ class GaitSearch:
         self._model: LearnedModel | None = None
         self._rejected: list[Gait] = []
         self._near: list[Recording] = []  # stretches of candidates rejected since the incumbent was set
+        self._past: list[Recording] = []  # stretches of the earlier incumbents (pool_incumbents)
         self._low_streak = 0  # rejected candidates in a row that measured far below the incumbent
         self._fresh = False  # the next rerun replaces the incumbent's data (robot_changed)
         self._change_reason = ""
@@ -1111,7 +1121,7 @@ class GaitSearch:
         if trial is not None:
             return trial
         if self._model is None:
-            self._model = self._learn([*self._best_data, *self._near], torque=self._work)
+            self._model = self._learn([*self._best_data, *self._past, *self._near], torque=self._work)
         kappa = self._kappa
         # a robot whose half-wave incumbent runs off course is not symmetric: the full step, to bring it back
         half_wave = (cfg.half_wave and cfg.objective != "turn" and self._best_gait.is_half_wave()
@@ -1197,7 +1207,7 @@ class GaitSearch:
         cand = time_reversed(gait)
         if self._model is None:
             try:
-                self._model = self._learn([*self._best_data, *self._near], torque=self._work)
+                self._model = self._learn([*self._best_data, *self._past, *self._near], torque=self._work)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
                 return None  # (the trust-region step tries the fit again, or finds it unusable)
         try:
@@ -1285,7 +1295,7 @@ class GaitSearch:
                 meas = self._measure(data, req.gait)
                 note += f", and its own first {first} cycle{'s' if first > 1 else ''} (the robot before the change)"
             self._best_data, self._best_meas, self._best_pred, self._near = [data], meas, None, []
-            self._pred_model = None
+            self._past, self._pred_model = [], None
             self.changes.append(len(self.iterations))
             self._symmetric = self._looks_symmetric(req.gait, meas)  # the changed robot may not be
         else:  # pooled, the newest MAX_STRETCHES kept (a watching search re-runs its incumbent for ever)
@@ -1347,6 +1357,9 @@ class GaitSearch:
 
         ``model``: the model that made ``predicted`` (None: not a model's, as a scaled start's s² law).
         """
+        if self.config.pool_incumbents and self._best_meas is not None:  # (not the start's own first run)
+            # the earlier incumbents' stretches, but none from before a change said while this one ran
+            self._past = [] if self._fresh else [*self._past, *self._best_data][-self.config.pool_incumbents:]
         self._best_gait, self._best_meas, self._best_data, self._best_pred = gait, meas, data, predicted
         self._pred_model = model
         self._best_index = len(self.iterations)

@@ -723,3 +723,40 @@ def test_a_measurement_carries_the_models_rotation_and_falls_back_to_the_mean(mo
     assert plain.speed == fitted.speed and plain.rotation == fitted.rotation
     turn = GaitSearch(gait, gait_limits(system), dataclasses.replace(cfg, objective="turn"))._measure(data, gait)
     assert turn.model_rotation is None  # (the turn is the objective: read from the cycles)
+
+
+def test_the_earlier_incumbents_stretches_join_the_steps_model_on_request() -> None:
+    """``pool_incumbents``: the newest N stretches of earlier incumbents are fitted with the incumbent's.
+
+    From purcell3 at half amplitude the scaled start is kept at once, so the step after it is planned on
+    a model of the scaled gait's cycles and, with ``pool_incumbents`` = 1, the start's; by default
+    (0) on the scaled gait's alone.  A change said while a candidate ran drops them.
+    """
+    system = make_system("purcell3")
+    nom = nominal_gait(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    fits: dict[int, list[tuple[Any, ...]]] = {}
+
+    class Watched(GaitSearch):
+        def _learn(self, data: Any, torque: bool) -> Any:
+            recs = (data,) if not isinstance(data, (list, tuple)) else tuple(data)
+            fits.setdefault(self.config.pool_incumbents, []).append(recs)
+            return super()._learn(data, torque)
+
+    for n in (0, 1):
+        res = optimize_loop(system, LoopConfig(budget_cycles=15, seed=0, pool_incumbents=n), start=half,
+                            search=Watched)
+        assert [it.accepted for it in res.iterations][:2] == [True, True]  # the start, then its scaled run
+    assert max(len(r) for r in fits[1]) > max(len(r) for r in fits[0])  # one more stretch: the start's
+    # the bookkeeping itself: newest N, none across a change said while the new incumbent ran
+    search = GaitSearch(nom, gait_limits(system), LoopConfig(budget_cycles=20, pool_incumbents=2))
+    a, b, c = (SimpleNamespace(name=x) for x in "abc")
+    search._best_meas, search._best_data = _m(0.1, 0.0), [a]
+    for new in (b, c):
+        search._take(nom, _m(0.1, 0.0), [new], None)
+    assert search._past == [a, b] and search._best_data == [c]
+    search._fresh = True
+    search._take(nom, _m(0.1, 0.0), [a], None)
+    assert search._past == []
+    with pytest.raises(SudsConfigError, match="pool_incumbents"):
+        LoopConfig(budget_cycles=20, pool_incumbents=-1)
