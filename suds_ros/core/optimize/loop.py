@@ -1382,7 +1382,8 @@ class GaitSearch:
         """:func:`learn_model` of ``data``, fitted once: the same stretches (the same objects) give the same model.
 
         A measurement's model is fitted to the stretches the step's model is then fitted to (the new
-        incumbent's, before any rejection), so each is fitted once.
+        incumbent's, before any rejection and without earlier incumbents' stretches: ``pool_incumbents``
+        = 0), so those are fitted once.
         """
         recs = (data,) if isinstance(data, Recording) else tuple(data)
         for seen, tq, model in self._fits:
@@ -1614,6 +1615,16 @@ def predicted_std(model: LearnedModel, gait: Gait, objective: str, draws: int = 
     a draw with no steady state is left out.  None when the model carries no covariance or fewer
     than two draws predict.
     """
+    return _spread_over_draws(model, lambda coef: predict_value(model, gait, objective, coef=coef), draws, seed)
+
+
+def _spread_over_draws(model: LearnedModel, value: Callable[[FloatArray], float], draws: int,
+                       seed: int) -> float | None:
+    """:func:`draw_spread` of ``value(coef)`` over ``draws`` seeded coefficient draws of ``model``.
+
+    A draw with no steady state (an error, or a non-finite value) is left out.  None when the model
+    carries no covariance, or fewer than two draws give a value.
+    """
     if draws < 2 or model.chol is None:
         return None
     rng = np.random.default_rng(seed)
@@ -1621,7 +1632,7 @@ def predicted_std(model: LearnedModel, gait: Gait, objective: str, draws: int = 
     for _ in range(draws):
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # (a draw far off: non-finite, left out)
-                values.append(predict_value(model, gait, objective, coef=model.draw(rng)))
+                values.append(value(model.draw(rng)))
         except (SudsDataError, FloatingPointError, np.linalg.LinAlgError):
             continue
     return draw_spread(values)
@@ -1655,15 +1666,18 @@ def origin_ratio(model: LearnedModel, gait: Gait, at: float) -> float:
 
 def _model_cycle(model: LearnedModel, gait: Gait, objective: str,
                  coef: FloatArray | None = None) -> tuple[float, FloatArray | None, float]:
-    """(objective counted from the model's phase zero, distances from each step of it or None if straight, s0)."""
+    """(objective counted from the model's phase zero, distances from each step of it or None if straight, s0).
+
+    ``objective`` may also be ``rotation``: the signed net rotation per cycle (no distances).
+    """
     s0 = align_shift(model, gait)
     g = time_shifted(gait, s0)
     ev = LearnedCycle(model, g.gait_hz, g.order, work=objective == "efficiency", coef=coef)
     x = g.to_vector()
     res = ev.steady_of(x)
     vals = objective_values(res, g.gait_hz)
-    if objective == "turn":
-        return float(abs(vals["turn"][0])), None, s0
+    if objective in ("turn", "rotation"):
+        return float(abs(vals["turn"][0]) if objective == "turn" else vals["rotation"][0]), None, s0
     d = origin_distances(ev, x, res) if res.g_c[0, 2] != 0.0 else None  # type: ignore[arg-type]
     return float(vals[objective][0]), d, s0
 
@@ -1692,23 +1706,10 @@ def model_rotation(model: LearnedModel, gait: Gait, draws: int = RESULT_DRAWS,
     (:meth:`LearnedModel.draw`), leaving out draws with no steady state.  None where the model
     carries no covariance or fewer than two draws have a steady state.
     """
-    g = time_shifted(gait, align_shift(model, gait))
-
     def rot(coef: FloatArray | None = None) -> float:
-        ev = LearnedCycle(model, g.gait_hz, g.order, coef=coef)
-        return float(objective_values(ev.steady_of(g.to_vector()), g.gait_hz)["rotation"][0])
+        return _model_cycle(model, gait, "rotation", coef)[0]
 
     value = rot()
     if not math.isfinite(value):
         raise SudsDataError("`model`: the model's steady-state rotation is not finite", code="no_steady_state")
-    if draws < 2 or model.chol is None:
-        return value, None
-    rng = np.random.default_rng(seed)
-    vals = []
-    for _ in range(draws):
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):  # (a draw far off: non-finite, left out)
-                vals.append(rot(model.draw(rng)))
-        except (SudsDataError, FloatingPointError, np.linalg.LinAlgError):
-            continue
-    return value, draw_spread(vals)
+    return value, _spread_over_draws(model, rot, draws, seed)
