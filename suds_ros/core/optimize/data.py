@@ -445,17 +445,28 @@ class LearnedCycle(PeriodicShooting):
         X = regressor_input(np.full(B, self._phase[i]), r - self._theta[i], rdot_a - self._dtheta_a[i], r, rdot_a)
         return regressor_design(m.suds, X, self.na, m.kernel_scale) @ self.coef
 
-    def cycle(self, X: FloatArray, rp0: FloatArray, poses: list[FloatArray] | None = None
+    def cycle(self, X: FloatArray, rp0: FloatArray, poses: list[FloatArray] | None = None,
+              passive: FloatArray | None = None, passives: list[FloatArray] | None = None
               ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Predict one cycle from r_p(0) = ``rp0`` (B, np) and the identity pose: r_p(T), g_c (B, 3), work (B,).
 
         ``poses``, if given, receives the pose (B, 3) after every step (``steps`` arrays), as
-        :meth:`~suds_ros.core.optimize.physics.CycleEvaluator.cycle` does.
+        :meth:`~suds_ros.core.optimize.physics.CycleEvaluator.cycle` does; ``passives`` likewise
+        the passive joints (B, np) after every step.  ``passive``, if given
+        ((steps + 1, B, np) rad, at the step times), prescribes the passive shapes instead of
+        integrating the model's passive velocity: the model's body motion along shapes it did not
+        predict (a measured cycle's, say); ``rp0`` is then ignored and r_p(T) is ``passive[-1]``.
         """
         X = np.atleast_2d(X)
         B, m = X.shape[0], self.model
         coef = X.reshape(B, self.na, 2 * self.order + 1)
         ra = np.einsum("tc,bjc->tbj", self._basis, coef)  # (n+1, B, na)
+        if passive is not None:
+            passive = np.asarray(passive, dtype=float)
+            if passive.shape != (self.steps + 1, B, self.np):
+                raise SudsDataError(f"`passive`: expected shape {(self.steps + 1, B, self.np)} (steps + 1, "
+                                    f"candidates, passive joints), got {passive.shape}")
+            rp0 = passive[0]
         rp = np.array(rp0, dtype=float).reshape(B, self.np)
         pose = np.zeros((B, 3))
         work = np.zeros(B)
@@ -468,12 +479,15 @@ class LearnedCycle(PeriodicShooting):
             r[:, m.pas] = rp
             out = self._outputs(i, r, rdot_a)
             if midpoint:  # the row's state is the interval's midpoint: two fixed-point passes on r_p(end)
-                for _ in range(2):
+                for _ in range(1 if passive is not None else 2):
                     rm = r.copy()
                     rm[:, m.act] = 0.5 * (ra[i] + ra[i + 1])
-                    rm[:, m.pas] = rp + 0.5 * h * out[:, 3:3 + npas]
+                    rm[:, m.pas] = (0.5 * (rp + passive[i + 1]) if passive is not None
+                                    else rp + 0.5 * h * out[:, 3:3 + npas])
                     out = self._outputs(i, rm, rdot_a)
-            rp = rp + h * out[:, 3:3 + npas]
+            rp = passive[i + 1] if passive is not None else rp + h * out[:, 3:3 + npas]
+            if passives is not None:
+                passives.append(rp)
             pose = se2.exp_step(pose, h * out[:, :3])
             if poses is not None:
                 poses.append(pose)

@@ -49,6 +49,26 @@ def test_learned_cycle_is_periodic_and_predicts_the_nominal_speed(purcell: tuple
     assert abs(float(np.hypot(*far.g_c[0, :2])) - predicted) > 0.2 * predicted
 
 
+def test_a_cycle_along_prescribed_passive_shapes(purcell: tuple[object, LearnedModel]) -> None:
+    system, model = purcell
+    x = align_to_model(model, nominal_gait(system)).to_vector()  # type: ignore[arg-type]
+    ev = LearnedCycle(model, 1.0, 1)
+    res = ev.steady_of(x)
+    own: list[np.ndarray] = []
+    _, pose, _ = ev.cycle(x[None], res.r_p, passives=own)
+    assert len(own) == ev.steps
+    shapes = np.stack([res.r_p, *own])  # (steps + 1, 1, np)
+    # along its own passive shapes the model moves as in its own cycle; rp0 is not used
+    rp_end, prescribed, _ = ev.cycle(x[None], np.full_like(res.r_p, 9.0), passive=shapes)
+    np.testing.assert_allclose(rp_end, shapes[-1])
+    np.testing.assert_allclose(prescribed, pose, rtol=1e-3, atol=1e-9)
+    # other passive shapes move it otherwise
+    _, moved, _ = ev.cycle(x[None], None, passive=shapes + 0.3)
+    assert np.max(np.abs(moved - pose)) > 1e-3 * np.max(np.abs(pose))
+    with pytest.raises(SudsDataError, match="`passive`"):
+        ev.cycle(x[None], None, passive=shapes[1:])
+
+
 def test_step_stays_in_bounds_and_trust_region_and_does_not_hurt(purcell: tuple[object, LearnedModel]) -> None:
     system, model = purcell
     limits = gait_limits(system)  # type: ignore[arg-type]
