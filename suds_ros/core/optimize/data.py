@@ -241,6 +241,25 @@ def _phase_of(ident: Any, rec: Recording) -> FloatArray:
     return np.asarray(ident.phaser_.transform(rec.r), dtype=float)
 
 
+def _ridge_factor(xtx: FloatArray, ridge: float) -> tuple[FloatArray | None, float]:
+    """(lower Cholesky factor L of XᵀX + λI or None, the fit's effective parameters tr(X(XᵀX + λI)⁻¹Xᵀ)).
+
+    λ = ``ridge``·mean(diag XᵀX), as the regression's own solve has it.  The effective count
+    p − λ·tr((XᵀX + λI)⁻¹) = p − λ‖L⁻¹‖²_F is what the residuals' degrees of freedom lose: a
+    ridge fit of more coefficients than rows (random shape features on a few cycles) uses far
+    fewer than p of them, and counting p would blow the residual variance up (by n where p ≥ n).
+    Without a factor (not positive definite) all p count.
+    """
+    p = xtx.shape[0]
+    lam = ridge * (float(np.mean(np.diag(xtx))) or 1.0)
+    try:
+        chol = np.linalg.cholesky(xtx + lam * np.eye(p))
+    except np.linalg.LinAlgError:
+        return None, float(p)
+    inv = scipy.linalg.solve_triangular(chol, np.eye(p), lower=True, check_finite=False)
+    return chol, float(p) - lam * float(np.einsum("ij,ij->", inv, inv))
+
+
 def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, config: Any = None) -> LearnedModel:
     """Fit the SUDS model of a whole recording and keep what the optimiser needs (:class:`LearnedModel`).
 
@@ -293,16 +312,12 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
     parts = [(reg.normal_, [c for c in range(reg.coef_.shape[1]) if c not in reg.avg_columns_])]
     if reg.normal_avg_ is not None:
         parts.append((reg.normal_avg_, list(reg.avg_columns_)))
-    p = reg.coef_.shape[0]
-    for ne, cols in parts:
+    for i, (ne, cols) in enumerate(parts):
+        factor, dof = _ridge_factor(ne.xtx, reg.config.ridge)
+        if i == 0:
+            chol = factor
         rss = ne.residual_ss(reg.coef_[:, cols])
-        resid[cols] = np.sqrt(rss / max(ne.sw, 1.0) * ne.n / max(ne.n - p, 1))
-    ne = reg.normal_
-    scale = float(np.mean(np.diag(ne.xtx))) or 1.0
-    try:
-        chol = np.linalg.cholesky(ne.xtx + reg.config.ridge * scale * np.eye(p))
-    except np.linalg.LinAlgError:
-        chol = None
+        resid[cols] = np.sqrt(rss / max(ne.sw, 1.0) * ne.n / max(ne.n - dof, 1.0))
     return LearnedModel(
         system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated, passive=rec.passive, act=act, pas=pas,
         template_order=int(ident.template_.config.order), template_coef=np.asarray(ident.template_.coef_),
