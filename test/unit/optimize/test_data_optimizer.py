@@ -12,6 +12,7 @@ from suds_ros.core.optimize.data import (
     DataOptimizeConfig,
     LearnedCycle,
     LearnedModel,
+    _ridge_factor,
     align_to_model,
     learn_model,
     motion_miss,
@@ -67,6 +68,20 @@ def test_a_cycle_along_prescribed_passive_shapes(purcell: tuple[object, LearnedM
     assert np.max(np.abs(moved - pose)) > 1e-3 * np.max(np.abs(pose))
     with pytest.raises(SudsDataError, match="`passive`"):
         ev.cycle(x[None], None, passive=shapes[1:])
+
+
+def test_the_draws_count_the_ridge_fits_effective_parameters() -> None:
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((30, 50))  # more coefficients than rows, as random shape features on a few cycles
+    G = X.T @ X
+    for ridge in (1e-3, 1e-1):
+        lam = ridge * np.mean(np.diag(G))
+        hat = X @ np.linalg.solve(G + lam * np.eye(50), X.T)
+        chol, dof = _ridge_factor(G, ridge)
+        assert dof == pytest.approx(np.trace(hat), rel=1e-9) and dof < 30
+        np.testing.assert_allclose(chol @ chol.T, G + lam * np.eye(50), atol=1e-9 * lam)
+    assert _ridge_factor(G[:20, :20] + np.eye(20), 0.0)[1] == pytest.approx(20.0)  # no ridge: all of them
+    assert _ridge_factor(-np.eye(3), 0.0) == (None, 3.0)  # no factor: all count
 
 
 def test_step_stays_in_bounds_and_trust_region_and_does_not_hurt(purcell: tuple[object, LearnedModel]) -> None:

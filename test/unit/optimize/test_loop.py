@@ -628,6 +628,23 @@ def test_the_returned_prediction_carries_its_spread_over_coefficient_draws() -> 
     assert res.predicted is not None and res.predicted_std is not None and res.predicted_std > 0
 
 
+def test_a_model_with_more_coefficients_than_rows_has_a_spread_of_the_size_of_its_error() -> None:
+    """A model of swimmer9's first 4 cycles (random shape features: more coefficients than rows) gets
+    draws that keep a steady state and a spread of the size of its miss: its residual variance counts
+    the ridge fit's effective parameters, not all of them (which made every sd √n too large)."""
+    from suds_ros.core.optimize.data import learn_model
+    from suds_ros.core.optimize.loop import predict_value, predicted_std
+
+    system = load_system("swimmer9")
+    gait = nominal_gait(system)
+    model = learn_model(_start_data(system, gait, LoopConfig(budget_cycles=5, seed=0)))
+    assert model.coef.shape[0] > model.identifier.regressor_.normal_.n  # (p > n: the case in question)
+    assert np.all(model.resid_std < 1.0), model.resid_std  # m/s and rad/s; counting all p gave 4-9
+    sd = predicted_std(model, gait, "speed", draws=8, seed=0)
+    miss = abs(predict_value(model, gait, "speed") - evaluate_gait(system, gait)["speed"])
+    assert sd is not None and miss / 4 < sd < 4 * miss + 0.05, (sd, miss)
+
+
 def test_the_spread_of_draws_is_robust_to_the_few_that_predict_far_off() -> None:
     """``draw_spread``: the normal-scaled median absolute deviation of the finite draws.
 
