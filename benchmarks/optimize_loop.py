@@ -85,6 +85,14 @@ ABLATIONS = {
                         "are pooled into its model too.  Not an ablation of a default but an option measured against "
                         "it: the model of a few cycles over-predicts a step's gain on swimmer9 "
                         "(`optimize_step_aim.md`), and more data nearby narrows that.", "rejections (option)"),
+    "pool-all": ("pool_incumbents", 1000, "every earlier incumbent's stretches pooled too (an option)",
+                 "`LoopConfig.pool_incumbents` = 1000 (`--ablation pool-all`, `--pool-incumbents 1000`; the "
+                 "default, 0, fits each step's model to the incumbent's stretches and the rejected candidates' "
+                 "only): every stretch of every gait that was the incumbent since the start or the last change "
+                 "is pooled into the step's model too.  An option measured against the default: the model of "
+                 "swimmer9's first 4 cycles is 8-80 % off along a step's true shapes, one of 40 cycles 4.5 % "
+                 "(`optimize_step_aim.md`), so all the data the loop has gathered may aim better than the "
+                 "newest few cycles.", "rejections (option)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "

@@ -276,9 +276,10 @@ class LoopConfig:
         Also fit the step's model to the newest this many stretches of the gaits that were the
         incumbent before the current one (0, the default: none; dropped with the rest when the robot
         changes).  They lie a step or two away, so they widen the data as the rejected ones do: on
-        swimmer9 the model of 4 cycles predicts a step's gain 2–13× too large, one of 20 cycles
-        nearer (``optimize_step_aim.md``).  Measured as the ablation ``pool-incumbents`` (2) in
-        ``optimize_loop.md``; not yet the default.
+        swimmer9 the model of 4 cycles predicts a step's gain 2–13× too large, one of 40 cycles
+        about right (``optimize_step_aim.md``, README).  Measured as the ablations
+        ``pool-incumbents`` (2) and ``pool-all`` (1000) in ``optimize_loop.md``: up on swimmer9 at
+        its target, mixed elsewhere; not the default.
     watch : bool
         When the model of the incumbent's pooled stretches predicts no gain (converged), run the
         incumbent again (its stretches pooled, the change test above applied) instead of stopping,
