@@ -471,7 +471,16 @@ class LearnedCycle(PeriodicShooting):
         ((steps + 1, B, np) rad, at the step times), prescribes the passive shapes instead of
         integrating the model's passive velocity: the model's body motion along shapes it did not
         predict (a measured cycle's, say); ``rp0`` is then ignored and r_p(T) is ``passive[-1]``.
+
+        A model far from its data can blow up within a cycle: the outputs are then non-finite, no
+        steady state is found (``steady`` raises), and numpy's overflow warnings are kept quiet.
         """
+        with np.errstate(over="ignore", invalid="ignore"):
+            return self._cycle(X, rp0, poses, passive, passives)
+
+    def _cycle(self, X: FloatArray, rp0: FloatArray, poses: list[FloatArray] | None,
+               passive: FloatArray | None, passives: list[FloatArray] | None
+               ) -> tuple[FloatArray, FloatArray, FloatArray]:
         X = np.atleast_2d(X)
         B, m = X.shape[0], self.model
         coef = X.reshape(B, self.na, 2 * self.order + 1)

@@ -70,6 +70,20 @@ def test_a_cycle_along_prescribed_passive_shapes(purcell: tuple[object, LearnedM
         ev.cycle(x[None], None, passive=shapes[1:])
 
 
+def test_a_cycle_that_blows_up_is_refused_quietly(purcell: tuple[object, LearnedModel]) -> None:
+    import warnings
+
+    system, model = purcell
+    x = align_to_model(model, nominal_gait(system)).to_vector()  # type: ignore[arg-type]
+    ev = LearnedCycle(model, 1.0, 1, coef=model.coef * 1e150)  # a draw far off
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow warnings would raise here instead
+        with pytest.raises(SudsDataError, match="NaN or Inf"):  # the state left the numbers: refused
+            ev.cycle(x[None], ev.start_state())
+        with pytest.raises(SudsDataError, match="NaN or Inf"):
+            ev.steady_of(x)
+
+
 def test_the_draws_count_the_ridge_fits_effective_parameters() -> None:
     rng = np.random.default_rng(3)
     X = rng.standard_normal((30, 50))  # more coefficients than rows, as random shape features on a few cycles
