@@ -1645,7 +1645,8 @@ def draw_spread(values: Sequence[float]) -> float | None:
     The finite values only; None for fewer than two.  A few cycles' model can have draws that
     predict far off (near a gait with no steady state, or where a passive joint's fit is poor): the
     sample sd follows those and says nothing of the rest (a random 5-link robot's prediction
-    read 0.28 ± 8.7 m/s by the sd), the median absolute deviation does not, and for normal draws
+    read 0.28 ± 8.7 m/s by the sd, before the residual variance counted the ridge fit's effective
+    parameters), the median absolute deviation does not, and for normal draws
     it estimates the same sd.
     """
     from scipy import stats
