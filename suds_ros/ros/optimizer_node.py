@@ -119,6 +119,9 @@ class OptimizerNodeConfig:
     rotation_from_model: bool = setting(True, "judge the straight-course bound on the rotation of the SUDS model "
                                               "fitted to each run's own cycles, where it fits (else the mean of "
                                               "the cycles)")
+    pool_incumbents: int = setting(0, "also fit each step's model to the newest this many stretches of the gaits "
+                                      "that were the incumbent before (0: none; dropped when the robot changes)",
+                                   ge=0, le=1_000_000)
     listen_monitor: bool = setting(True, "a suds/mismatch channel entering ERROR (the monitor node) says the robot "
                                          "changed")
     wait_for_switch: bool = setting(True, "place each run by the robot's suds/gait_switch stamp (false: assume "
@@ -147,7 +150,8 @@ class OptimizerNodeConfig:
                           change_sigmas=self.change_sigmas, model_miss=self.model_miss,
                           passive_alpha=self.passive_alpha, half_wave=self.half_wave,
                           rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
-                          reverse_trial=self.reverse_trial, rotation_from_model=self.rotation_from_model)
+                          reverse_trial=self.reverse_trial, rotation_from_model=self.rotation_from_model,
+                          pool_incumbents=self.pool_incumbents)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

@@ -159,3 +159,13 @@ def test_the_node_passes_how_the_rotation_is_read_to_the_search() -> None:
 
     assert OptimizerNodeConfig().loop_config().rotation_from_model
     assert not OptimizerNodeConfig(rotation_from_model=False).loop_config().rotation_from_model
+
+
+def test_the_node_passes_the_pooling_of_earlier_incumbents_to_the_search() -> None:
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.ros.optimizer_node import OptimizerNodeConfig
+
+    assert OptimizerNodeConfig().loop_config().pool_incumbents == 0
+    assert OptimizerNodeConfig(pool_incumbents=2).loop_config().pool_incumbents == 2
+    with pytest.raises(SudsConfigError, match="pool_incumbents"):
+        OptimizerNodeConfig(pool_incumbents=-1)
