@@ -16,6 +16,8 @@ start), and each candidate is judged against the physics:
   minus the body-only gain is what the predicted passive shapes add, and the body-only gain minus
   the true gain is the body regression's own error;
 - **body error**: the model's speed along the candidate's true shapes over its true speed, minus 1;
+  'with the true yaw rate' / 'with the true translation': the same with that part of the model's
+  body velocity replaced, step by step, by the physics run's own (the twist between its poses);
 - **passive excursion**: the step's largest predicted |δ_p| over the data's σ_δp (reported by the
   step, not bounded by it): how far the candidate's predicted passive shapes leave the data.
 
@@ -38,6 +40,7 @@ import time
 import numpy as np
 from _common import SNAKE5, machine, stamp, write
 
+from suds_ros.core import se2
 from suds_ros.core.ident.identify import IdentifyConfig
 from suds_ros.core.optimize.data import (DataOptimizeConfig, LearnedCycle, LearnedModel, align_shift, learn_model,
                                          optimize_from_data)
@@ -55,11 +58,13 @@ SELECTIONS = {"shipped": IdentifyConfig(), "Fourier only": IdentifyConfig(kernel
 KAPPAS = (1.0, 2.0, 4.0)
 
 
-def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int) -> tuple[float, float]:
-    """(the model's own cycle speed, the model's speed along the gait's true shapes), both chords from phase zero.
+def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int) -> tuple[float, ...]:
+    """Chords from phase zero, as speeds: the model's own cycle; the model along the gait's true shapes;
+    the same with its yaw rate replaced by the true one; and with its translation velocity replaced.
 
     The true shapes are the second whole cycle of a run on the physics (no perturbation, no noise,
-    a whole number of cycles of warm-up, sampled at the model cycle's own steps).
+    a whole number of cycles of warm-up, sampled at the model cycle's own steps); the true body
+    velocity of each step is the twist between the run's consecutive poses (``se2.body_velocity``).
     """
     g = time_shifted(gait, align_shift(model, gait))
     ev = LearnedCycle(model, g.gait_hz, g.order)
@@ -72,14 +77,29 @@ def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int)
     ra = ev._basis @ x.reshape(ev.na, -1).T  # the model's actuated shapes at its step times
     if np.max(np.abs(shapes[:, model.act] - ra)) > 1e-6:
         raise RuntimeError("the physics run is not on the model cycle's step times (actuated shapes differ)")
-    _, pose, _ = ev.cycle(x[None], None, passive=shapes[:, None, model.pas])
-    return float(np.hypot(*own.g_c[0, :2]) * hz), float(np.hypot(*pose[0, :2]) * hz)
+    poses: list[np.ndarray] = []
+    ev.cycle(x[None], None, poses=poses, passive=shapes[:, None, model.pas])
+    path = np.concatenate([np.zeros((1, 3)), np.concatenate(poses)])
+    xi_model = se2.body_velocity(path, ev.h)
+    true_path = clean.pose[n:2 * n + 1].copy()
+    true_path[:, 2] = np.unwrap(true_path[:, 2])
+    xi_true = se2.body_velocity(true_path, ev.h)
+
+    def chord(xi: np.ndarray) -> float:
+        pose = np.zeros((1, 3))
+        for row in xi:
+            pose = se2.exp_step(pose, ev.h * row[None])
+        return float(np.hypot(*pose[0, :2]) * hz)
+
+    true_yaw, true_xy = xi_model.copy(), xi_true.copy()
+    true_yaw[:, 2], true_xy[:, 2] = xi_true[:, 2], xi_model[:, 2]
+    return float(np.hypot(*own.g_c[0, :2]) * hz), chord(xi_model), chord(true_yaw), chord(true_xy)
 
 
 def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: IdentifyConfig, system: SudsSystem,
             nom: Gait, limits: object, v0: float, t0: float) -> None:
     """One robot under one model selection: a row per seed and κ into ``lines``, a line into ``summary``."""
-    model_g, true_g, body_g, body_err = [], [], [], []
+    model_g, true_g, body_g, body_err, yaw_err, xy_err = [], [], [], [], [], []
     for seed in SEEDS:
         cfg = LoopConfig(budget_cycles=10, seed=seed)
         rec, _ = _Robot(system, nom, cfg).run(nom, cfg.settle_cycles + cfg.first_cycles)
@@ -88,7 +108,7 @@ def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: Ide
         design = (f"set {d.regressors}, orders {d.linear_order}/{d.bilinear_order}, ridge {d.ridge:g}"
                   + (f", {d.kernel_features} features" if d.kernel_features else ""))
         p0 = predict_value(model, nom, "speed")
-        own0, body0 = chord_speeds(system, model, nom, seed)
+        own0, body0, _, _ = chord_speeds(system, model, nom, seed)
         for kappa in KAPPAS:
             dcfg = DataOptimizeConfig(objective="speed", order=3, trust=kappa, draws=0, min_gain_sigmas=0.0,
                                       seed=seed, max_rotation=cfg.max_rotation * cfg.rotation_margin,
@@ -98,15 +118,18 @@ def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: Ide
             mg = predict_value(model, gait, "speed") - p0
             vt = evaluate_gait(system, gait)["speed"]
             tg = vt - v0
-            own1, body1 = chord_speeds(system, model, gait, seed)
+            own1, body1, yaw1, xy1 = chord_speeds(system, model, gait, seed)
             bg = body1 - body0
             model_g.append(mg)
             true_g.append(tg)
             body_g.append(bg)
             body_err.append(body1 / vt - 1)
+            yaw_err.append(yaw1 / vt - 1)
+            xy_err.append(xy1 / vt - 1)
             ratio = f"{mg / tg:.1f}" if abs(tg) > 1e-3 * v0 else "—"
             lines.append(f"| {name} | {sel} | {seed} | {design} | {kappa:g} | {mg:+.4f} | {tg:+.4f} | {ratio} | "
-                         f"{bg:+.4f} | {body0 / v0 - 1:+.3f} | {body1 / vt - 1:+.3f} | {step.passive_excursion:.1f} |")
+                         f"{bg:+.4f} | {body0 / v0 - 1:+.3f} | {body1 / vt - 1:+.3f} | {yaw1 / vt - 1:+.3f} | "
+                         f"{xy1 / vt - 1:+.3f} | {step.passive_excursion:.1f} |")
             print(lines[-1], f"(own chords {own0:.4f} → {own1:.4f})", flush=True)
     mg_a, tg_a, bg_a = np.asarray(model_g), np.asarray(true_g), np.asarray(body_g)
     summary.append(
@@ -114,8 +137,9 @@ def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: Ide
         f"body-only gain {np.corrcoef(bg_a, tg_a)[0, 1]:+.2f} ({mg_a.size} steps); median |gain − true gain|: "
         f"model {np.median(np.abs(mg_a - tg_a)):.4f}, body-only {np.median(np.abs(bg_a - tg_a)):.4f} m/s, "
         f"against a median true gain of {np.median(tg_a):+.4f}; the model's speed along the candidates' true "
-        f"shapes off by {np.median(np.abs(body_err)):.1%} (median), {np.max(np.abs(body_err)):.1%} (largest) "
-        f"({time.perf_counter() - t0:.0f} s).")
+        f"shapes off by {np.median(np.abs(body_err)):.1%} (median), {np.max(np.abs(body_err)):.1%} (largest); "
+        f"with the true yaw rate in place of the model's {np.median(np.abs(yaw_err)):.1%} (median), with the true "
+        f"translation velocity {np.median(np.abs(xy_err)):.1%} ({time.perf_counter() - t0:.0f} s).")
 
 
 def main() -> None:
@@ -129,8 +153,9 @@ def main() -> None:
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_step_aim.py`.", "",
              "\n\n".join(__doc__.split("\n\n")[1:5]), "",
              "| robot | selection | seed | model | κ | model gain (m/s) | true gain (m/s) | model / true gain | "
-             "body-only gain (m/s) | body error, nominal | body error, candidate | passive excursion (σ) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "body-only gain (m/s) | body error, nominal | body error, candidate | with the true yaw rate | "
+             "with the true translation | passive excursion (σ) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     summary = []
     for name in robots:
         system = load_system(ROBOTS[name])
