@@ -93,6 +93,11 @@ ABLATIONS = {
                  "swimmer9's first 4 cycles is 8-80 % off along a step's true shapes, one of 40 cycles 4.5 % "
                  "(`optimize_step_aim.md`), so all the data the loop has gathered may aim better than the "
                  "newest few cycles.", "rejections (option)"),
+    "pose-frame": ("body_frame", "pose", "models fitted in the recorded pose frame",
+                   "`LoopConfig.body_frame` = 'pose' (`--ablation pose-frame`, `--body-frame pose`; the default "
+                   "fits every model in the shape frame, the recorded yaw turned by the combination of joint "
+                   "angles it follows: `data.shape_frame`, `optimize_step_aim.md`): every model is fitted to the "
+                   "recorded pose as it is, as before 2026-12-04.", "rejections (ablation)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "
@@ -148,7 +153,8 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
         limit = optimize_gait(system, OptimizeConfig(order=3, starts=4)).value
         secs = time.perf_counter() - t0
     doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs,
-           "ablation": ablation, "rotation_from_model": DEFAULTS.rotation_from_model, **change,
+           "ablation": ablation, "rotation_from_model": DEFAULTS.rotation_from_model,
+           "body_frame": DEFAULTS.body_frame, **change,
            "machine": machine(), "runs": []}
     print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
     for kind, start in starts(nom).items():
@@ -296,6 +302,9 @@ def ablation() -> list[str]:
             if key != "mean-rotation" and _reading(a) != _reading(b):  # an ablation run before the model's reading
                 section.append(f"| {name} | *other code*: the default's bound read on {_reading(a)}, the "
                                f"ablation's on {_reading(b)} | | | | | |")
+            if key != "pose-frame" and _frame(a) != _frame(b):  # an ablation run before the shape frame
+                section.append(f"| {name} | *other code*: the default's models fitted in the {_frame(a)} frame, the "
+                               f"ablation's in the {_frame(b)} frame | | | | | |")
             if key == "oracle":
                 oracle_lines.append(f"- {name}: {rot_rejected} of the {rejected} rejected candidates break the "
                                     f"rotation bound ({MAX_ROTATION} rad/cycle) on the physics.")
@@ -304,6 +313,11 @@ def ablation() -> list[str]:
                         "", *oracle_lines]
         out += section + [""] if section else []
     return out
+
+
+def _frame(doc: dict) -> str:
+    """The body frame a run's models were fitted in (runs before the option: the pose frame)."""
+    return str(doc.get("body_frame") or "pose")
 
 
 def _reading(doc: dict) -> str:

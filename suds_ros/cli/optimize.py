@@ -125,6 +125,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="--simulate: judge the straight-course bound (speed, efficiency) on the rotation of the SUDS "
                         "model fitted to each run's own cycles, at its steady state, where it fits; else on the "
                         "mean of the cycles (default on: the closer reading)")
+    p.add_argument("--body-frame", choices=["shape", "pose"], default="shape",
+                   help="the body frame the SUDS models are fitted in: 'shape', the recorded yaw turned by the "
+                        "combination of joint angles it follows (default: the net motion a larger share of what "
+                        "the model predicts on a robot whose pose frame swings with its shape), or 'pose', the "
+                        "recorded frame as it is; the objectives are the same in both")
     p.add_argument("--draws", type=int, default=None, metavar="M",
                    help="coefficient draws for the predicted objective's uncertainty (default 16 with BAG, 0 "
                         "with --simulate: there the measurement judges each step)")
@@ -240,7 +245,7 @@ def _from_data(args: argparse.Namespace) -> int:
         raise SudsConfigError("--objective efficiency: no learned torque model: the recording has no effort on "
                               "/suds/shape (record it, e.g. `suds simulate --effort`); efficiency is unavailable "
                               "from this data", code="unsupported_objective")
-    model = learn_model(rec, torque=args.objective == "efficiency")
+    model = learn_model(rec, torque=args.objective == "efficiency", frame=args.body_frame)
     limits = gait_limits(system) if system is not None else None
     start, start_from = _start_gait(args, system)
     res = optimize_from_data(model, cfg, limits=limits, start=start)
@@ -348,7 +353,7 @@ def _loop(args: argparse.Namespace) -> int:
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
                          half_wave=args.half_wave != "no", scale_step=args.scale_step,
                          reverse_trial=args.reverse_trial, rotation_from_model=args.rotation_from_model,
-                         pool_incumbents=args.pool_incumbents)
+                         pool_incumbents=args.pool_incumbents, body_frame=args.body_frame)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

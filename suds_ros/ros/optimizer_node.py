@@ -119,6 +119,9 @@ class OptimizerNodeConfig:
     rotation_from_model: bool = setting(True, "judge the straight-course bound on the rotation of the SUDS model "
                                               "fitted to each run's own cycles, where it fits (else the mean of "
                                               "the cycles)")
+    body_frame: str = setting("shape", "the body frame the models are fitted in: shape (the recorded yaw turned by "
+                                       "the joint angles it follows) or pose (the recorded frame)",
+                              choices=("shape", "pose"))
     pool_incumbents: int = setting(0, "also fit each step's model to the newest this many stretches of the gaits "
                                       "that were the incumbent before (0: none; dropped when the robot changes)",
                                    ge=0, le=1_000_000)
@@ -151,7 +154,7 @@ class OptimizerNodeConfig:
                           passive_alpha=self.passive_alpha, half_wave=self.half_wave,
                           rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
                           reverse_trial=self.reverse_trial, rotation_from_model=self.rotation_from_model,
-                          pool_incumbents=self.pool_incumbents)
+                          pool_incumbents=self.pool_incumbents, body_frame=self.body_frame)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

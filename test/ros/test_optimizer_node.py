@@ -167,5 +167,9 @@ def test_the_node_passes_the_pooling_of_earlier_incumbents_to_the_search() -> No
 
     assert OptimizerNodeConfig().loop_config().pool_incumbents == 0
     assert OptimizerNodeConfig(pool_incumbents=2).loop_config().pool_incumbents == 2
+    assert OptimizerNodeConfig().loop_config().body_frame == "shape"
+    assert OptimizerNodeConfig(body_frame="pose").loop_config().body_frame == "pose"
+    with pytest.raises(SudsConfigError, match="body_frame"):
+        OptimizerNodeConfig(body_frame="head")
     with pytest.raises(SudsConfigError, match="pool_incumbents"):
         OptimizerNodeConfig(pool_incumbents=-1)

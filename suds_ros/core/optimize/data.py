@@ -40,6 +40,7 @@ right, so it is a lower bound on the real error (the benchmark compares it with 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -187,6 +188,9 @@ class LearnedModel:
     cycles : float, gait cycles in the recording.
     identifier : SudsIdentifier or None, the fitted identifier itself (phaser, template, regression):
         :func:`motion_miss` predicts other recordings with it.
+    frame_weights : (nj,) or None, the body frame the model was fitted in (:func:`shape_frame`): the
+        recorded yaw plus r·w; None: the recorded pose frame itself.  Recordings compared with the
+        model go through :meth:`in_frame` first.
     """
 
     system: str
@@ -211,6 +215,7 @@ class LearnedModel:
     spread_passive: FloatArray
     cycles: float
     identifier: Any = field(default=None, repr=False, compare=False)
+    frame_weights: FloatArray | None = field(default=None, repr=False, compare=False)
 
     def theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
         """θ(φ) and dθ/dφ, each (n, nj), at phases (n,) rad."""
@@ -226,6 +231,10 @@ class LearnedModel:
         g = Gait(system=self.system, gait_hz=self.gait_hz, joints=self.actuated, offset=tuple(c[0]),
                  cos=tuple(cos), sin=tuple(sin))
         return g if g.order == order else g.from_vector(g.to_vector(order), order)
+
+    def in_frame(self, rec: Recording) -> Recording:
+        """``rec`` with its pose in the model's body frame (:func:`reframe`; unchanged in the pose frame)."""
+        return rec if self.frame_weights is None else reframe(rec, self.frame_weights)
 
     def draw(self, rng: np.random.Generator) -> FloatArray:
         """Coefficients (p, c) drawn from N(coef, s²_c (XᵀX + λI)⁻¹) per channel."""
@@ -260,7 +269,50 @@ def _ridge_factor(xtx: FloatArray, ridge: float) -> tuple[FloatArray | None, flo
     return chol, float(p) - lam * float(np.einsum("ij,ij->", inv, inv))
 
 
-def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, config: Any = None) -> LearnedModel:
+#: body frames :func:`learn_model` can fit in
+FRAMES = ("shape", "pose")
+
+
+def _shapes_at_pose_stamps(rec: Recording) -> FloatArray:
+    """The joint angles (m, nj) linearly interpolated at the pose stamps (held at the ends)."""
+    return np.column_stack([np.interp(rec.pose_t, rec.t, rec.r[:, j]) for j in range(rec.r.shape[1])])
+
+
+def shape_frame(recs: Sequence[Recording]) -> FloatArray:
+    """Weights w (nj,) of the body frame whose yaw, the recorded yaw plus r·w, swings least with the shape.
+
+    Least squares over every pose sample of the stretches: the unwrapped recorded yaw on an offset
+    and a steady turn per stretch and on −r·w.  The frame keeps the recorded frame's origin and
+    turns it by a fixed function of the shape, so it is a body frame like the recorded one: over a
+    whole cycle of a periodic gait it moves from the same points and turns by the same angle, and
+    every objective (speed, turn, efficiency) is the same in it.  What changes is the share of the
+    body velocity the regression must get right: a pose frame on one link of an undulating chain
+    (swimmer9's head link yaws by an rms 1 rad) swings with the shape, and the net motion is a
+    small difference of large velocities; in this frame it is a larger share of them
+    (``docs/results/optimize_step_aim.md``).  The weights come from the data alone (no link
+    lengths): least squares finds the combination of joint angles that the recorded yaw follows.
+    """
+    rows, yaw = [], []
+    k = len(recs)
+    for i, r in enumerate(recs):
+        t = r.pose_t - r.pose_t[0]
+        own = np.zeros((t.size, 2 * k))
+        own[:, 2 * i], own[:, 2 * i + 1] = 1.0, t
+        rows.append(np.concatenate([own, -_shapes_at_pose_stamps(r)], axis=1))
+        yaw.append(np.unwrap(r.pose[:, 2]))
+    coef, *_ = np.linalg.lstsq(np.concatenate(rows), np.concatenate(yaw), rcond=None)
+    return np.asarray(coef[2 * k:], dtype=float)
+
+
+def reframe(rec: Recording, weights: FloatArray) -> Recording:
+    """``rec`` with its pose in the body frame of :func:`shape_frame`'s ``weights``: yaw + r·w (wrapped)."""
+    pose = np.array(rec.pose, dtype=float)
+    pose[:, 2] = np.angle(np.exp(1j * (pose[:, 2] + _shapes_at_pose_stamps(rec) @ np.asarray(weights))))
+    return dataclasses.replace(rec, pose=pose)
+
+
+def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, config: Any = None,
+                frame: str = "shape") -> LearnedModel:
     """Fit the SUDS model of a whole recording and keep what the optimiser needs (:class:`LearnedModel`).
 
     Parameters
@@ -274,11 +326,15 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
         Also learn the actuator torques (needs ``rec.effort``); required for ``efficiency``.
     config : IdentifyConfig, optional
         The identification settings (default: the shipped model selection).
+    frame : str
+        The body frame the model is fitted in: ``"shape"`` (default), the recorded yaw turned by
+        the combination of joint angles it follows (:func:`shape_frame`, fitted to these
+        stretches), or ``"pose"``, the recorded pose frame as it is.
 
     Raises
     ------
     SudsConfigError
-        (code ``unsupported_objective``) ``torque`` without recorded effort.
+        (code ``unsupported_objective``) ``torque`` without recorded effort; an unknown ``frame``.
     SudsDataError
         (code ``too_little_data``) fewer than 3 gait cycles.
     """
@@ -290,11 +346,17 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
         raise SudsConfigError("efficiency: no learned torque model: the recording has no `effort` on /suds/shape "
                               "(record it, e.g. `suds simulate --effort`); efficiency is unavailable from this data",
                               code=UNSUPPORTED_OBJECTIVE)
+    if frame not in FRAMES:
+        raise SudsConfigError(f"`frame`: expected one of {list(FRAMES)}, got {frame!r}")
     hz = rec.gait_hz or 1.0
     cycles = float(sum((r.t[-1] - r.t[0] + r.dt) * hz for r in recs))
     if cycles < 3:
         raise SudsDataError(f"`rec`: expected at least 3 gait cycles to learn from, got {cycles:.2f}",
                             code=TOO_LITTLE_DATA)
+    weights = shape_frame(recs) if frame == "shape" else None
+    if weights is not None:
+        recs = [reframe(r, weights) for r in recs]
+        rec = recs[0]
     ident = SudsIdentifier(IdentifyConfig() if config is None else config, torque=torque).fit(
         rec if len(recs) == 1 else recs)
     reg = ident.regressor_
@@ -324,7 +386,7 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
         omega=float(ident.omega_), dt=float(rec.dt), gait_hz=float(hz), suds=reg.config,
         kernel_scale=ident.kernel_scale_, coef=np.asarray(reg.coef_), torque=bool(torque), chol=chol,
         resid_std=resid, spread_delta=delta[:, act].std(axis=0), spread_rate=rate[:, act].std(axis=0),
-        spread_passive=delta[:, pas].std(axis=0), cycles=cycles, identifier=ident)
+        spread_passive=delta[:, pas].std(axis=0), cycles=cycles, identifier=ident, frame_weights=weights)
 
 
 @dataclass(frozen=True)
@@ -381,7 +443,7 @@ def motion_miss(model: LearnedModel, rec: Recording) -> MotionMiss:
     if whole < 2:
         raise SudsDataError(f"`rec`: expected at least 2 whole gait cycles to compare, got {whole}",
                             code=TOO_LITTLE_DATA)
-    pred = model.identifier.predict(rec)
+    pred = model.identifier.predict(model.in_frame(rec))
     k = np.floor((pred.t - rec.t[0]) * hz).astype(int)
     keep = (k >= 0) & (k < whole)
     k = k[keep]

@@ -100,6 +100,7 @@ from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.optimize.change import hotelling_p, passive_shift
 from suds_ros.core.optimize.data import (
+    FRAMES,
     DataOptimizeConfig,
     LearnedCycle,
     LearnedModel,
@@ -238,6 +239,12 @@ class LoopConfig:
         turns at twice the bound, which it still reads over the bound in 10 of 10
         (``docs/results/optimize_rotation.md``).  The speed stays the measured one (the model's
         speed is no closer there, and biased on purcell3).  Costs one fit per run.
+    body_frame : str
+        The body frame every model of the loop is fitted in (:func:`~suds_ros.core.optimize.data.learn_model`):
+        ``"shape"``, the recorded yaw turned by the combination of joint angles it follows (fitted to
+        the model's own stretches), or ``"pose"``, the recorded frame.  The objectives are the same
+        in both; on a robot whose pose frame swings with its shape (swimmer9's head link) the shape
+        frame's model predicts a step's gain far better (``docs/results/optimize_step_aim.md``).
     origin_sigmas : float
         For ``speed`` and ``efficiency``, the gait returned is counted from the point of its cycle it
         measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
@@ -371,6 +378,7 @@ class LoopConfig:
     scale_step: float = 1.25
     reverse_trial: bool = True
     rotation_from_model: bool = True
+    body_frame: str = "shape"
     origin_sigmas: float = 1.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
@@ -410,6 +418,8 @@ class LoopConfig:
         for name, ok, expected in checks:
             if not ok:
                 raise SudsConfigError(f"`{name}`: expected {expected}, got {getattr(self, name)!r}")
+        if self.body_frame not in FRAMES:
+            raise SudsConfigError(f"`body_frame`: expected one of {list(FRAMES)}, got {self.body_frame!r}")
         if self.trust_centre not in ("start", "template"):
             raise SudsConfigError(f"`trust_centre`: expected 'start' or 'template', got {self.trust_centre!r}")
         first = self.settle_cycles + self.first_cycles
@@ -1390,7 +1400,7 @@ class GaitSearch:
         for seen, tq, model in self._fits:
             if tq == torque and len(seen) == len(recs) and all(a is b for a, b in zip(seen, recs)):
                 return model
-        model = learn_model(list(recs), torque=torque)
+        model = learn_model(list(recs), torque=torque, frame=self.config.body_frame)
         self._fits = [*self._fits[-3:], (recs, torque, model)]
         return model
 

@@ -14,6 +14,8 @@ from suds_ros.core.optimize.data import (
     LearnedModel,
     _ridge_factor,
     align_to_model,
+    reframe,
+    shape_frame,
     learn_model,
     motion_miss,
     optimize_from_data,
@@ -82,6 +84,35 @@ def test_a_cycle_that_blows_up_is_refused_quietly(purcell: tuple[object, Learned
             ev.cycle(x[None], ev.start_state())
         with pytest.raises(SudsDataError, match="NaN or Inf"):
             ev.steady_of(x)
+
+
+def test_the_shape_frame_turns_the_recorded_yaw_by_the_joint_angles_it_follows() -> None:
+    """``shape_frame``: the weights w with which yaw + r·w swings least; ``reframe`` turns the pose by them and
+    leaves its position; ``learn_model`` fits in that frame by default, in the recorded one with ``frame="pose"``.
+    """
+    system = make_system("purcell3")
+    rec = simulate(system, SimConfig(cycles=5, seed=2))
+    w = shape_frame([rec])
+
+    def swing(r: object) -> float:  # rms of the unwrapped yaw about its straight-line trend
+        yaw = np.unwrap(r.pose[:, 2])  # type: ignore[attr-defined]
+        t = r.pose_t - r.pose_t[0]  # type: ignore[attr-defined]
+        return float(np.std(yaw - np.polyval(np.polyfit(t, yaw, 1), t)))
+
+    new = reframe(rec, w)
+    assert swing(new) < 0.1 * swing(rec), (swing(new), swing(rec))
+    np.testing.assert_array_equal(new.pose[:, :2], rec.pose[:, :2])
+    np.testing.assert_allclose(np.angle(np.exp(1j * (new.pose[:, 2] - rec.pose[:, 2] - rec.r @ w))), 0, atol=1e-12)
+    # two stretches: one offset and turn each, one set of weights (the same robot)
+    two = shape_frame([rec.slice(0, 250), rec.slice(250, rec.n_samples)])
+    np.testing.assert_allclose(two, w, rtol=0.05)
+    model = learn_model(rec)
+    np.testing.assert_allclose(model.frame_weights, w)
+    assert model.in_frame(rec).pose[5, 2] == new.pose[5, 2]
+    plain = learn_model(rec, frame="pose")
+    assert plain.frame_weights is None and plain.in_frame(rec) is rec
+    with pytest.raises(SudsConfigError, match="`frame`"):
+        learn_model(rec, frame="head")
 
 
 def test_the_draws_count_the_ridge_fits_effective_parameters() -> None:

@@ -114,6 +114,8 @@ def test_acceptance_is_by_measurement_feasible_first() -> None:
     ({"budget_cycles": 20, "shrink": 1.0}, "`shrink`: expected in \\(0, 1\\), got 1.0", "bad_config"),
     ({"budget_cycles": 20, "confirm_sigmas": -1.0}, "`confirm_sigmas`: expected ≥ 0, got -1.0", "bad_config"),
     ({"budget_cycles": 20, "model_miss": 0.0}, "`model_miss`: expected > 0, got 0.0", "bad_config"),
+    ({"budget_cycles": 20, "body_frame": "head"}, "`body_frame`: expected one of \\['shape', 'pose'\\], got 'head'",
+     "bad_config"),
 ])
 def test_config_refusals(kwargs: dict[str, object], message: str, code: str) -> None:
     with pytest.raises(SudsConfigError, match=message) as exc:
@@ -643,6 +645,23 @@ def test_a_model_with_more_coefficients_than_rows_has_a_spread_of_the_size_of_it
     sd = predicted_std(model, gait, "speed", draws=8, seed=0)
     miss = abs(predict_value(model, gait, "speed") - evaluate_gait(system, gait)["speed"])
     assert sd is not None and miss / 4 < sd < 4 * miss + 0.05, (sd, miss)
+
+
+def test_the_loop_fits_its_models_in_the_body_frame_it_is_given() -> None:
+    """``body_frame``: the search's models carry the shape frame's weights by default, none in the pose frame;
+    the rotation read off the model is the same either way (the frame turns with the periodic shape only)."""
+    from suds_ros.core.optimize.loop import model_rotation
+
+    system = make_system("purcell3")
+    gait = nominal_gait(system)
+    data = _start_data(system, gait, LoopConfig(budget_cycles=5, seed=0))
+    models = {}
+    for frame in ("shape", "pose"):
+        search = GaitSearch(gait, gait_limits(system), LoopConfig(budget_cycles=20, seed=0, body_frame=frame))
+        models[frame] = search._learn(data, torque=False)
+    assert models["shape"].frame_weights is not None and models["pose"].frame_weights is None
+    rot = {k: model_rotation(m, gait, draws=0)[0] for k, m in models.items()}
+    assert abs(rot["shape"] - rot["pose"]) < 0.01, rot  # two fits of the same cycles: close, not equal
 
 
 def test_the_spread_of_draws_is_robust_to_the_few_that_predict_far_off() -> None:
