@@ -24,9 +24,13 @@ start), and each candidate is judged against the physics:
 The chord gains (model, body-only) are counted from the model's phase zero and are not the
 origin-corrected ``predict_value``; where the model's cycle turns they differ a little.
 
-Each robot is measured twice: with the shipped model selection (``IdentifyConfig()``, what the
-loop fits; on a few cycles it often picks random features of the whole shape, ``kernel_grid``), and
-with the Fourier designs only (``kernel_grid=(0,)``).  'model' names the design the selection chose.
+Each robot is measured three ways: the shipped model selection (``IdentifyConfig()``; on a few
+cycles it often picks random features of the whole shape, ``kernel_grid``) and the Fourier designs
+only (``kernel_grid=(0,)``), both fitted to the recorded pose frame (``learn_model(frame="pose")``),
+and the shipped selection in the shape frame (``frame="shape"``, the loop's default since
+2026-12-04: the recorded yaw turned by the combination of joint angles it follows,
+``data.shape_frame``).  'model' names the design the selection chose.  The body velocities swapped
+in are the physics run's own in the model's frame.
 
     python benchmarks/optimize_step_aim.py [ROBOT ...]      # → docs/results/optimize_step_aim.md
 """
@@ -53,8 +57,11 @@ from suds_ros.core.physics.systems import load_system
 
 ROBOTS = {"purcell3": "purcell3", "snake5": SNAKE5, "swimmer9": "swimmer9"}
 SEEDS = (0, 1, 2)
-#: the model selections compared: the shipped one, and the Fourier designs alone
-SELECTIONS = {"shipped": IdentifyConfig(), "Fourier only": IdentifyConfig(kernel_grid=(0,))}
+#: the models compared: (identification settings, body frame) — the shipped selection in the recorded
+#: pose frame, the Fourier designs alone in it, and the shipped selection in the shape frame (the default)
+SELECTIONS = {"shipped, pose frame": (IdentifyConfig(), "pose"),
+              "Fourier only, pose frame": (IdentifyConfig(kernel_grid=(0,)), "pose"),
+              "shipped, shape frame": (IdentifyConfig(), "shape")}
 KAPPAS = (1.0, 2.0, 4.0)
 
 
@@ -81,7 +88,7 @@ def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int)
     ev.cycle(x[None], None, poses=poses, passive=shapes[:, None, model.pas])
     path = np.concatenate([np.zeros((1, 3)), np.concatenate(poses)])
     xi_model = se2.body_velocity(path, ev.h)
-    true_path = clean.pose[n:2 * n + 1].copy()
+    true_path = model.in_frame(clean).pose[n:2 * n + 1].copy()  # (the model's body frame)
     true_path[:, 2] = np.unwrap(true_path[:, 2])
     xi_true = se2.body_velocity(true_path, ev.h)
 
@@ -96,14 +103,14 @@ def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int)
     return float(np.hypot(*own.g_c[0, :2]) * hz), chord(xi_model), chord(true_yaw), chord(true_xy)
 
 
-def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: IdentifyConfig, system: SudsSystem,
-            nom: Gait, limits: object, v0: float, t0: float) -> None:
+def measure(lines: list[str], summary: list[str], name: str, sel: str, icfg: IdentifyConfig, frame: str,
+            system: SudsSystem, nom: Gait, limits: object, v0: float, t0: float) -> None:
     """One robot under one model selection: a row per seed and κ into ``lines``, a line into ``summary``."""
     model_g, true_g, body_g, body_err, yaw_err, xy_err = [], [], [], [], [], []
     for seed in SEEDS:
         cfg = LoopConfig(budget_cycles=10, seed=seed)
         rec, _ = _Robot(system, nom, cfg).run(nom, cfg.settle_cycles + cfg.first_cycles)
-        model = learn_model(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle), config=icfg)
+        model = learn_model(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle), config=icfg, frame=frame)
         d = model.suds
         design = (f"set {d.regressors}, orders {d.linear_order}/{d.bilinear_order}, ridge {d.ridge:g}"
                   + (f", {d.kernel_features} features" if d.kernel_features else ""))
@@ -161,8 +168,8 @@ def main() -> None:
         system = load_system(ROBOTS[name])
         nom, limits = nominal_gait(system), gait_limits(system)
         v0 = evaluate_gait(system, nom)["speed"]
-        for sel, icfg in SELECTIONS.items():
-            measure(lines, summary, name, sel, icfg, system, nom, limits, v0, time.perf_counter())
+        for sel, (icfg, frame) in SELECTIONS.items():
+            measure(lines, summary, name, sel, icfg, frame, system, nom, limits, v0, time.perf_counter())
     lines += ["", "## Summary", "", *summary, ""]
     write("optimize_step_aim.md", "\n".join(lines))
 
