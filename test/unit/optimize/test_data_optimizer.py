@@ -250,7 +250,9 @@ def test_a_recorded_gait_off_the_straight_course_is_brought_back_first() -> None
 
 def test_stretches_with_a_pose_stream_of_their_own_are_learnt_together() -> None:
     """A live robot's pose comes at its own rate: several stretches of it (re-runs, rejected candidates) are
-    fitted together, each on its own pose intervals, and the model predicts as that of one stretch does."""
+    fitted together, each on its own pose intervals, and the model predicts as that of one stretch does (in the
+    recorded frame: the pose intervals' bookkeeping); the shape frame found from the two stretches is the one
+    found from the whole, and its models predict alike too (within the fits' scatter: 4 % at 120 Hz)."""
     from suds_ros.core.physics.lab import LabConditions, simulate_lab
 
     system = make_system("purcell3")
@@ -258,10 +260,13 @@ def test_stretches_with_a_pose_stream_of_their_own_are_learnt_together() -> None
     for hz in (50.0, 120.0):
         rec = simulate_lab(system, SimConfig(cycles=12, seed=2), LabConditions(pose_hz=hz, pose_phase=0.0037))
         half = rec.n_samples // 2
-        both = learn_model([rec.slice(0, half), rec.slice(half, rec.n_samples)])
-        speeds = [float(np.hypot(*LearnedCycle(m, 1.0, 1).steady_of(align_to_model(m, gait).to_vector()).g_c[0, :2]))
-                  for m in (both, learn_model(rec))]
-        assert speeds[0] == pytest.approx(speeds[1], rel=0.03), (hz, speeds)
+        for frame, rel in (("pose", 0.03), ("shape", 0.05)):
+            both = learn_model([rec.slice(0, half), rec.slice(half, rec.n_samples)], frame=frame)
+            whole = learn_model(rec, frame=frame)
+            speeds = [float(np.hypot(*LearnedCycle(m, 1.0, 1).steady_of(align_to_model(m, gait).to_vector())
+                                     .g_c[0, :2])) for m in (both, whole)]
+            assert speeds[0] == pytest.approx(speeds[1], rel=rel), (hz, frame, speeds)
+        np.testing.assert_allclose(both.frame_weights, whole.frame_weights, rtol=0.01)
 
 
 def test_motion_miss_tells_the_modelled_robot_from_a_changed_one(purcell: tuple[object, LearnedModel]) -> None:
