@@ -906,7 +906,7 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
             ev_d = LearnedCycle(model, hz, K, work=ev.with_work, coef=model.draw(rng))
             try:
                 both = ev_d.steady(np.stack([x0, x_end]), np.concatenate([base.r_p, res.r_p]))[0]
-            except (FloatingPointError, np.linalg.LinAlgError):
+            except (FloatingPointError, np.linalg.LinAlgError, SudsDataError):  # (a draw whose cycle blows up)
                 continue
             v = objective_values(both, hz)
             pair = (abs(v["turn"]) if cfg.objective == "turn" else v[cfg.objective])
