@@ -115,6 +115,23 @@ def test_the_shape_frame_turns_the_recorded_yaw_by_the_joint_angles_it_follows()
         learn_model(rec, frame="head")
 
 
+def test_draws_whose_cycle_blows_up_are_left_out_of_the_steps_spread(
+        purcell: tuple[object, LearnedModel], monkeypatch: pytest.MonkeyPatch) -> None:
+    system, model = purcell
+    wild = LearnedModel.draw
+    calls = {"n": 0}
+
+    def every_other_far_off(self: LearnedModel, rng: np.random.Generator) -> np.ndarray:
+        calls["n"] += 1
+        coef = wild(self, rng)
+        return coef * 1e150 if calls["n"] % 2 else coef
+
+    monkeypatch.setattr(LearnedModel, "draw", every_other_far_off)
+    res = optimize_from_data(model, DataOptimizeConfig(draws=8, seed=0), limits=gait_limits(system),
+                             start=nominal_gait(system))  # type: ignore[arg-type]
+    assert calls["n"] == 8 and len(res.draws) == 4  # the blown-up half left out, not raised
+
+
 def test_the_draws_count_the_ridge_fits_effective_parameters() -> None:
     rng = np.random.default_rng(3)
     X = rng.standard_normal((30, 50))  # more coefficients than rows, as random shape features on a few cycles
