@@ -97,7 +97,9 @@ ABLATIONS = {
                    "`LoopConfig.body_frame` = 'pose' (`--ablation pose-frame`, `--body-frame pose`; the default "
                    "fits every model in the shape frame, the recorded yaw turned by the combination of joint "
                    "angles it follows: `data.shape_frame`, `optimize_step_aim.md`): every model is fitted to the "
-                   "recorded pose as it is, as before 2026-12-04.", "rejections (ablation)"),
+                   "recorded pose as it is, as before 2026-12-04.  These runs are the default runs of 2026-12-04 "
+                   "22:08 UTC, made just before the option existed by the same code path (the JSON's `note`).",
+                   "rejections (ablation)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "
