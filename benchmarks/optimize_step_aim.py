@@ -66,12 +66,13 @@ KAPPAS = (1.0, 2.0, 4.0)
 
 
 def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int) -> tuple[float, ...]:
-    """Chords from phase zero, as speeds: the model's own cycle; the model along the gait's true shapes;
-    the same with its yaw rate replaced by the true one; and with its translation velocity replaced.
+    """Four chords from phase zero, as speeds, of the model's cycles along ``gait``.
 
-    The true shapes are the second whole cycle of a run on the physics (no perturbation, no noise,
-    a whole number of cycles of warm-up, sampled at the model cycle's own steps); the true body
-    velocity of each step is the twist between the run's consecutive poses (``se2.body_velocity``).
+    They are: the model's own cycle; the model along the gait's true shapes; the same with its yaw
+    rate replaced by the true one; and with its translation velocity replaced.  The true shapes are
+    the second whole cycle of a run on the physics (no perturbation, no noise, a whole number of
+    cycles of warm-up, sampled at the model cycle's own steps); the true body velocity of each step
+    is the twist between the run's consecutive poses (``se2.body_velocity``).
     """
     g = time_shifted(gait, align_shift(model, gait))
     ev = LearnedCycle(model, g.gait_hz, g.order)
