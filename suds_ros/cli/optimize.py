@@ -125,7 +125,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="--simulate: judge the straight-course bound (speed, efficiency) on the rotation of the SUDS "
                         "model fitted to each run's own cycles, at its steady state, where it fits; else on the "
                         "mean of the cycles (default on: the closer reading)")
-    p.add_argument("--body-frame", choices=["shape", "pose"], default="shape",
+    p.add_argument("--body-frame", choices=("shape", "pose"), default="shape",
                    help="the body frame the SUDS models are fitted in: 'shape', the recorded yaw turned by the "
                         "combination of joint angles it follows (default: the net motion a larger share of what "
                         "the model predicts on a robot whose pose frame swings with its shape), or 'pose', the "

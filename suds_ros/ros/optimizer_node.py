@@ -61,6 +61,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import SudsError
 from suds_ros.core.json_text import dumps
+from suds_ros.core.optimize.data import FRAMES
 from suds_ros.core.optimize.live import LiveGaitSearch, decide
 from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, RunRequest, motion_doubt
 from suds_ros.core.physics.gait import Gait, check_gait, dump_gait, gait_limits, load_gait, nominal_gait
@@ -121,7 +122,7 @@ class OptimizerNodeConfig:
                                               "the cycles)")
     body_frame: str = setting("shape", "the body frame the models are fitted in: shape (the recorded yaw turned by "
                                        "the joint angles it follows) or pose (the recorded frame)",
-                              choices=("shape", "pose"))
+                              choices=FRAMES)
     pool_incumbents: int = setting(0, "also fit each step's model to the newest this many stretches of the gaits "
                                       "that were the incumbent before (0: none; dropped when the robot changes)",
                                    ge=0, le=1_000_000)

@@ -534,8 +534,9 @@ class LearnedCycle(PeriodicShooting):
         integrating the model's passive velocity: the model's body motion along shapes it did not
         predict (a measured cycle's, say); ``rp0`` is then ignored and r_p(T) is ``passive[-1]``.
 
-        A model far from its data can blow up within a cycle: the outputs are then non-finite, no
-        steady state is found (``steady`` raises), and numpy's overflow warnings are kept quiet.
+        A model far from its data can blow up within a cycle: numpy's overflow warnings are kept
+        quiet, and the non-finite state is refused at the next step by the design's own check
+        (``SudsDataError``), which callers treat as no steady state.
         """
         with np.errstate(over="ignore", invalid="ignore"):
             return self._cycle(X, rp0, poses, passive, passives)
