@@ -15,6 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"
 #: the shared snake5 robot model file
 SNAKE5 = str(SHARED / "robots" / "snake5.yaml")
+#: a robot model file of ours whose nominal wave runs the slow way (a passive neck)
+NECK4 = str(ROOT / "test" / "data" / "robots" / "neck4.yaml")
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

@@ -24,17 +24,20 @@ import math
 import time
 from pathlib import Path
 
-from _common import RESULTS, ROOT, SNAKE5, machine, stamp, write
+import numpy as np
+from _common import NECK4, RESULTS, SNAKE5, machine, stamp, write
 
+from suds_ros.core import se2
 from suds_ros.core.json_text import dumps
-from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, optimize_loop
+from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, _resampled, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits, nominal_gait, time_reversed
 from suds_ros.core.physics.systems import load_system
 
+#: how the loop reads a run's speed (``loop.measure_cycles``), stored in each JSON
+SPEED_READING = "from every point of the cycle"
 MAX_ROTATION = LoopConfig.max_rotation  # the default bound on |rotation| per cycle for the speed objective
 DEFAULTS = LoopConfig(budget_cycles=10)  # the loop's defaults, as the reports describe them
-NECK4 = str(ROOT / "test" / "data" / "robots" / "neck4.yaml")  # a robot of ours whose nominal wave runs the slow way
 ROBOTS = {"purcell3": ("purcell3", 40, 15), "snake5": (SNAKE5, 60, 25),
           "swimmer9": ("swimmer9", 90, 45),
           "neck4": (NECK4, 50, 20)}  # name: (spec, budget, the issue's target cycles: 5 per link)
@@ -100,6 +103,13 @@ ABLATIONS = {
                    "recorded pose as it is, as before 2026-12-04.  These runs are the default runs of 2026-12-04 "
                    "22:08 UTC, made just before the option existed by the same code path (the JSON's `note`).",
                    "rejections (ablation)"),
+    "start-speed": ("speed_reading", "from the cycle starts", "speeds read from the cycle starts",
+                    "Every run's speed is read as |mean of g(t)⁻¹ g(t + 1/f)| · f over its cycle starts t, "
+                    "with the se of the cycles' components along their mean (`--ablation start-speed`; the "
+                    "benchmark's `_StartSpeedSearch`; the loop's reading until 2026-12-05).  The default counts "
+                    "every point of the cycle (`measure_cycles`): counted from the starts, a perturbation's turn "
+                    "per cycle times the body point's sideways offset there enters each cycle's chord "
+                    "(`optimize_noise.md`).", "rejections (ablation)"),
     "oracle": ("judge", "truth", "candidates judged on the true physics (a bound, not a method)",
                "Every run is judged on its gait's *true* speed and rotation at the passive periodic steady state "
                "(`--ablation oracle`; the benchmark's `_OracleSearch`), with no measurement noise; the change "
@@ -108,6 +118,30 @@ ABLATIONS = {
                "misses at the target is the limit of the steps themselves (a model of 4–5 cycles, a trust region "
                "of its spread).", "rejections (ablation)"),
 }
+
+
+def from_cycle_starts(poses: list[np.ndarray], spc: int, hz: float) -> tuple[float, float, int]:
+    """Speed of pose series counted from their cycle starts, m/s, its se and the cycles (the loop's until 2026-12-05).
+
+    |mean of g(t)⁻¹ g(t + 1/f)| · f over the cycle starts t of every stretch, with the se of the cycles'
+    components along their mean.
+    """
+    g = np.concatenate([se2.relative(p[np.arange(k) * spc], p[np.arange(1, k + 1) * spc])[:, :2]
+                        for p in poses for k in [(p.shape[0] - 1) // spc]])
+    mean = g.mean(axis=0)
+    norm = float(np.hypot(*mean))
+    se = float((g @ (mean / norm)).std(ddof=1) / math.sqrt(len(g))) if len(g) > 1 and norm > 0 else math.nan
+    return norm * hz, se * hz, len(g)
+
+
+class _StartSpeedSearch(GaitSearch):
+    """The loop's search with each run's speed read from its cycle starts (:func:`from_cycle_starts`)."""
+
+    def _measure(self, data, gait):
+        m = super()._measure(data, gait)
+        poses, _ = _resampled(data, self.config.samples_per_cycle, gait.gait_hz, False)
+        speed, se, k = from_cycle_starts(poses, self.config.samples_per_cycle, gait.gait_hz)
+        return dataclasses.replace(m, speed=speed, speed_se=se, speed_dof=k - 1.0 if k > 1 else math.inf)
 
 
 class _OracleSearch(GaitSearch):
@@ -146,7 +180,7 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
     path = _path(name, ablation)
     src = _path(name, None)  # the limit is the robot's, whatever the loop's settings
     change = {} if ablation is None else {ABLATIONS[ablation][0]: ABLATIONS[ablation][1]}
-    loop_change = {"change_sigmas": math.inf} if ablation == "oracle" else change
+    loop_change = {"change_sigmas": math.inf} if ablation == "oracle" else {} if ablation == "start-speed" else change
     old = json.loads(src.read_text()) if src.exists() else {}
     if reuse_limit and old.get("limit"):  # the physics limit does not depend on the loop: reuse it
         limit, secs = old["limit"], old["limit_seconds"]
@@ -156,7 +190,7 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
         secs = time.perf_counter() - t0
     doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs,
            "ablation": ablation, "rotation_from_model": DEFAULTS.rotation_from_model,
-           "body_frame": DEFAULTS.body_frame, **change,
+           "body_frame": DEFAULTS.body_frame, "speed_reading": SPEED_READING, **change,
            "machine": machine(), "runs": []}
     print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
     for kind, start in starts(nom).items():
@@ -165,7 +199,8 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
         for seed in (seeds if kind != "wave reversed" else seeds[:1]):
             t1 = time.perf_counter()
             cfg = LoopConfig(budget_cycles=budget, seed=seed, **loop_change)
-            judge = functools.partial(_OracleSearch, system) if ablation == "oracle" else GaitSearch
+            judge = (functools.partial(_OracleSearch, system) if ablation == "oracle"
+                     else _StartSpeedSearch if ablation == "start-speed" else GaitSearch)
             res = optimize_loop(system, cfg, start=start, limits=limits, search=judge)
             secs = time.perf_counter() - t1
             rows, incumbent = [], None
@@ -307,6 +342,9 @@ def ablation() -> list[str]:
             if key != "pose-frame" and _frame(a) != _frame(b):  # an ablation run before the shape frame
                 section.append(f"| {name} | *other code*: the default's models fitted in the {_frame(a)} frame, the "
                                f"ablation's in the {_frame(b)} frame | | | | | |")
+            if _speed_reading(a) != _speed_reading(b):  # an ablation run before the every-point reading
+                section.append(f"| {name} | *other code*: the default's speeds read {_speed_reading(a)}, the "
+                               f"ablation's {_speed_reading(b)} | | | | | |")
             if key == "oracle":
                 oracle_lines.append(f"- {name}: {rot_rejected} of the {rejected} rejected candidates break the "
                                     f"rotation bound ({MAX_ROTATION} rad/cycle) on the physics.")
@@ -320,6 +358,11 @@ def ablation() -> list[str]:
 def _frame(doc: dict) -> str:
     """The body frame a run's models were fitted in (runs before the option: the pose frame)."""
     return str(doc.get("body_frame") or "pose")
+
+
+def _speed_reading(doc: dict) -> str:
+    """How a run's speeds were measured (runs before 2026-12-05 stored nothing: from the cycle starts)."""
+    return str(doc.get("speed_reading") or "from the cycle starts")
 
 
 def _reading(doc: dict) -> str:
@@ -380,9 +423,10 @@ def report() -> None:
              "only the odd harmonics, so every gait run from there is half-wave symmetric and runs straight on "
              "the mirror-symmetric robots, and the model's "
              "rotation is held within 0.025 rad/cycle of its value for the incumbent; a step is kept only if the "
-             "*measured* speed is higher and its |rotation| (read off the SUDS model fitted to the run's own "
-             "cycles, at δ = 0: `rotation_from_model`; the per-run tables show the cycles' mean) is ≤ 0.05 "
-             "rad/cycle or over it by at most "
+             "*measured* speed (the net motion per cycle counted from every point of the cycle: "
+             "`measure_cycles`, `optimize_noise.md`) is higher and its |rotation| (read off the SUDS model "
+             "fitted to the run's own cycles, at δ = 0: `rotation_from_model`; the per-run tables show the "
+             "cycles' mean) is ≤ 0.05 rad/cycle or over it by at most "
              f"{DEFAULTS.rotation_sigmas:g} standard error; a measured gain within {DEFAULTS.confirm_sigmas:g} "
              "standard error of the difference, for a step whose predicted gain is within as much, is run again "
              "and judged on both stretches pooled. "
@@ -447,8 +491,10 @@ def report() -> None:
               "on the spec's grid). The simulator's OU perturbation (0.175 rad) acts on top of the gait's set-points, "
               "so the perturbed set-points themselves do leave the bounds by up to about that much; that is the "
               "simulated robot's behaviour, not a gait the loop chose.",
-              "- The measured speed of 4 cycles under this perturbation has a standard error of 5–20 % (snake5, "
-              "swimmer9; 18 % for a near-optimal swimmer9 gait, README), so near the limit a candidate can be "
+              "- The measured speed of 4 cycles under this perturbation scatters by 1–9 % of the speed on these "
+              "robots' near-limit gaits and by 18 % on neck4's nominal one (`optimize_noise.md`; counted from "
+              "the cycle starts, as before 2026-12-05, up to 16 % on swimmer9: the perturbation's turn times the "
+              "head point's sideways offset), so near the limit a candidate can still be "
               "accepted on a lucky measurement (the 'returned gait worse than the start' count); a collapsed "
               "trust region re-runs the incumbent and pools its measurements, which corrects some of these.",
               "- The mean rotation of 4 cycles is noisy: under this perturbation its error reaches "

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from _common import ROOT, SNAKE5, machine, stamp, write
+from _common import NECK4, SNAKE5, machine, stamp, write
 from optimize_sweep import random_robot
 
 from suds_ros.core.errors import SudsConfigError, SudsDataError
@@ -38,7 +38,6 @@ from suds_ros.core.physics.gait import Gait, nominal_gait
 from suds_ros.core.physics.systems import load_system
 
 SEEDS = range(10)
-NECK4 = str(ROOT / "test" / "data" / "robots" / "neck4.yaml")
 SWEEP_SEED = 20261202  # optimize_sweep.py's default generator seed
 SWEEP_ROBOTS = ("rand1", "rand6")
 

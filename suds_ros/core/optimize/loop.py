@@ -32,8 +32,8 @@ One iteration
 3. **Run**: the proposed gait is checked against the bounds (a gait outside them is never run),
    switched in at the next cycle boundary and run for ``settle_cycles`` (discarded: the fade and
    the passive transient) plus ``step_cycles`` measured cycles.
-4. **Judge by measurement**: the objective measured on those cycles (per-cycle net motion of the
-   pose frame, g_c = g(t)⁻¹ g(t + 1/f), averaged over the cycles) is compared with the
+4. **Judge by measurement**: the objective measured on those cycles (the net motion per cycle,
+   counted from every point of the cycle: :func:`measure_cycles`) is compared with the
    incumbent's measurement.  The step is accepted only if the measurement confirms it: a higher
    measured objective, and for ``speed``/``efficiency`` a measured |rotation| per cycle within
    ``max_rotation`` (read off the SUDS model fitted to the candidate's own cycles, at δ = 0, where
@@ -250,7 +250,8 @@ class LoopConfig:
         measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
         many standard errors of zero: a turning gait's chord from its time zero depends on that
         point, and the spec counts from the gait file's time zero.  The motion is the same, so no
-        cycle is run for it, and its measurement is the same cycles counted from there.  The choice
+        cycle is run for it; its measured speed counts every point of the cycle alike
+        (:func:`measure_cycles`), so it stays, at most the shifted gait's.  The choice
         goes wrong only when the measured rotation has the wrong sign; for an unbiased measurement
         that is the less likely side at any noise, so the expected gain is never negative, and the
         threshold only keeps a noisy choice from being made where the gain is small.  ``inf``: the
@@ -295,7 +296,9 @@ class LoopConfig:
         The robot is taken to have changed when the incumbent, run again, measures more than this
         many standard errors of the difference away from its standing measurement; and the
         incumbent is run again at once after two rejected candidates in a row that each measured
-        more than this many standard errors below it (see :class:`GaitSearch`).  ``inf``: never.
+        more than this many standard errors below it (see :class:`GaitSearch`).  Standard errors
+        taken from a few cycles are read through Student's t (:func:`_sigmas`): normal-equivalent
+        deviates.  ``inf``: never.
     model_miss : float
         A run whose measured body motion misses the model's prediction along the run's own measured
         shapes (:func:`~suds_ros.core.optimize.data.motion_miss`) by more than this (a fraction of the
@@ -430,12 +433,13 @@ class LoopConfig:
 
 @dataclass(frozen=True)
 class Measurement:
-    """The objective measured on a gait's recorded cycles (pose frame, per-cycle net motion averaged).
+    """The objective measured on a gait's recorded cycles (the net motion per cycle, :func:`measure_cycles`).
 
     Attributes
     ----------
-    speed : float, m/s; rotation : float, rad per cycle; turn : float, rad/s.
-    speed_se, rotation_se : float, standard errors over the cycles (NaN for one cycle).
+    speed : float, m/s (counted from every point of the cycle); rotation : float, rad per cycle;
+        turn : float, rad/s.
+    speed_se, rotation_se : float, their standard errors (NaN for one cycle).
     cycles : int, cycles measured.
     work : float or None, the gait's actuator work per cycle, J (None: no effort measured).
     efficiency, efficiency_se : float or None, distance per cycle over work per cycle, m/J, and its
@@ -447,6 +451,9 @@ class Measurement:
         to these cycles, at δ = 0 (:func:`model_rotation`), and its spread over coefficient draws
         (None: no model fitted, or no spread).  The straight-course bound is judged on it
         (:meth:`rotation_reading`).
+    speed_dof : float, the degrees of freedom of ``speed_se`` (the blocks, or cycles, it was estimated
+        from, less one; inf: taken as known).  The change tests read a difference's standard errors
+        through Student's t with them (:func:`_sigmas`).
     """
 
     speed: float
@@ -461,6 +468,7 @@ class Measurement:
     translation_p: float | None = None
     model_rotation: float | None = None
     model_rotation_se: float | None = None
+    speed_dof: float = math.inf
 
     def rotation_reading(self) -> tuple[float, float]:
         """The (rotation, se) the straight-course bound is judged by, rad/cycle.
@@ -480,6 +488,13 @@ class Measurement:
             return float("nan") if self.efficiency is None else self.efficiency
         return abs(self.turn) if objective == "turn" else self.speed
 
+    def value_dof(self, objective: str) -> float:
+        """Degrees of freedom of :meth:`value_se` (the rotation's and the work's: the cycles less one)."""
+        cycles = self.cycles - 1.0 if self.cycles > 1 else math.inf
+        if objective == "turn":
+            return cycles
+        return min(self.speed_dof, cycles) if objective == "efficiency" else self.speed_dof
+
     def value_se(self, objective: str) -> float:
         """Standard error of :meth:`value` (turn: of the rotation, · f)."""
         if objective == "efficiency":
@@ -490,24 +505,37 @@ class Measurement:
 
 def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: int, gait_hz: float,
                    drive: Sequence[tuple[FloatArray, FloatArray]] | None = None) -> Measurement:
-    """Per-cycle net motion g_c = g(t)⁻¹ g(t + 1/f) of a pose series, averaged over its whole cycles.
+    """The net motion per cycle of a pose series, counted from every point of the cycle.
 
-    Speed: |mean translation of g_c| · f over the consecutive whole cycles (t at cycle starts).
-    Rotation: the mean of yaw(t + 1/f) − yaw(t) over *every* sample t with t + 1/f in the series (a
-    rotation is the same in any frame, so every start counts; this averages out the
-    within-cycle yaw wiggle of the perturbations: on snake5 and purcell3 at the default OU
-    drive its spread over 4-cycle windows was 0.6× and 0.3× that of cycle-start windows).
-    The standard errors are those of the consecutive cycles' values; the speed's is that of the
-    cycles' translations along their mean direction (|μ| changes to first order only with μ's
-    component along μ: a sideways sway per cycle, large in undulators, does not blur the speed).
+    Speed: |d̄| · f, d̄ the mean over one-cycle windows [t, t + 1/f] of the window's displacement
+    expressed in the frame of its mean heading (the trapezoidal mean of the yaw over the window),
+    for t at every sample of each whole cycle but the last (each point of the cycle counts equally).
+    Counting from the cycle starts alone, as g(t)⁻¹ g(t + 1/f), picks up a perturbation's rotation
+    per cycle times the body point's sideways offset at that point of the cycle: on swimmer9's gaits
+    near its limit, under the loop's default perturbation, that coupling made the speed of 4 cycles
+    scatter by 9–16 % of the speed (correlation 0.9 with the cycles' rotation); counted from every
+    point, by 1–4 % (``docs/results/optimize_noise.md``).  The mean heading's frame is a property
+    of the whole window, not of the swing of the body frame at its start.
+    Its standard error: the windows' components along d̄ averaged over each whole cycle of starts
+    (a block's mean is the step between two consecutive cycles' mean positions, and d̄ the mean
+    of those steps), treated as independent draws as the cycles are; with fewer than two blocks,
+    that of the cycles counted from their starts.  (Steps of a position that random-walks would
+    correlate at +1/4, of one that jitters about its course at −1/2; on the loop's robots this se
+    is 0.9–2.8× the readings' scatter: ``docs/results/optimize_noise.md``.)
+    Rotation: the mean of yaw(t + 1/f) − yaw(t) over *every* sample t with t + 1/f in the series
+    (this averages out the within-cycle yaw wiggle of the perturbations: on snake5 and purcell3 at
+    the default OU drive its spread over 4-cycle windows was 0.6× and 0.3× that of cycle-start
+    windows); its standard error is that of the cycles counted from their starts.
     Whether the translation is there at all: Hotelling's T² of the cycles' (x, y) translations
-    against zero (:func:`translation_p`).  Both treat the cycles as independent draws.
+    g(t)⁻¹ g(t + 1/f) from the cycle starts against zero (:func:`translation_p`).  The cycles are
+    treated as independent draws.
 
-    Efficiency (with ``drive``): |mean translation| per cycle over the gait's work per cycle
+    Efficiency (with ``drive``): the distance per cycle |d̄| over the gait's work per cycle
     W = Σ_i τ̄_i · (θ̄_i − θ̄_i−1), τ̄ and θ̄ the actuated efforts and angles averaged over the
     cycles at each sample of the cycle (every stretch starts at a cycle boundary).  The averages
-    cancel the zero-mean part of an excitation's work to first order; its standard error is the
-    jackknife's over the cycles (each left out in turn).
+    cancel the zero-mean part of an excitation's work to first order.  Its standard error combines
+    the distance's (above) and the work's (the jackknife's over the cycles, each left out in turn)
+    as if the two were independent; they grow together, so this errs large.
 
     Parameters
     ----------
@@ -525,7 +553,7 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     if drive is not None and [np.shape(d[0])[0] for d in drive] != [p.shape[0] for p in stretches]:
         raise SudsConfigError(f"`drive`: expected one row per pose sample {[p.shape[0] for p in stretches]}, got "
                               f"{[np.shape(d[0])[0] for d in drive]}")
-    cycles, turns, ra_c, tau_c = [], [], [], []
+    cycles, turns, windows, blocks, ra_c, tau_c = [], [], [], [], [], []
     spc = samples_per_cycle
     for s, p in enumerate(stretches):
         k = (p.shape[0] - 1) // spc
@@ -535,40 +563,63 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
         idx = np.arange(k + 1) * spc
         cycles.append(se2.relative(p[idx[:-1]], p[idx[1:]]))  # (k, 3)
         turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
+        windows.append(_heading_windows(p, spc, (k - 1) * spc if k > 1 else 1))
+        blocks.append(k - 1)
         if drive is not None:  # (k, spc + 1, na): each cycle with its end sample
             rows = idx[:-1, None] + np.arange(spc + 1)
             ra_c.append(np.asarray(drive[s][0], dtype=float)[rows])
             tau_c.append(np.asarray(drive[s][1], dtype=float)[rows])
     g = np.concatenate(cycles)
     m = g.shape[0]
-    mean = g.mean(axis=0)
-    norm = math.hypot(mean[0], mean[1])
+    d = np.concatenate(windows)
+    dbar = d.mean(axis=0)
+    norm = math.hypot(dbar[0], dbar[1])
     speed = float(norm * gait_hz)
     rotation = float(np.mean(np.concatenate(turns)))
-    if m > 1:
-        sd = g.std(axis=0, ddof=1) / math.sqrt(m)
-        if norm > 0:  # |μ| moves with μ's component along itself (first order): the sideways sway does not count
-            along = g[:, :2] @ (mean[:2] / norm)
-            speed_se = float(along.std(ddof=1) / math.sqrt(m) * gait_hz)
-        else:
-            speed_se = float(np.hypot(sd[0], sd[1]) * gait_hz)
-        rot_se = float(sd[2])
-    else:
-        speed_se = rot_se = float("nan")
+    dist_se, dof = _distance_se(windows, blocks, dbar, spc, g)
+    speed_se = dist_se * gait_hz
+    rot_se = float(g[:, 2].std(ddof=1) / math.sqrt(m)) if m > 1 else float("nan")
     work = eff = eff_se = None
     if drive is not None:
         ra, tau = np.concatenate(ra_c), np.concatenate(tau_c)
         work = _phase_work(ra.mean(axis=0), tau.mean(axis=0))
         eff = norm / work if work > 0 else float("nan")
         eff_se = float("nan")
-        if m > 1 and work > 0:  # jackknife: each cycle left out of the means in turn
-            loo = (m * mean[None, :2] - g[:, :2]) / (m - 1)
+        if m > 1 and work > 0 and norm > 0:  # jackknife of the work: each cycle left out of the means in turn
             w_loo = _phase_work((m * ra.mean(axis=0) - ra) / (m - 1), (m * tau.mean(axis=0) - tau) / (m - 1))
-            e_loo = np.hypot(loo[:, 0], loo[:, 1]) / w_loo
-            eff_se = float(np.sqrt((m - 1) / m * np.sum((e_loo - e_loo.mean()) ** 2)))
+            work_se = float(np.sqrt((m - 1) / m * np.sum((w_loo - w_loo.mean()) ** 2)))
+            eff_se = float(eff * math.hypot(dist_se / norm, work_se / work))
     return Measurement(speed=speed, rotation=rotation, turn=rotation * gait_hz, speed_se=speed_se,
                        rotation_se=rot_se, cycles=int(m), work=work, efficiency=eff, efficiency_se=eff_se,
-                       translation_p=translation_p(g[:, :2]))
+                       translation_p=translation_p(g[:, :2]), speed_dof=dof)
+
+
+def _heading_windows(p: FloatArray, spc: int, n: int) -> FloatArray:
+    """The displacements (n, 2) over the one-cycle windows from samples 0 … n − 1, each in its mean-heading frame."""
+    t = np.arange(n)
+    cum = np.concatenate([[0.0], np.cumsum(p[:, 2])])
+    heading = ((cum[t + spc + 1] - cum[t]) - 0.5 * (p[t, 2] + p[t + spc, 2])) / spc  # trapezoidal mean over the window
+    dx, dy = p[t + spc, 0] - p[t, 0], p[t + spc, 1] - p[t, 1]
+    c, s = np.cos(heading), np.sin(heading)
+    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+def _distance_se(windows: Sequence[FloatArray], blocks: Sequence[int], dbar: FloatArray, spc: int,
+                 cycles: FloatArray) -> tuple[float, float]:
+    """Standard error of |d̄| (:func:`measure_cycles`), m, and its degrees of freedom; NaN where nothing can say."""
+    norm = math.hypot(dbar[0], dbar[1])
+    if norm == 0:
+        return float("nan"), math.inf
+    u = dbar / norm
+    means = [(w[:b * spc] @ u).reshape(b, spc).mean(axis=1) for w, b in zip(windows, blocks) if b > 0]
+    n = sum(x.size for x in means)
+    if n >= 2:
+        return float(np.concatenate(means).std(ddof=1) / math.sqrt(n)), n - 1.0
+    m = cycles.shape[0]
+    mean = cycles[:, :2].mean(axis=0)
+    if m < 2 or not np.any(mean):
+        return float("nan"), math.inf
+    return float((cycles[:, :2] @ (mean / math.hypot(mean[0], mean[1]))).std(ddof=1) / math.sqrt(m)), m - 1.0
 
 
 def translation_p(xy: FloatArray) -> float | None:
@@ -645,20 +696,16 @@ def actuator_drive(rec: Recording) -> tuple[FloatArray, FloatArray]:
 
 
 def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: int,
-                      gait_hz: float, *, work: bool = False, origin: int = 0) -> Measurement:
+                      gait_hz: float, *, work: bool = False) -> Measurement:
     """:func:`measure_cycles` of recordings' pose streams, at any pose rate and with any stamps.
 
     A pose stream sampled at exactly ``samples_per_cycle`` per cycle (the simulator's) is measured as
     it is; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
     linearly, in x, y and the unwrapped yaw, onto that many samples per cycle from its first stamp.
     With ``work`` the actuated angles and efforts (:func:`actuator_drive`, at the shape stamps) are
-    interpolated onto the same samples, and the efficiency is measured too.  ``origin`` > 0 counts
-    the cycles from that sample of the cycle on (each stretch loses the samples before it).
+    interpolated onto the same samples, and the efficiency is measured too.
     """
     poses, drives = _resampled(data, samples_per_cycle, gait_hz, work)
-    if origin:
-        poses = [p[origin:] for p in poses]
-        drives = [(a[origin:], b[origin:]) for a, b in drives]
     return measure_cycles(poses, samples_per_cycle, gait_hz, drives if work else None)
 
 
@@ -889,16 +936,34 @@ def _infeasible_text(m: Measurement, cfg: LoopConfig, speed_floor: float, floor_
     return "; ".join(parts)
 
 
-def _sigmas(new: float, old: float, se_new: float, se_old: float) -> float:
-    """|new − old| in standard errors of the difference (0 when they are not known)."""
+def _sigmas(new: float, old: float, se_new: float, se_old: float, dof_new: float = math.inf,
+            dof_old: float = math.inf) -> float:
+    """|new − old| in standard errors of the difference (0 when they are not known).
+
+    With standard errors estimated from few draws (``dof_*`` degrees of freedom, inf: known), the
+    ratio is Welch's t; it is returned as the normal deviate of the same tail probability, so that
+    a threshold in standard errors keeps its normal meaning (a t of 2.5 on 4 degrees of freedom is
+    as likely as a normal deviate of 1.8).
+    """
     se = math.hypot(se_new, se_old)
-    return abs(new - old) / se if math.isfinite(se) and se > 0 else 0.0
+    if not (math.isfinite(se) and se > 0):
+        return 0.0
+    t = abs(new - old) / se
+    den = (se_new ** 4 / dof_new if math.isfinite(dof_new) else 0.0) + \
+        (se_old ** 4 / dof_old if math.isfinite(dof_old) else 0.0)
+    if den <= 0 or t == 0:
+        return t
+    from scipy import special
+
+    nu = se ** 4 / den  # Welch–Satterthwaite
+    return float(-special.ndtri(special.stdtr(nu, -t)))
 
 
 def _moved(new: Measurement, old: Measurement, cfg: LoopConfig) -> str:
     """How the same gait's new measurement left its standing one (speed or rotation), or '' if it did not."""
-    ds = _sigmas(new.speed, old.speed, new.speed_se, old.speed_se)
-    dr = _sigmas(new.rotation, old.rotation, new.rotation_se, old.rotation_se)
+    ds = _sigmas(new.speed, old.speed, new.speed_se, old.speed_se, new.speed_dof, old.speed_dof)
+    dr = _sigmas(new.rotation, old.rotation, new.rotation_se, old.rotation_se, new.value_dof("turn"),
+                 old.value_dof("turn"))
     if max(ds, dr) <= cfg.change_sigmas:
         return ""
     if ds >= dr:
@@ -913,8 +978,8 @@ def _surprise(new: Measurement, old: Measurement, cfg: LoopConfig, speed_floor: 
     that much while the incumbent is within it.
     """
     obj = cfg.objective
-    if _sigmas(new.value(obj), old.value(obj), new.value_se(obj), old.value_se(obj)) > cfg.change_sigmas \
-            and new.value(obj) < old.value(obj):
+    if _sigmas(new.value(obj), old.value(obj), new.value_se(obj), old.value_se(obj), new.value_dof(obj),
+               old.value_dof(obj)) > cfg.change_sigmas and new.value(obj) < old.value(obj):
         return True
     if not _feasible(old, cfg, speed_floor, floor_se)[0] or _feasible(new, cfg, speed_floor, floor_se)[0]:
         return False
@@ -1539,14 +1604,10 @@ class GaitSearch:
             pred_std = predicted_std(self._pred_model, gait, cfg.objective, seed=cfg.seed)
         if (cfg.objective != "turn" and math.isfinite(meas.rotation_se)
                 and abs(meas.rotation) > cfg.origin_sigmas * meas.rotation_se):
-            # it turns: count its cycle from the point it went furthest from (the same motion)
+            # it turns: count its cycle from the point it went furthest from (the same motion; its measured
+            # speed counts every point of the cycle alike, so it stays)
             j = measured_origin(self._best_data, cfg.samples_per_cycle, gait.gait_hz)
-            try:  # (a stretch cut to one cycle by a change holds no whole cycle from another point)
-                shifted = measure_recording(self._best_data, cfg.samples_per_cycle, gait.gait_hz,
-                                            work=self._work, origin=j) if j else None
-            except SudsConfigError:
-                shifted = None
-            if shifted is not None:
+            if j:
                 # the prediction counted from there too: its model's distance from that point over from zero
                 u = j / cfg.samples_per_cycle
                 try:
@@ -1556,7 +1617,7 @@ class GaitSearch:
                     pred, pred_std = pred * ratio, None if pred_std is None else pred_std * ratio
                 except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
                     pass  # (the model cannot say: the prediction stays that of the cycle from zero)
-                gait, meas = time_shifted(gait, u), shifted
+                gait = time_shifted(gait, u)
         out = with_predicted(gait, cfg.objective, {cfg.objective: pred})
         return LoopResult(gait=out, measured=meas, predicted=pred, index=self._best_index,
                           iterations=tuple(self.iterations), cycles_used=self.cycles_used,

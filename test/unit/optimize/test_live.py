@@ -225,7 +225,8 @@ def test_after_a_change_the_speed_floor_is_measured_on_the_changed_robot(purcell
     first = search.observe(run(search.request(), slow))
     req = search.request()
     assert req.kind == "candidate"
-    assert search.observe(run(req, [])).accepted and search.best is req.gait  # faster and more efficient
+    cand = search.observe(run(req, []))
+    assert cand.accepted and search.best is req.gait  # faster and more efficient
     search.robot_changed("the monitor's xi_x in ERROR")
     rerun = search.observe(run(search.request(), slow))
     assert "said changed" in rerun.note
@@ -237,7 +238,9 @@ def test_after_a_change_the_speed_floor_is_measured_on_the_changed_robot(purcell
     floor = search.observe(run(req, slow))
     assert floor.note.startswith("the start gait on the changed robot") and floor.gait is start
     assert f"floor → {floor.measured.speed:.4g} m/s" in floor.note
-    assert abs(floor.measured.speed / first.measured.speed - 1.0) < 0.15  # the slowed robot's speed again
+    # the slowed robot's speed again (within its noise: 4 cycles of a slow, perturbed robot), under the nominal's
+    f, s = floor.measured, first.measured
+    assert abs(f.speed - s.speed) < 3.0 * np.hypot(f.speed_se, s.speed_se) and f.speed < cand.measured.speed
     assert floor.accepted == (search.best is start)
 
 
