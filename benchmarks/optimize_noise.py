@@ -34,7 +34,7 @@ from _common import machine, stamp, write
 from optimize_loop import DEFAULTS, ROBOTS, from_cycle_starts
 
 from suds_ros.core import se2
-from suds_ros.core.optimize.loop import measure_cycles, optimize_loop
+from suds_ros.core.optimize.loop import _sigmas, measure_cycles, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.gait import Gait, gait_limits, nominal_gait
 from suds_ros.core.physics.sim import SimConfig
@@ -69,7 +69,7 @@ def scatter(system, gait: Gait) -> dict:
     each run's consecutive 4-cycle stretches: its scatter, its stated se against that scatter, and the
     correlation of both 4-cycle readings with the stretch's measured rotation.
     """
-    along, blocks, lag, rot, meas, block_rot = [], [], [], [], [], []
+    along, blocks, lag, rot, meas, block_rot, alarms = [], [], [], [], [], [], [0, 0, 0]
     for seed in SEEDS:
         sim = _stream(system, gait, seed, excite=True, warmup=5.0)
         pose = sim.step(CYCLES * SPC + 1).pose
@@ -77,12 +77,20 @@ def scatter(system, gait: Gait) -> dict:
         mean = g[:, :2].mean(axis=0)
         a = g[:, :2] @ (mean / np.hypot(*mean)) * gait.gait_hz
         along.append(a)
+        prev = None
         for i in range(CYCLES // BLOCK):
             stretch = pose[i * BLOCK * SPC:(i + 1) * BLOCK * SPC + 1]
             m = measure_cycles(stretch, SPC, gait.gait_hz)
-            blocks.append(from_cycle_starts([stretch], SPC, gait.gait_hz)[0])
+            old = from_cycle_starts([stretch], SPC, gait.gait_hz)
+            blocks.append(old[0])
             meas.append((m.speed, m.speed_se))
             block_rot.append(m.rotation)
+            if prev is not None:  # the loop's change test on two stretches of one gait on an unchanged robot
+                alarms[0] += 1
+                alarms[1] += _sigmas(old[0], prev[1][0], old[1], prev[1][1]) > DEFAULTS.change_sigmas
+                alarms[2] += _sigmas(m.speed, prev[0].speed, m.speed_se, prev[0].speed_se, m.speed_dof,
+                                     prev[0].speed_dof) > DEFAULTS.change_sigmas
+            prev = (m, old)
         lag.append(np.corrcoef(a[:-1], a[1:])[0, 1])
         rot.append(g[:, 2])
     a, b, mm = np.concatenate(along), np.asarray(blocks), np.asarray(meas)
@@ -90,7 +98,7 @@ def scatter(system, gait: Gait) -> dict:
             "block_corr": float(np.corrcoef(b, block_rot)[0, 1]),
             "meas_mean": float(mm[:, 0].mean()), "meas_sd": float(mm[:, 0].std(ddof=1)),
             "meas_se_ratio": float(np.sqrt(np.mean(mm[:, 1] ** 2)) / mm[:, 0].std(ddof=1)),
-            "meas_corr": float(np.corrcoef(mm[:, 0], block_rot)[0, 1]),
+            "meas_corr": float(np.corrcoef(mm[:, 0], block_rot)[0, 1]), "alarms": alarms,
             "lag1": float(np.mean(lag)), "rot_sd": float(np.concatenate(rot).std(ddof=1))}
 
 
@@ -148,7 +156,7 @@ def main() -> None:
             tr = transient(system, other, gait, v)
             n_meas = BLOCK * 2 * (2 * s["meas_sd"] / (0.05 * v)) ** 2
             rows.append({"robot": name, "gait": label, "speed": v, "block_sd": s["block_sd"],
-                         "meas_sd": s["meas_sd"], "switch": tr})
+                         "meas_sd": s["meas_sd"], "switch": tr, "alarms": s["alarms"]})
             lines.append(f"| {name} | {label} | {v:.4f} | {s['mean']:.4f} | {s['sd']:.4f} ({100 * s['sd'] / v:.0f} %) "
                          f"| {s['lag1']:+.2f} | {s['block_sd']:.4f} ({100 * s['block_sd'] / v:.0f} %, "
                          f"{s['block_corr']:+.2f}) | {s['rot_sd']:.3f} | {n:.0f} | {s['meas_mean']:.4f} | "
@@ -177,6 +185,16 @@ def main() -> None:
               f"{100 * max(r['meas_sd'] / r['speed'] for r in rows):.0f} %, at most "
               f"{max(r['meas_sd'] / r['block_sd'] for r in rows):.2f}× and at least "
               f"{min(r['meas_sd'] / r['block_sd'] for r in rows):.2f}× the cycle starts' scatter.",
+              "- The loop's change test on a re-run (`LoopConfig.change_sigmas` = "
+              f"{DEFAULTS.change_sigmas:g} standard errors of the difference) between consecutive {BLOCK}-cycle "
+              "stretches of the same gait on the unchanged robot, each row's pairs pooled: the readings from the "
+              "cycle starts with a normal z (the loop until 2026-12-05) raise it in "
+              f"{sum(r['alarms'][1] for r in rows)} of {sum(r['alarms'][0] for r in rows)} pairs; the loop's "
+              "reading now, with Welch's t at its "
+              f"degrees of freedom read as a normal deviate (`loop._sigmas`), in {sum(r['alarms'][2] for r in rows)} "
+              f"(a normal deviate beyond {DEFAULTS.change_sigmas:g}: 1.2 %).  Per row (from the starts / every "
+              "point): " + "; ".join(f"{r['robot']} {r['gait']} {r['alarms'][1]} / {r['alarms'][2]}" for r in rows)
+              + ".",
               "- The lag-1 autocorrelation says how much of the per-cycle scatter is the pose frame's "
               "position within the body at the cycle boundaries (it cancels between consecutive cycles: "
               "−0.5 if that were all) and how much is motion the excitation really adds or removes (0).",

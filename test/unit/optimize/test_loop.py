@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from suds_ros.core import se2
 from suds_ros.core.errors import SudsConfigError
 from suds_ros.core.optimize.loop import (
     POOR_RATIO,
@@ -47,6 +48,42 @@ def test_measure_cycles_reads_the_per_cycle_net_motion() -> None:
     assert m.translation_p == 0.0  # every cycle the same, and not zero
     with pytest.raises(SudsConfigError, match="expected at least one cycle"):
         measure_cycles(np.zeros((spc, 3)), spc, hz)
+
+
+def test_the_speed_counts_every_point_of_the_cycle_so_a_turn_does_not_move_the_tracked_points_chord() -> None:
+    """The tracked point is a head 0.6 m ahead of a centre that moves straight at 0.5 m/s while the body
+    swings (yaw 0.8 cos 2πft) and meanders by 0.2 sin(2πft/3).  Counted from the cycle starts, each
+    cycle's chord takes in the meander's turn times the head's offset there (7 % short); counted from
+    every point of the cycle, the head's mean position over a cycle is what moves (0.7 %, from the
+    windows' headings), with one block per whole cycle of starts but the last."""
+    spc, f, v, head = 100, 1.0, 0.5, 0.6
+    t = np.arange(4 * spc + 1) / (spc * f)
+    psi = 0.8 * np.cos(2 * np.pi * f * t) + 0.2 * np.sin(2 * np.pi * f * t / 3)
+    pose = np.stack([v * t + head * np.cos(psi), head * np.sin(psi), psi], axis=1)
+    m = measure_cycles(pose, spc, f)
+    idx = np.arange(5) * spc
+    starts = se2.relative(pose[idx[:-1]], pose[idx[1:]])[:, :2].mean(axis=0)  # the reading from the starts
+    assert abs(np.hypot(*starts) * f / v - 1) > 0.05
+    assert m.speed == pytest.approx(v, rel=0.01)
+    assert m.speed_dof == 2.0 and 0 < m.speed_se < 0.05 * v
+    assert measure_cycles([pose, pose[:3 * spc + 1]], spc, f).speed_dof == 4.0  # 3 + 2 blocks
+    assert measure_cycles(pose[:2 * spc + 1], spc, f).speed_dof == 1.0  # one block: the 2 cycles from their starts
+
+
+def test_the_change_tests_read_a_few_cycles_standard_errors_through_students_t() -> None:
+    from scipy import stats
+
+    from suds_ros.core.optimize.loop import _sigmas
+
+    assert _sigmas(1.3, 1.0, 0.1, 0.05) == pytest.approx(0.3 / np.hypot(0.1, 0.05))  # known: the plain ratio
+    se1, se2_, n1, n2 = 0.1, 0.05, 2.0, 3.0
+    nu = (se1 ** 2 + se2_ ** 2) ** 2 / (se1 ** 4 / n1 + se2_ ** 4 / n2)  # Welch–Satterthwaite
+    t = 0.3 / np.hypot(se1, se2_)
+    z = _sigmas(1.3, 1.0, se1, se2_, n1, n2)
+    assert z == pytest.approx(stats.norm.isf(stats.t.sf(t, nu)), rel=1e-9) and z < t
+    assert _sigmas(1.0, 1.3, se1, se2_, n1, n2) == pytest.approx(z)  # |new − old|
+    assert _sigmas(1.3, 1.0, se1, se2_, 1e9, 1e9) == pytest.approx(t, rel=1e-6)
+    assert _sigmas(1.3, 1.0, float("nan"), 0.1, 2.0, 2.0) == 0.0
 
 
 def test_translation_p_is_hotellings_test_against_no_motion() -> None:
