@@ -103,6 +103,12 @@ ABLATIONS = {
                    "recorded pose as it is, as before 2026-12-04.  These runs are the default runs of 2026-12-04 "
                    "22:08 UTC, made just before the option existed by the same code path (the JSON's `note`).",
                    "rejections (ablation)"),
+    "trust4": ("trust", 4.0, "a first trust radius of 4 σ (an option)",
+               "`LoopConfig.trust` = 4 (`--ablation trust4`; the default starts the trust region at 2 σ of the "
+               "data's spread and doubles it after a confirmed full step, up to 8): every step starts twice as "
+               "far out.  Measured once the steps aimed (the shape frame) and the speed was read from every "
+               "point of the cycle; in the pose frame, with the speed read from the cycle starts, it lowered "
+               "swimmer9 (README).", "rejections (option)"),
     "start-speed": ("speed_reading", "from the cycle starts", "speeds read from the cycle starts",
                     "Every run's speed is read as |mean of g(t)⁻¹ g(t + 1/f)| · f over its cycle starts t, "
                     "with the se of the cycles' components along their mean (`--ablation start-speed`; the "
