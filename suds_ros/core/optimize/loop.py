@@ -700,7 +700,7 @@ def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: 
     """:func:`measure_cycles` of recordings' pose streams, at any pose rate and with any stamps.
 
     A pose stream sampled at exactly ``samples_per_cycle`` per cycle (the simulator's) is measured as
-    it is; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
+    it is, its yaw unwrapped; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
     linearly, in x, y and the unwrapped yaw, onto that many samples per cycle from its first stamp.
     With ``work`` the actuated angles and efforts (:func:`actuator_drive`, at the shape stamps) are
     interpolated onto the same samples, and the efficiency is measured too.
@@ -746,7 +746,7 @@ def _resampled(data: Recording | Sequence[Recording], samples_per_cycle: int, ga
         t, p = np.asarray(rec.pose_t, dtype=float), np.asarray(rec.pose, dtype=float)
         if t.size > 1 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=0):
             grid = t
-            poses.append(p)
+            poses.append(np.column_stack([p[:, :2], np.unwrap(p[:, 2])]))  # (a recorded yaw may wrap at ±π)
         else:
             n = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1 if t.size else 0
             grid = t[0] + dt * np.arange(n) if n else t

@@ -3,6 +3,8 @@ samples in any order and at any pose rate, the protocol's refusals."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -63,6 +65,12 @@ def test_measure_recording_takes_any_pose_rate() -> None:
                     pose_t=t, pose=pose, system="x", gait_hz=hz)
     exact = measure_cycles(pose, SPC, hz)
     assert measure_recording(rec, SPC, hz) == exact  # the simulator's rate: measured as it is
+    # at the simulator's rate too, a yaw recorded wrapped to (-π, π] (here far from zero) reads the same
+    far = pose + [0.0, 0.0, 2 * np.pi * 3 + np.pi - 0.3]  # the yaw crosses π
+    wrapped = np.column_stack([far[:, :2], np.angle(np.exp(1j * far[:, 2]))])
+    assert np.any(np.abs(np.diff(wrapped[:, 2])) > np.pi)  # it does wrap
+    same = measure_recording(dataclasses.replace(rec, pose=wrapped), SPC, hz)
+    assert same.speed == pytest.approx(exact.speed, rel=1e-9) and same.rotation == pytest.approx(exact.rotation)
     # motion capture at 120 Hz from another start, with jitter, yaw wrapped to (-π, π]
     rng = np.random.default_rng(0)
     pt = np.sort(0.004 + np.arange(0, 4.0, 1 / 120) + rng.uniform(-4e-4, 4e-4, 480))
