@@ -553,7 +553,7 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     if drive is not None and [np.shape(d[0])[0] for d in drive] != [p.shape[0] for p in stretches]:
         raise SudsConfigError(f"`drive`: expected one row per pose sample {[p.shape[0] for p in stretches]}, got "
                               f"{[np.shape(d[0])[0] for d in drive]}")
-    cycles, turns, windows, blocks, ra_c, tau_c = [], [], [], [], [], []
+    cycles, turns, windows, ra_c, tau_c = [], [], [], [], []
     spc = samples_per_cycle
     for s, p in enumerate(stretches):
         k = (p.shape[0] - 1) // spc
@@ -563,8 +563,7 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
         idx = np.arange(k + 1) * spc
         cycles.append(se2.relative(p[idx[:-1]], p[idx[1:]]))  # (k, 3)
         turns.append(p[spc:k * spc + 1, 2] - p[:k * spc + 1 - spc, 2])
-        windows.append(_heading_windows(p, spc, (k - 1) * spc if k > 1 else 1))
-        blocks.append(k - 1)
+        windows.append(_heading_windows(p, spc, (k - 1) * spc if k > 1 else 1))  # (one cycle: its start alone)
         if drive is not None:  # (k, spc + 1, na): each cycle with its end sample
             rows = idx[:-1, None] + np.arange(spc + 1)
             ra_c.append(np.asarray(drive[s][0], dtype=float)[rows])
@@ -576,7 +575,7 @@ def measure_cycles(pose: FloatArray | Sequence[FloatArray], samples_per_cycle: i
     norm = math.hypot(dbar[0], dbar[1])
     speed = float(norm * gait_hz)
     rotation = float(np.mean(np.concatenate(turns)))
-    dist_se, dof = _distance_se(windows, blocks, dbar, spc, g)
+    dist_se, dof = _distance_se(windows, dbar, spc, g)
     speed_se = dist_se * gait_hz
     rot_se = float(g[:, 2].std(ddof=1) / math.sqrt(m)) if m > 1 else float("nan")
     work = eff = eff_se = None
@@ -604,14 +603,17 @@ def _heading_windows(p: FloatArray, spc: int, n: int) -> FloatArray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
 
 
-def _distance_se(windows: Sequence[FloatArray], blocks: Sequence[int], dbar: FloatArray, spc: int,
+def _distance_se(windows: Sequence[FloatArray], dbar: FloatArray, spc: int,
                  cycles: FloatArray) -> tuple[float, float]:
-    """Standard error of |d̄| (:func:`measure_cycles`), m, and its degrees of freedom; NaN where nothing can say."""
+    """Standard error of |d̄| (:func:`measure_cycles`), m, and its degrees of freedom; NaN where nothing can say.
+
+    Each stretch's windows are whole cycles of starts (spc each), or its one start when it holds one cycle.
+    """
     norm = math.hypot(dbar[0], dbar[1])
     if norm == 0:
         return float("nan"), math.inf
     u = dbar / norm
-    means = [(w[:b * spc] @ u).reshape(b, spc).mean(axis=1) for w, b in zip(windows, blocks) if b > 0]
+    means = [(w @ u).reshape(-1, spc).mean(axis=1) for w in windows if w.shape[0] >= spc]
     n = sum(x.size for x in means)
     if n >= 2:
         return float(np.concatenate(means).std(ddof=1) / math.sqrt(n)), n - 1.0
@@ -700,8 +702,9 @@ def measure_recording(data: Recording | Sequence[Recording], samples_per_cycle: 
     """:func:`measure_cycles` of recordings' pose streams, at any pose rate and with any stamps.
 
     A pose stream sampled at exactly ``samples_per_cycle`` per cycle (the simulator's) is measured as
-    it is, its yaw unwrapped; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
-    linearly, in x, y and the unwrapped yaw, onto that many samples per cycle from its first stamp.
+    it is; any other (a motion-capture rate, jitter, dropped frames) is first interpolated
+    linearly, in x, y and the yaw, onto that many samples per cycle from its first stamp (the yaw
+    is unwrapped already: a :class:`Recording` unwraps it on construction).
     With ``work`` the actuated angles and efforts (:func:`actuator_drive`, at the shape stamps) are
     interpolated onto the same samples, and the efficiency is measured too.
     """
@@ -746,13 +749,12 @@ def _resampled(data: Recording | Sequence[Recording], samples_per_cycle: int, ga
         t, p = np.asarray(rec.pose_t, dtype=float), np.asarray(rec.pose, dtype=float)
         if t.size > 1 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=0):
             grid = t
-            poses.append(np.column_stack([p[:, :2], np.unwrap(p[:, 2])]))  # (a recorded yaw may wrap at ±π)
+            poses.append(p)
         else:
             n = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1 if t.size else 0
             grid = t[0] + dt * np.arange(n) if n else t
-            yaw = np.unwrap(p[:, 2]) if n else p[:, 2]
             poses.append(np.column_stack([np.interp(grid, t, p[:, 0]), np.interp(grid, t, p[:, 1]),
-                                          np.interp(grid, t, yaw)]))
+                                          np.interp(grid, t, p[:, 2])]))
         if work:
             ts = np.asarray(rec.t, dtype=float)
             ra, tau = actuator_drive(rec)

@@ -66,6 +66,7 @@ def test_measure_recording_takes_any_pose_rate() -> None:
     exact = measure_cycles(pose, SPC, hz)
     assert measure_recording(rec, SPC, hz) == exact  # the simulator's rate: measured as it is
     # at the simulator's rate too, a yaw recorded wrapped to (-π, π] (here far from zero) reads the same
+    # (the Recording unwraps it)
     far = pose + [0.0, 0.0, 2 * np.pi * 3 + np.pi - 0.3]  # the yaw crosses π
     wrapped = np.column_stack([far[:, :2], np.angle(np.exp(1j * far[:, 2]))])
     assert np.any(np.abs(np.diff(wrapped[:, 2])) > np.pi)  # it does wrap
