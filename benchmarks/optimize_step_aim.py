@@ -82,15 +82,14 @@ def chord_speeds(system: SudsSystem, model: LearnedModel, gait: Gait, seed: int)
     clean = simulate(system, SimConfig(cycles=3, samples_per_cycle=n, gait_hz=hz, gait=g, ou_std=0.0,
                                        noise_std=0.0, warmup=math.ceil(5.0 * hz) / hz, seed=seed))
     shapes = clean.r[n:2 * n + 1]
-    ra = ev._basis @ x.reshape(ev.na, -1).T  # the model's actuated shapes at its step times
+    ra = g.r(ev.h * np.arange(n + 1))  # the gait's actuated shapes at the model cycle's step times
     if np.max(np.abs(shapes[:, model.act] - ra)) > 1e-6:
         raise RuntimeError("the physics run is not on the model cycle's step times (actuated shapes differ)")
     poses: list[np.ndarray] = []
     ev.cycle(x[None], None, poses=poses, passive=shapes[:, None, model.pas])
     path = np.concatenate([np.zeros((1, 3)), np.concatenate(poses)])
     xi_model = se2.body_velocity(path, ev.h)
-    true_path = model.in_frame(clean).pose[n:2 * n + 1].copy()  # (the model's body frame)
-    true_path[:, 2] = np.unwrap(true_path[:, 2])
+    true_path = model.in_frame(clean).pose[n:2 * n + 1]  # (the model's body frame; a Recording's yaw is unwrapped)
     xi_true = se2.body_velocity(true_path, ev.h)
 
     def chord(xi: np.ndarray) -> float:
