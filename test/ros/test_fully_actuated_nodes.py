@@ -50,10 +50,15 @@ def test_nodes_run_a_fully_actuated_robot(start_process, node_command, probe):
     assert sim.wait(300) == 0, sim.output()
     wait_for(lambda: len(models) >= 1, 300, lambda: f"a model\n{est.output()}")
     # on a busy machine the whole first run can reach the predictor before the model does (it predicts
-    # only samples that come after its first model): a second run of the robot is predicted for certain
+    # only samples that come after its first model): a second run of the robot is predicted for certain.
+    # The predictor listens volatile (live predictions, no history), so this short run starts only once
+    # the three shape subscriptions (estimator, predictor, monitor) have matched its publisher: a loaded
+    # machine's discovery can otherwise outlast the whole run
     more = start_process(node_command("simulator_node", f"model_file:={CRAWLER}", "real_time_factor:=4.0",
-                                      "seed:=6", "cycles:=4", f"t0:={1.7e9 + CYCLES + 10.0}"), "simulator2")
+                                      "seed:=6", "cycles:=4", f"t0:={1.7e9 + CYCLES + 10.0}",
+                                      "wait_for_subscribers:=3", "start_timeout:=240.0"), "simulator2")
     assert more.wait(300) == 0, more.output()
+    assert "starting the stream: 3 subscription(s)" in more.output(), more.output()
     wait_for(lambda: len(body) >= 100, 300,
              lambda: f"predictions ({len(models)} models, {len(body)} predictions)\n{est.output()}\n{pred.output()}")
     model = model_from_msg(models.messages()[-1])
