@@ -109,6 +109,12 @@ ABLATIONS = {
                "far out.  Measured once the steps aimed (the shape frame) and the speed was read from every "
                "point of the cycle; in the pose frame, with the speed read from the cycle starts, it lowered "
                "swimmer9 (README).", "rejections (option)"),
+    "no-kernel": ("random_features", False, "models without random shape features",
+                  "`LoopConfig.random_features` = False (`--ablation no-kernel`; the default lets every model's "
+                  "cross-validation choose among the identifier's random-feature models of the whole shape too, "
+                  "which it does on purcell3 and swimmer9 from a few cycles): every model is the Fourier SUDS "
+                  "regression.  Measured because those models' steps are predicted far above what they measure, "
+                  "which a smooth regression might extrapolate better.", "rejections (ablation)"),
     "start-speed": ("speed_reading", "from the cycle starts", "speeds read from the cycle starts",
                     "Every run's speed is read as |mean of g(t)⁻¹ g(t + 1/f)| · f over its cycle starts t, "
                     "with the se of the cycles' components along their mean (`--ablation start-speed`; the "
@@ -197,7 +203,7 @@ def run(name: str, seeds: list[int], kinds: list[str], reuse_limit: bool = False
     doc = {"robot": name, "budget": budget, "target": target, "limit": limit, "limit_seconds": secs,
            "ablation": ablation, "rotation_from_model": DEFAULTS.rotation_from_model,
            "body_frame": DEFAULTS.body_frame, "speed_reading": SPEED_READING, **change,
-           "machine": machine(), "runs": []}
+           "machine": machine(), "measured": f"{stamp()} on {machine()}", "runs": []}
     print(f"{name}: limit {limit:.5f} ({doc['limit_seconds']:.0f} s)", flush=True)
     for kind, start in starts(nom).items():
         if kind not in kinds:
@@ -410,9 +416,15 @@ def _verdict(row: dict, rerun: bool) -> str:
 
 
 def report() -> None:
+    when = []
+    for name in ROBOTS:  # each JSON's runs keep the time they were made (those before 2026-12-05 03:00 did not)
+        path = _path(name, None)
+        if path.exists():
+            when.append(f"{name} {json.loads(path.read_text()).get('measured', 'at a time not recorded')}")
     lines = ["# `suds optimize --simulate`: the offline run → fit → step loop, measured", "",
-             f"Measured {stamp()} on {machine()} by `benchmarks/optimize_loop.py` (nice 5; the 2 cores shared "
-             "with other work, so times are rough).", "",
+             f"Report written {stamp()} by `benchmarks/optimize_loop.py` from its runs (the defaults' measured: "
+             f"{'; '.join(when)}; each ablation's machine where it differs; nice 5, the 2 cores shared with other "
+             "work, so times are rough).", "",
              f"The loop (`suds_ros/core/optimize/loop.py`, defaults): the start gait runs {DEFAULTS.settle_cycles} "
              f"settling + {DEFAULTS.first_cycles} measured cycles; each candidate {DEFAULTS.settle_cycles} settling "
              f"+ {DEFAULTS.step_cycles} measured cycles (every cycle counted); right after the start, a start "

@@ -98,6 +98,7 @@ import numpy as np
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.ident.identify import IdentifyConfig
 from suds_ros.core.optimize.change import hotelling_p, passive_shift
 from suds_ros.core.optimize.data import (
     FRAMES,
@@ -245,6 +246,15 @@ class LoopConfig:
         the model's own stretches), or ``"pose"``, the recorded frame.  The objectives are the same
         in both; on a robot whose pose frame swings with its shape (swimmer9's head link) the shape
         frame's model predicts a step's gain far better (``docs/results/optimize_step_aim.md``).
+    random_features : bool
+        Whether the identifier's random-feature models of the whole shape are among the candidates
+        its cross-validation picks each model from (``IdentifyConfig.kernel_grid``, tried on at most
+        ``kernel_max_rows`` intervals: every model of a few cycles here).  They win that selection
+        on purcell3 and swimmer9 from 5 cycles, and the loop's steps planned on them went further:
+        without them swimmer9's 7 benchmark runs summed 607.5 against 646.9 per cent of the limit at
+        90 cycles, the wave-reversed start 67.5 against 91.9; purcell3, snake5 and neck4 were level
+        (``docs/results/optimize_loop.md``, ablation ``no-kernel``).  False: the Fourier SUDS
+        regression alone.
     origin_sigmas : float
         For ``speed`` and ``efficiency``, the gait returned is counted from the point of its cycle it
         measured furthest from (:func:`measured_origin`) when its measured rotation is beyond this
@@ -382,6 +392,7 @@ class LoopConfig:
     reverse_trial: bool = True
     rotation_from_model: bool = True
     body_frame: str = "shape"
+    random_features: bool = True
     origin_sigmas: float = 1.0
     samples_per_cycle: int = 100
     ou_std: float = 0.175
@@ -1467,7 +1478,8 @@ class GaitSearch:
         for seen, tq, model in self._fits:
             if tq == torque and len(seen) == len(recs) and all(a is b for a, b in zip(seen, recs)):
                 return model
-        model = learn_model(list(recs), torque=torque, frame=self.config.body_frame)
+        ident = None if self.config.random_features else IdentifyConfig(kernel_grid=(0,))
+        model = learn_model(list(recs), torque=torque, frame=self.config.body_frame, config=ident)
         self._fits = [*self._fits[-3:], (recs, torque, model)]
         return model
 

@@ -711,6 +711,19 @@ def test_the_loop_fits_its_models_in_the_body_frame_it_is_given() -> None:
     assert abs(rot["shape"] - rot["pose"]) < 0.01, rot  # two fits of the same cycles: close, not equal
 
 
+def test_random_features_decides_whether_the_loops_models_may_be_random_feature_models() -> None:
+    """``random_features``: from purcell3's 5 cycles the default selection picks a random-feature model
+    (``docs/results/optimize_loop.md``, ablation no-kernel); switched off, the model is the Fourier regression."""
+    system = make_system("purcell3")
+    gait = nominal_gait(system)
+    data = _start_data(system, gait, LoopConfig(budget_cycles=5, seed=0))
+    kernels = {}
+    for on in (True, False):
+        search = GaitSearch(gait, gait_limits(system), LoopConfig(budget_cycles=20, seed=0, random_features=on))
+        kernels[on] = search._learn(data, torque=False).suds.kernel_features
+    assert kernels[True] > 0 and kernels[False] == 0, kernels
+
+
 def test_the_spread_of_draws_is_robust_to_the_few_that_predict_far_off() -> None:
     """``draw_spread``: the normal-scaled median absolute deviation of the finite draws.
 
