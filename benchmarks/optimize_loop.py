@@ -115,6 +115,12 @@ ABLATIONS = {
                   "which it does on purcell3 and swimmer9 from a few cycles): every model is the Fourier SUDS "
                   "regression.  Measured because those models' steps are predicted far above what they measure, "
                   "which a smooth regression might extrapolate better.", "rejections (ablation)"),
+    "margin8": ("rotation_margin", 0.8, "steps aimed at 0.8 of the rotation bound (an option)",
+                "`LoopConfig.rotation_margin` = 0.8 (`--ablation margin8`; the default asks each step's model for "
+                "a rotation within 0.5 of the 0.05 rad/cycle bound: of zero for a full step, of the incumbent's "
+                "own for a half-wave one): the steps may plan further towards the bound.  An option measured "
+                "against the default, because on a robot off course (snake5 with a bent spring) the default's "
+                "steps aim deep inside the bound, where the fastest gaits are not.", "rejections (option)"),
     "start-speed": ("speed_reading", "from the cycle starts", "speeds read from the cycle starts",
                     "Every run's speed is read as |mean of g(t)⁻¹ g(t + 1/f)| · f over its cycle starts t, "
                     "with the se of the cycles' components along their mean (`--ablation start-speed`; the "
