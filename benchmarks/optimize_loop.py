@@ -29,7 +29,7 @@ from _common import NECK4, RESULTS, SNAKE5, machine, stamp, write
 
 from suds_ros.core import se2
 from suds_ros.core.json_text import dumps
-from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, _resampled, optimize_loop
+from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, _resampled, along_se, optimize_loop
 from suds_ros.core.optimize.physics import OptimizeConfig, evaluate_gait, optimize_gait
 from suds_ros.core.physics.gait import Gait, constraint_violations, gait_limits, nominal_gait, time_reversed
 from suds_ros.core.physics.systems import load_system
@@ -146,10 +146,7 @@ def from_cycle_starts(poses: list[np.ndarray], spc: int, hz: float) -> tuple[flo
     """
     g = np.concatenate([se2.relative(p[np.arange(k) * spc], p[np.arange(1, k + 1) * spc])[:, :2]
                         for p in poses for k in [(p.shape[0] - 1) // spc]])
-    mean = g.mean(axis=0)
-    norm = float(np.hypot(*mean))
-    se = float((g @ (mean / norm)).std(ddof=1) / math.sqrt(len(g))) if len(g) > 1 and norm > 0 else math.nan
-    return norm * hz, se * hz, len(g)
+    return float(np.hypot(*g.mean(axis=0))) * hz, along_se(g) * hz, len(g)
 
 
 class _StartSpeedSearch(GaitSearch):

@@ -94,6 +94,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import special
 
 from suds_ros.core import se2
 from suds_ros.core._typing import FloatArray
@@ -628,11 +629,21 @@ def _distance_se(windows: Sequence[FloatArray], dbar: FloatArray, spc: int,
     n = sum(x.size for x in means)
     if n >= 2:
         return float(np.concatenate(means).std(ddof=1) / math.sqrt(n)), n - 1.0
-    m = cycles.shape[0]
-    mean = cycles[:, :2].mean(axis=0)
-    if m < 2 or not np.any(mean):
-        return float("nan"), math.inf
-    return float((cycles[:, :2] @ (mean / math.hypot(mean[0], mean[1]))).std(ddof=1) / math.sqrt(m)), m - 1.0
+    se = along_se(cycles[:, :2])
+    return (se, cycles.shape[0] - 1.0) if math.isfinite(se) else (float("nan"), math.inf)
+
+
+def along_se(xy: FloatArray) -> float:
+    """Standard error of |mean| of the rows of ``xy`` (n, 2), treated as independent draws; NaN where none.
+
+    |μ| moves with μ's component along itself (first order): the rows' components along their mean
+    count, a sideways sway does not.  NaN for fewer than two rows or a zero mean.
+    """
+    n = xy.shape[0]
+    mean = xy.mean(axis=0) if n else np.zeros(2)
+    if n < 2 or not np.any(mean):
+        return float("nan")
+    return float((xy @ (mean / math.hypot(mean[0], mean[1]))).std(ddof=1) / math.sqrt(n))
 
 
 def translation_p(xy: FloatArray) -> float | None:
@@ -966,8 +977,6 @@ def _sigmas(new: float, old: float, se_new: float, se_old: float, dof_new: float
         (se_old ** 4 / dof_old if math.isfinite(dof_old) else 0.0)
     if den <= 0 or t == 0:
         return t
-    from scipy import special
-
     nu = se ** 4 / den  # Welch–Satterthwaite
     return float(-special.ndtri(special.stdtr(nu, -t)))
 
