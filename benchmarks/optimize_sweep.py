@@ -1,12 +1,15 @@
 """The data-driven loop on robots nobody tuned it on: random model files, 5 cycles per link.
 
-``python benchmarks/optimize_sweep.py [--robots N] [--seed S] [--loop-seed L]`` writes N seeded random
-``suds-robot/1`` files (3–7 links, random driven/passive split, springs with damping, rest, k3 and dry
-friction, per-link drag, the pose frame on any link with an offset, joint range and speed limits on some
-joints), runs ``suds optimize --simulate FILE --budget-cycles 5×links --seed L --limit yes --json`` on
-each in its own process (the user's path: the loop sees only the recorded streams), and writes
-``docs/results/optimize_sweep.md``: per robot the start and returned gait as per cent of the physics
-limit, the returned gait's measured and predicted speed, its motion test, and the run's errors if any.
+``python benchmarks/optimize_sweep.py [--robots N] [--seed S] [--loop-seeds L ...] [--rotation-margin F]``
+writes N seeded random ``suds-robot/1`` files (3–7 links, random driven/passive split, springs with
+damping, rest, k3 and dry friction, per-link drag, the pose frame on any link with an offset, joint range
+and speed limits on some joints), runs
+``suds optimize --simulate FILE --budget-cycles 5×links --seed L --limit yes --json`` for each loop seed
+L on each in its own process (the user's path: the loop sees only the recorded streams), and writes
+``docs/results/optimize_sweep.md`` (with ``--rotation-margin F``, passed on to the loop,
+``optimize_sweep_margin<F>.md``): per robot and seed the start and returned gait as per cent of the
+physics limit, the returned gait's measured and predicted speed, its motion test, and the run's errors
+if any.
 """
 
 from __future__ import annotations
@@ -81,10 +84,10 @@ def random_robot(rng: np.random.Generator, name: str) -> dict[str, object]:
             "links": links, "body": body, "joints": joints}
 
 
-def run_one(path: Path, budget: int, seed: int, out: Path) -> tuple[dict | None, str, float]:
+def run_one(path: Path, budget: int, seed: int, out: Path, extra: list[str]) -> tuple[dict | None, str, float]:
     """Run the CLI's loop on one file: its JSON (None on failure), the failure's last stderr line, seconds."""
     cmd = [sys.executable, "-m", "suds_ros.cli", "optimize", "--simulate", str(path), "--budget-cycles",
-           str(budget), "--seed", str(seed), "--limit", "yes", "--json", "-o", str(out), "--overwrite"]
+           str(budget), "--seed", str(seed), "--limit", "yes", "--json", "-o", str(out), "--overwrite", *extra]
     t = time.perf_counter()
     try:
         proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT_S, check=False)
@@ -101,13 +104,20 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--robots", type=int, default=8, help="random robots (default 8)")
     p.add_argument("--seed", type=int, default=20261202, help="the robot generator's seed")
-    p.add_argument("--loop-seed", type=int, default=0, help="the loop's seed (its OU perturbation)")
+    p.add_argument("--loop-seeds", type=int, nargs="+", default=[0],
+                   help="the loop's seeds (its OU perturbation), one run of each robot per seed (default 0)")
+    p.add_argument("--rotation-margin", type=float, default=None,
+                   help="passed to the loop (`--rotation-margin`); writes optimize_sweep_margin<F>.md "
+                        "(default: the loop's own, into optimize_sweep.md)")
     args = p.parse_args()
+    extra = [] if args.rotation_margin is None else ["--rotation-margin", f"{args.rotation_margin:g}"]
     rng = np.random.default_rng(args.seed)
     rows, pcts, gains, fails = [], [], [], 0
     with tempfile.TemporaryDirectory() as tmp:
-        for i in range(args.robots):
-            doc = random_robot(rng, f"rand{i}")
+        for i, loop_seed in ((i, s) for i in range(args.robots) for s in [None, *args.loop_seeds]):
+            if loop_seed is None:  # (each robot drawn once, whatever the seeds)
+                doc = random_robot(rng, f"rand{i}")
+                continue
             path = Path(tmp) / f"rand{i}.yaml"
             path.write_text(yaml.safe_dump(doc, sort_keys=False))
             joints = doc["joints"]
@@ -116,8 +126,8 @@ def main() -> None:
             extras = sorted({k for j in joints for k in j if k in ("damping", "rest", "k3", "coulomb",  # type: ignore
                                                                    "limit", "speed_limit")})
             budget = 5 * n_links
-            res, err, secs = run_one(path, budget, args.loop_seed, Path(tmp) / f"rand{i}_gait.yaml")
-            head = (f"| rand{i} | {n_links} | {n_driven} of {n_links - 1} | {', '.join(extras) or '—'} | "
+            res, err, secs = run_one(path, budget, loop_seed, Path(tmp) / f"rand{i}_gait.yaml", extra)
+            head = (f"| rand{i} | {loop_seed} | {n_links} | {n_driven} of {n_links - 1} | {', '.join(extras) or '—'} | "
                     f"{doc['gait_hz']:g} | {budget} |")
             if res is None:
                 fails += 1
@@ -139,27 +149,32 @@ def main() -> None:
             print(rows[-1], flush=True)
     done = len(pcts)
     reach = {q: sum(v >= q for v in pcts) for q in (90, 95)}
-    summary = (f"{done} of {args.robots} runs finished ({fails} errors); returned gait ≥ 90 % of the limit in "
-               f"{reach[90]}, ≥ 95 % in {reach[95]}; the returned gait's change from the start, in per cent of "
-               f"the limit: {min(gains):+.1f} to {max(gains):+.1f}." if done else "no run finished.")
+    runs = args.robots * len(args.loop_seeds)
+    summary = (f"{done} of {runs} runs finished ({fails} errors); returned gait ≥ 90 % of the limit in "
+               f"{reach[90]}, ≥ 95 % in {reach[95]}; summed over the runs {sum(pcts):.1f} % of the limit; the "
+               f"returned gait's change from the start, in per cent of the limit: {min(gains):+.1f} to "
+               f"{max(gains):+.1f}." if done else "no run finished.")
+    seeds = " ".join(str(s) for s in args.loop_seeds)
+    flag = "" if args.rotation_margin is None else f" --rotation-margin {args.rotation_margin:g}"
     lines = ["# The loop on random model-file robots (5 cycles per link)", "",
              f"Measured {stamp()} on {machine()} by `benchmarks/optimize_sweep.py --robots {args.robots} --seed "
-             f"{args.seed} --loop-seed {args.loop_seed}` (one robot at a time, each in its own process).", "",
+             f"{args.seed} --loop-seeds {seeds}{flag}` (one run at a time, each in its own process).", "",
              "Each robot is a seeded random `suds-robot/1` file (the generator is `random_robot` in the script): "
              "3–7 links, each joint driven with probability ½ (a travelling sine of random amplitude and lag), "
              "the rest springs, some with damping, rest angle, cubic term or dry friction; random per-link drag; "
              "the pose frame on a random link with an offset; range and speed limits on about half of the driven "
              "joints.  The command: `suds optimize --simulate FILE --budget-cycles 5×links --seed "
-             f"{args.loop_seed} --limit yes --json`.  Per cent figures are the physics' (the loop never sees "
+             f"SEED --limit yes --json{flag}`.  Per cent figures are the physics' (the loop never sees "
              "them): the start (nominal) gait's and the returned gait's speed over the limit the physics "
              "optimiser finds (order 3, 4 starts).  'measured' is the returned gait's speed ± se over its "
              "cycles, 'predicted' the model's prediction ± its sd over coefficient draws, 'p' the motion test "
              "(Hotelling's T² of its cycles' translations against zero; warned where p > 0.05).", "",
-             "| robot | links | driven | passive/limit keys | gait Hz | budget | cycles used | start % | "
+             "| robot | seed | links | driven | passive/limit keys | gait Hz | budget | cycles used | start % | "
              "returned % | measured m/s | predicted m/s | p | limit m/s | time s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
              *rows, "", summary, ""]
-    write("optimize_sweep.md", "\n".join(lines))
+    write("optimize_sweep.md" if args.rotation_margin is None else f"optimize_sweep_margin{args.rotation_margin:g}.md",
+          "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -121,6 +121,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--pool-incumbents", type=int, default=0, metavar="N",
                    help="--simulate: also fit each step's model to the newest N stretches of the earlier incumbents "
                         "(default 0: the incumbent's and the rejected candidates' only)")
+    p.add_argument("--rotation-margin", type=float, default=None, metavar="F",
+                   help="--simulate: each step asks the model for a rotation within F times the straight-course "
+                        "bound, in (0, 1] (default: LoopConfig.rotation_margin; the model's rotation errs by a few "
+                        "hundredths of a radian per cycle)")
     p.add_argument("--rotation-from-model", action=argparse.BooleanOptionalAction, default=True,
                    help="--simulate: judge the straight-course bound (speed, efficiency) on the rotation of the SUDS "
                         "model fitted to each run's own cycles, at its steady state, where it fits; else on the "
@@ -353,7 +357,8 @@ def _loop(args: argparse.Namespace) -> int:
                          first_cycles=args.first_cycles, step_cycles=args.step_cycles, watch=args.watch,
                          half_wave=args.half_wave != "no", scale_step=args.scale_step,
                          reverse_trial=args.reverse_trial, rotation_from_model=args.rotation_from_model,
-                         pool_incumbents=args.pool_incumbents, body_frame=args.body_frame)
+                         pool_incumbents=args.pool_incumbents, body_frame=args.body_frame,
+                         **({} if args.rotation_margin is None else {"rotation_margin": args.rotation_margin}))
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         raise SudsConfigError(f"--{name.replace('_', '-')}: {exc}", code=exc.code) from None

@@ -112,6 +112,9 @@ class OptimizerNodeConfig:
                                     "robot whatever the model's yaw says (speed, efficiency)")
     rotation_sigmas: float = setting(1.0, "a measured rotation counts as over the straight-course bound only when "
                                           "over it by more than this many standard errors", ge=0.0)
+    rotation_margin: float = setting(LoopConfig.rotation_margin, "each step asks the model for a rotation within "
+                                                                 "this fraction of the straight-course bound "
+                                                                 "(speed)", gt=0.0, le=1.0)
     scale_step: float = setting(1.25, "right after the start, a start whose oscillation can grow this much inside "
                                       "the joint bounds is run scaled to them (speed, turn; .inf: never)", gt=1.0)
     reverse_trial: bool = setting(True, "once, after the (scaled) start, when its model predicts it better, run the "
@@ -155,7 +158,8 @@ class OptimizerNodeConfig:
                           passive_alpha=self.passive_alpha, half_wave=self.half_wave,
                           rotation_sigmas=self.rotation_sigmas, scale_step=self.scale_step,
                           reverse_trial=self.reverse_trial, rotation_from_model=self.rotation_from_model,
-                          pool_incumbents=self.pool_incumbents, body_frame=self.body_frame)
+                          pool_incumbents=self.pool_incumbents, body_frame=self.body_frame,
+                          rotation_margin=self.rotation_margin)
 
 
 def iteration_json(it: LoopIteration, request: RunRequest, live: LiveGaitSearch,

@@ -166,6 +166,25 @@ def test_loop_reads_the_rotation_from_the_mean_of_the_cycles_on_request(
     assert all("model_rotation" not in it["measured_detail"] for it in doc["iterations"])
 
 
+def test_loop_takes_the_rotation_margin(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--rotation-margin F`` reaches the loop's settings; without it the loop's default stands."""
+    import suds_ros.core.optimize.loop as loop
+
+    seen, real = [], loop.optimize_loop
+
+    def spy(system, config, **kwargs):
+        seen.append(config.rotation_margin)
+        return real(system, config, **kwargs)
+
+    monkeypatch.setattr(loop, "optimize_loop", spy)
+    for extra in ([], ["--rotation-margin", "0.5"]):
+        assert main(["optimize", "--simulate", "purcell3", "--budget-cycles", "5", "--limit", "no", *extra,
+                     "-o", str(tmp_path / f"g{len(extra)}.yaml")]) == 0
+    assert seen == [loop.LoopConfig(budget_cycles=5).rotation_margin, 0.5]
+    capsys.readouterr()
+
+
 def test_loop_with_a_reverse_trial(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The reverse trial (default): the second run is the start backwards in time; on neck4 it is kept (it swims
     faster).  --no-reverse-trial: the second run is a trust-region step."""
@@ -220,6 +239,8 @@ def test_loop_on_efficiency_measures_the_work(tmp_path: Path, capsys: pytest.Cap
       '3:[{"name": "joint_viscous_damping", "joint": "joint_1", "d": 1}]', "-o", "{tmp}/g.yaml"], "--change: "),
     (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--pool-incumbents", "-1", "-o", "{tmp}/g.yaml"],
      "--pool-incumbents: `pool_incumbents`: expected ≥ 0, got -1"),
+    (["optimize", "--simulate", "purcell3", "--budget-cycles", "9", "--rotation-margin", "1.5", "-o", "{tmp}/g.yaml"],
+     "--rotation-margin: `rotation_margin`: expected in (0, 1], got 1.5"),
 ])
 def test_loop_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
                                   message: str) -> None:

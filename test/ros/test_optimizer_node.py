@@ -173,3 +173,15 @@ def test_the_node_passes_the_pooling_of_earlier_incumbents_to_the_search() -> No
         OptimizerNodeConfig(body_frame="head")
     with pytest.raises(SudsConfigError, match="pool_incumbents"):
         OptimizerNodeConfig(pool_incumbents=-1)
+
+
+def test_the_node_passes_the_rotation_margin_to_the_search() -> None:
+    from suds_ros.core.errors import SudsConfigError
+    from suds_ros.core.optimize.loop import LoopConfig
+    from suds_ros.ros.optimizer_node import OptimizerNodeConfig
+
+    assert OptimizerNodeConfig().loop_config().rotation_margin == LoopConfig(budget_cycles=10).rotation_margin
+    assert OptimizerNodeConfig(rotation_margin=0.5).loop_config().rotation_margin == 0.5
+    for bad in (0.0, 1.5):
+        with pytest.raises(SudsConfigError, match="rotation_margin"):
+            OptimizerNodeConfig(rotation_margin=bad)
