@@ -313,7 +313,9 @@ class LoopConfig:
         The robot is taken to have changed when the incumbent, run again, measures more than this
         many standard errors of the difference away from its standing measurement; and the
         incumbent is run again at once after two rejected candidates in a row that each measured
-        more than this many standard errors below it (see :class:`GaitSearch`).  Standard errors
+        more than this many standard errors below it, and after one half-wave candidate measured
+        turning past the rotation bound by more than this many on a robot that looked
+        mirror-symmetric (see :class:`GaitSearch`).  Standard errors
         taken from a few cycles are read through Student's t (:func:`_sigmas`): normal-equivalent
         deviates.  ``inf``: never.
     model_miss : float
@@ -937,11 +939,15 @@ def _slow(m: Measurement, cfg: LoopConfig, speed_floor: float, floor_se: float) 
     return (speed_floor - m.speed) / speed_floor
 
 
-def _turned(m: Measurement, cfg: LoopConfig) -> float:
-    """How far a measured |rotation| is over the bound, rad/cycle (0 within ``rotation_sigmas`` se of it)."""
+def _turned(m: Measurement, cfg: LoopConfig, sigmas: float | None = None) -> float:
+    """How far a measured |rotation| is over the bound, rad/cycle (0 within ``sigmas`` se of it).
+
+    ``sigmas``: ``cfg.rotation_sigmas`` unless given.
+    """
     rot, rot_se = m.rotation_reading()
     over = abs(rot) - cfg.max_rotation
-    if over <= 0 or (math.isfinite(rot_se) and over <= cfg.rotation_sigmas * rot_se):
+    sigmas = cfg.rotation_sigmas if sigmas is None else sigmas
+    if over <= 0 or (math.isfinite(rot_se) and over <= sigmas * rot_se):
         return 0.0
     return over
 
@@ -1121,15 +1127,20 @@ class GaitSearch:
     run again (a ``rerun``) when the trust region collapses, when the model predicts no gain, after
     two rejected candidates in a row that each measured more than ``change_sigmas`` standard errors
     below it, after a rejected candidate whose measured motion the model cannot explain along the
-    candidate's own shapes (``model_miss``), and when :meth:`robot_changed` is called (the live
-    monitor's alarm).  A rerun that measures more than ``change_sigmas`` standard errors away from
+    candidate's own shapes (``model_miss``), after a rejected half-wave candidate on a robot that
+    looked mirror-symmetric (where a half-wave gait runs straight) measured turning past the bound
+    by more than ``change_sigmas`` standard errors, and when :meth:`robot_changed` is called (the
+    live monitor's alarm).  A rerun that measures more than ``change_sigmas`` standard errors away from
     the standing measurement, or whose passive shapes differ from the standing stretches' at
     ``passive_alpha`` (on a robot without passive joints: whose motion misses the model of the
     standing data by ``model_miss``), or any rerun after :meth:`robot_changed`, *replaces* the incumbent's data:
     the old stretches are dropped (and the rerun's own cycles from before the change), and the
     model and the search start afresh on the changed robot.  Otherwise the
-    stretches are pooled.  For ``turn`` and ``efficiency``, whose floor is the start gait's speed,
-    a change also has the start gait run again (a ``floor`` run, when the incumbent is another
+    stretches are pooled.  A candidate run again to confirm its gain is the same gait run again
+    too, and gets the same tests against its first run: when they say the robot changed between
+    the two, the candidate is not judged (its runs saw two robots) and the incumbent is measured
+    afresh next, as after :meth:`robot_changed`.  For ``turn`` and ``efficiency``, whose floor is
+    the start gait's speed, a change also has the start gait run again (a ``floor`` run, when the incumbent is another
     gait): the floor is its speed on the changed robot, and it becomes the incumbent again if it
     now measures better.
 
@@ -1356,9 +1367,14 @@ class GaitSearch:
         elif req.kind == "floor":
             it = self._floor_done(req, meas, data)
         elif req.kind == "confirm":
-            stretches = [*self._confirming, data]
-            self._confirming = []
-            it = self._judge(req, self._measure(stretches, req.gait), stretches)
+            first, self._confirming = self._confirming, []
+            why = "" if self._fresh else self._changed_since(first, self._measure(first, req.gait), data, meas,
+                                                             req.gait)[0]
+            if why:  # the same gait run again: a change test as an incumbent's re-run is (_rerun_done)
+                it = self._changed_in_confirmation(req, meas, why)
+            else:
+                stretches = [*first, data]
+                it = self._judge(req, self._measure(stretches, req.gait), stretches)
         else:
             it = self._judge(req, meas, [data])
         self.iterations.append(it)
@@ -1366,32 +1382,46 @@ class GaitSearch:
             self._log(it)
         return it
 
-    def _rerun_done(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
-        """Pool the incumbent's new stretch with its old ones, or replace them when the robot changed."""
-        cfg, old = self.config, self._best_meas
-        assert old is not None
+    def _changed_since(self, standing: list[Recording], old: Measurement, data: Recording,
+                       meas: Measurement, gait: Gait) -> tuple[str, int]:
+        """Whether a new stretch of a gait shows the robot changed since its ``standing`` stretches.
+
+        Returns in words why ('' if it does not) and the stretch's first cycle on the changed robot:
+        its measurement ``change_sigmas`` off the standing one; else, on a robot with passive joints,
+        its passive shapes off theirs at ``passive_alpha``; else the standing stretches' model missing
+        its motion along its own shapes by over ``model_miss``.
+        """
+        cfg = self.config
         moved = _moved(meas, old, cfg)
-        why = f"said changed: {self._change_reason}" if self._fresh else (
-            f"measured {moved} from its standing value" if moved else "")
-        first = 0  # the stretch's first cycle on the changed robot
+        if moved:
+            return f"measured {moved} from its standing value", 0
         shift = None
-        if not why and data.passive and cfg.passive_alpha > 0:  # its passive shapes against the standing ones
+        if data.passive and cfg.passive_alpha > 0:  # its passive shapes against the standing ones
             try:
-                shift = passive_shift(self._best_data, data, req.gait.gait_hz)
+                shift = passive_shift(standing, data, gait.gait_hz)
             except SudsDataError:  # (a cycle with too few shape samples: the body's test instead)
                 shift = None
             if shift is not None and shift.p < cfg.passive_alpha and shift.start is not None:
-                why = (f"passive joint {shift.joint} ran {shift.size:.3g} rad (RMS over the cycle) off its shapes "
-                       f"in the standing runs, p = {shift.p:.2g}")
-                first = shift.start
-        if not why and shift is None and math.isfinite(cfg.model_miss):
+                return (f"passive joint {shift.joint} ran {shift.size:.3g} rad (RMS over the cycle) off its shapes "
+                        f"in the standing runs, p = {shift.p:.2g}"), shift.start
+        if shift is None and math.isfinite(cfg.model_miss):
             try:  # the model of the standing data, on the new stretch of the same gait
-                text, miss = self._miss(self._learn(self._best_data, torque=self._work), data)
+                text, miss = self._miss(self._learn(standing, torque=self._work), data)
             except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
                 text = ""
             start = _change_start(miss, cfg.model_miss) if text else None
             if start is not None:
-                why, first = text, start
+                return text, start
+        return "", 0
+
+    def _rerun_done(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
+        """Pool the incumbent's new stretch with its old ones, or replace them when the robot changed."""
+        cfg, old = self.config, self._best_meas
+        assert old is not None
+        if self._fresh:
+            why, first = f"said changed: {self._change_reason}", 0
+        else:  # first: the stretch's first cycle on the changed robot
+            why, first = self._changed_since(self._best_data, old, data, meas, req.gait)
         if why:
             note = f"incumbent re-run ({req.note}): the robot changed ({why}); its old data dropped"
             if first > 0:  # the change came inside this stretch: its cycles before it are the old robot's
@@ -1426,6 +1456,22 @@ class GaitSearch:
                            trust_used=None, note=f"{note}, model refitted, trust → {self._kappa:.3g}")
         self._best_index = it.index
         return it
+
+    def _changed_in_confirmation(self, req: RunRequest, meas: Measurement, why: str) -> LoopIteration:
+        """A candidate run again that shows the robot changed: not judged (its two runs saw two robots).
+
+        The incumbent is measured afresh next, as after :meth:`robot_changed`: its standing data are the
+        robot's before the change.
+        """
+        self._fresh, self._change_reason = True, f"the candidate, run again to confirm its gain, {why}"
+        self._pending = self._rerun(f"robot changed: {self._change_reason}")
+        step = req.step
+        return LoopIteration(index=len(self.iterations), gait=req.gait, cycles=req.cycles,
+                             cycles_used=self.cycles_used, predicted=step.value, predicted_std=step.value_std,
+                             predicted_incumbent=step.recorded_value, measured=meas, accepted=False,
+                             trust=step.trust_radius, trust_used=step.trust_used,
+                             note=f"not judged: the robot changed while it was confirmed ({why}); the incumbent "
+                                  "is measured afresh")
 
     def _floor_done(self, req: RunRequest, meas: Measurement, data: Recording) -> LoopIteration:
         """The start gait measured on a changed robot: the new speed floor; the incumbent if it now measures better."""
@@ -1597,6 +1643,12 @@ class GaitSearch:
                 rerun = f"robot changed: {self._change_reason}"
             elif miss:
                 rerun = f"the candidate {miss}: is the robot still the one modelled?"
+            elif (self._symmetric and cand.is_half_wave() and _turned(meas, rules, cfg.change_sigmas) > 0
+                  and self._feasible(old, self._best_gait)):
+                # a half-wave gait cannot turn on a mirror-symmetric robot: this one is not, or no longer
+                rerun = (f"a half-wave gait measured turning {meas.rotation_reading()[0]:+.3g} rad/cycle, over "
+                         f"the bound by over {cfg.change_sigmas:g} se, on a robot that looked mirror-symmetric: "
+                         "is it still?")
             elif self._low_streak >= 2:
                 rerun = (f"two candidates in a row measured over {cfg.change_sigmas:g} se below the incumbent: "
                          "is it still as good?")

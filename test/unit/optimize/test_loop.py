@@ -856,3 +856,39 @@ def test_the_earlier_incumbents_stretches_join_the_steps_model_on_request() -> N
     assert search._past == []
     with pytest.raises(SudsConfigError, match="pool_incumbents"):
         LoopConfig(budget_cycles=20, pool_incumbents=-1)
+
+
+def test_a_candidate_run_again_to_confirm_it_is_a_change_test_too() -> None:
+    """A confirmation runs the same gait again, as a re-run of the incumbent does: when the robot changes
+    between its two runs (purcell3's spring 3× stiffer against the drag), the candidate is not judged on the
+    two robots pooled; the incumbent is measured afresh next and its old data dropped."""
+    system = make_system("purcell3")
+    cfg = LoopConfig(budget_cycles=26, seed=3, confirm_sigmas=1.0, half_wave=False)  # (seed 3: confirmations)
+    its = optimize_loop(system, cfg).iterations
+    i = next(k for k, it in enumerate(its) if it.note.startswith("to be confirmed"))
+    assert not its[i + 1].note.startswith("not judged")  # unchanged: judged on both runs pooled
+    stiffer = [{"name": "stiffness_to_drag_error", "scale": 3.0}]
+    changed = optimize_loop(system, cfg, changes=[(its[i].cycles_used, stiffer)]).iterations
+    assert [it.note for it in changed[:i + 1]] == [it.note for it in its[:i + 1]]  # the same run until then
+    again, rerun = changed[i + 1], changed[i + 2]
+    assert not again.accepted and again.note.startswith("not judged: the robot changed while it was confirmed")
+    incumbent = max((it for it in changed[:i] if it.accepted), key=lambda it: it.index)
+    assert rerun.accepted and rerun.gait is incumbent.gait
+    assert "the robot changed (said changed: the candidate, run again" in rerun.note
+    assert rerun.measured.cycles == cfg.step_cycles  # measured afresh: the standing data dropped
+
+
+def test_a_half_wave_gait_turning_far_past_the_bound_on_a_symmetric_robot_has_the_incumbent_run_again() -> None:
+    """On a mirror-symmetric robot a half-wave gait runs straight: snake5's nominal wave measures so.  Its
+    spring rest bent after the start, the first candidate (a half-wave step) measures turning far past the
+    bound; the incumbent is run again at once, which shows the change."""
+    system, _ = _bent_snake5()
+    cfg = LoopConfig(budget_cycles=15, seed=0)
+    res = optimize_loop(system, cfg, changes=[(5, [{"name": "spring_rest_offset", "joint": "joint_3",
+                                                    "offset": 0.7}])])
+    its = res.iterations
+    assert its[1].gait.is_half_wave() and not its[1].accepted, [it.note for it in its]
+    assert its[2].note.startswith("incumbent re-run (a half-wave gait measured turning"), [it.note for it in its]
+    assert "looked mirror-symmetric" in its[2].note and "the robot changed" in its[2].note
+    unchanged = optimize_loop(system, cfg).iterations
+    assert not any("looked mirror-symmetric" in it.note for it in unchanged)
