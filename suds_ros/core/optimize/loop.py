@@ -286,7 +286,7 @@ class LoopConfig:
         (in (0, 1]; for a half-wave step, within that much of the model's rotation for the
         incumbent): the model's rotation errs by a few hundredths of a radian per cycle, so a step
         planned at the bound often breaks it on the robot.  0.8 since 2026-12-05 (0.5 before):
-        with 0.8 the loop benchmark's 7 runs per robot summed swimmer9 632.4 against 628.7 per cent
+        with 0.8 the loop benchmark's 7 runs per robot summed swimmer9 632.5 against 628.7 per cent
         of the limit at 45 cycles, neck4 635.4 against 628.2 at 20 (its target met in 2 runs of 7
         instead of 1), purcell3 the same and snake5 level (``docs/results/optimize_loop.md``,
         ablation ``margin5``); on a robot off course (snake5 with a bent spring) the fast gaits
