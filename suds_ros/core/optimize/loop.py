@@ -1463,8 +1463,7 @@ class GaitSearch:
         The incumbent is measured afresh next, as after :meth:`robot_changed`: its standing data are the
         robot's before the change.
         """
-        self._fresh, self._change_reason = True, f"the candidate, run again to confirm its gain, {why}"
-        self._pending = self._rerun(f"robot changed: {self._change_reason}")
+        self.robot_changed(f"the candidate, run again to confirm its gain, {why}")
         step = req.step
         return LoopIteration(index=len(self.iterations), gait=req.gait, cycles=req.cycles,
                              cycles_used=self.cycles_used, predicted=step.value, predicted_std=step.value_std,
