@@ -114,10 +114,8 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     rows, pcts, gains, fails = [], [], [], 0
     with tempfile.TemporaryDirectory() as tmp:
-        for i, loop_seed in ((i, s) for i in range(args.robots) for s in [None, *args.loop_seeds]):
-            if loop_seed is None:  # (each robot drawn once, whatever the seeds)
-                doc = random_robot(rng, f"rand{i}")
-                continue
+        for i in range(args.robots):  # each robot drawn once, then run once per loop seed
+            doc = random_robot(rng, f"rand{i}")
             path = Path(tmp) / f"rand{i}.yaml"
             path.write_text(yaml.safe_dump(doc, sort_keys=False))
             joints = doc["joints"]
@@ -126,27 +124,29 @@ def main() -> None:
             extras = sorted({k for j in joints for k in j if k in ("damping", "rest", "k3", "coulomb",  # type: ignore
                                                                    "limit", "speed_limit")})
             budget = 5 * n_links
-            res, err, secs = run_one(path, budget, loop_seed, Path(tmp) / f"rand{i}_gait.yaml", extra)
-            head = (f"| rand{i} | {loop_seed} | {n_links} | {n_driven} of {n_links - 1} | {', '.join(extras) or '—'} | "
-                    f"{doc['gait_hz']:g} | {budget} |")
-            if res is None:
-                fails += 1
-                rows.append(f"{head} error: {err} | | | | | | {secs:.0f} |")
+            about = (f"{n_links} | {n_driven} of {n_links - 1} | {', '.join(extras) or '—'} | {doc['gait_hz']:g} | "
+                     f"{budget} |")
+            for loop_seed in args.loop_seeds:
+                res, err, secs = run_one(path, budget, loop_seed, Path(tmp) / f"rand{i}_gait.yaml", extra)
+                head = f"| rand{i} | {loop_seed} | {about}"
+                if res is None:
+                    fails += 1
+                    rows.append(f"{head} error: {err} | | | | | | {secs:.0f} |")
+                    print(rows[-1], flush=True)
+                    continue
+                lim, sim = res["limit"], res["simulated"]
+                m = res["measured_detail"]
+                start_pct, ret_pct = 100 * sim["start"] / lim, 100 * sim["returned"] / lim
+                pcts.append(ret_pct)
+                gains.append(ret_pct - start_pct)
+                pred = "—" if res["predicted"] is None else f"{res['predicted']:.4f}"
+                if res["predicted_std"] is not None:
+                    pred += f" ± {res['predicted_std']:.4f}"
+                tp = m["translation_p"]
+                test = "—" if tp is None else f"{tp:.3f}{' (warned)' if res['motion_warning'] else ''}"
+                rows.append(f"{head} {res['cycles_used']} | {start_pct:.1f} | {ret_pct:.1f} | "
+                            f"{m['speed']:.4f} ± {m['speed_se']:.4f} | {pred} | {test} | {lim:.4f} | {secs:.0f} |")
                 print(rows[-1], flush=True)
-                continue
-            lim, sim = res["limit"], res["simulated"]
-            m = res["measured_detail"]
-            start_pct, ret_pct = 100 * sim["start"] / lim, 100 * sim["returned"] / lim
-            pcts.append(ret_pct)
-            gains.append(ret_pct - start_pct)
-            pred = "—" if res["predicted"] is None else f"{res['predicted']:.4f}"
-            if res["predicted_std"] is not None:
-                pred += f" ± {res['predicted_std']:.4f}"
-            tp = m["translation_p"]
-            test = "—" if tp is None else f"{tp:.3f}{' (warned)' if res['motion_warning'] else ''}"
-            rows.append(f"{head} {res['cycles_used']} | {start_pct:.1f} | {ret_pct:.1f} | "
-                        f"{m['speed']:.4f} ± {m['speed_se']:.4f} | {pred} | {test} | {lim:.4f} | {secs:.0f} |")
-            print(rows[-1], flush=True)
     done = len(pcts)
     reach = {q: sum(v >= q for v in pcts) for q in (90, 95)}
     runs = args.robots * len(args.loop_seeds)
