@@ -252,8 +252,8 @@ class LoopConfig:
         its cross-validation picks each model from (``IdentifyConfig.kernel_grid``, tried on at most
         ``kernel_max_rows`` intervals: every model of a few cycles here).  They win that selection
         on purcell3 and swimmer9 from 5 cycles, and the loop's steps planned on them went further:
-        without them swimmer9's 7 benchmark runs summed 607.5 against 646.9 per cent of the limit at
-        90 cycles, the wave-reversed start 67.5 against 91.9; purcell3, snake5 and neck4 were level
+        without them swimmer9's 7 benchmark runs summed 597.0 against 648.3 per cent of the limit at
+        90 cycles, the wave-reversed start 48.5 against 93.0; purcell3, snake5 and neck4 were level
         (``docs/results/optimize_loop.md``, ablation ``no-kernel``).  False: the Fourier SUDS
         regression alone.
     origin_sigmas : float
