@@ -225,11 +225,14 @@ class LoopConfig:
         model, local to a gait, cannot predict the reversed one.  No data tells beforehand which way
         a robot swims faster (a passive head or tail joint can make the reversed wave the fast one),
         so it is a trial of ``settle_cycles`` + ``step_cycles`` cycles, run only when the model of the
-        incumbent's cycles, extrapolated, predicts the reversed drive better than the incumbent (a
-        hint, far outside the model's data: on 18 robot–gait pairs, 3 models each, it said "faster"
-        for all 21 fits whose reversed drive truly is, and for 12 of 33 whose is not:
-        ``docs/results/optimize_reverse.md``; a model with no steady state for either drive says
-        nothing).  Not tried where the reversed drive is the same
+        incumbent's cycles, extrapolated, predicts the reversed drive better than the incumbent, or,
+        where its point prediction says no, when more than half of its coefficient draws that predict
+        both drives say so (:func:`reverse_odds`; at least half of ``RESULT_DRAWS`` must predict).  A
+        hint, far outside the model's data, where the point prediction is skewed: on 18 robot–gait
+        pairs, 3 models each, the point prediction said "faster" for all 21 fits whose reversed drive
+        truly is, and for 12 of 33 whose is not; on random model-file robots it missed reversed waves
+        up to 6× faster that most draws saw (``docs/results/optimize_reverse.md``).  A model with no
+        steady state for either drive says nothing.  Not tried where the reversed drive is the same
         drive started elsewhere in its cycle (:func:`~suds_ros.core.physics.gait.reversal_shift`: one
         actuated joint at one harmonic, as purcell3's, or joints in phase).  False: never.
     rotation_from_model : bool
@@ -1308,7 +1311,7 @@ class GaitSearch:
                           step=step)
 
     def _reverse_request(self) -> RunRequest | None:
-        """The incumbent run backwards in time, once, after the scaled start, if its model predicts a gain.
+        """The incumbent run backwards in time, once, after the scaled start, if its model (or most draws) predicts a gain.
 
         (``LoopConfig.reverse_trial``.)  The model of the incumbent's cycles predicts both drives; the
         reversed one lies far outside its data, so its prediction is only a hint, and the run judges.
@@ -1332,12 +1335,16 @@ class GaitSearch:
         if self._best_pred is None:  # the incumbent's model prediction, as a trust-region step would have set it
             self._best_pred, self._pred_model = here, self._model
             self.iterations[self._best_index] = _with_prediction(self.iterations[self._best_index], here, None)
-        if not there > here:  # the model expects nothing of the other way round: no run spent on it
-            return None
+        why = ""
+        if not there > here:  # the point prediction says no: ask its coefficient draws (far out, it is skewed)
+            wins, told = reverse_odds(self._model, gait, objective, draws=RESULT_DRAWS, seed=self.config.seed)
+            if not (2 * told >= RESULT_DRAWS and 2 * wins > told):  # most draws expect nothing of it either
+                return None
+            why = f"; {wins} of {told} coefficient draws predict it faster"
         step = ScaleStep(factor=1.0, value=there, recorded_value=here, trust_radius=self._kappa)
         check_constraints(cand, self.limits)  # (the same range and speed: never outside the bounds)
         return RunRequest(cand, self._step_cycles, "reverse", "the incumbent backwards in time (the wave the "
-                          "other way)", step=step)
+                          f"other way{why})", step=step)
 
     def observe(self, data: Recording) -> LoopIteration:
         """Take the measured cycles of the requested run (settling cut) and decide; return its iteration.
@@ -1788,6 +1795,34 @@ def _spread_over_draws(model: LearnedModel, value: Callable[[FloatArray], float]
         except (SudsDataError, FloatingPointError, np.linalg.LinAlgError):
             continue
     return draw_spread(values)
+
+
+def reverse_odds(model: LearnedModel, gait: Gait, objective: str, draws: int = RESULT_DRAWS,
+                 seed: int = 0) -> tuple[int, int]:
+    """Of ``draws`` seeded coefficient draws of ``model``, how many predict ``gait`` run backwards in time better.
+
+    Returns (draws that predict the reversed drive's objective higher, draws that predict both).  A
+    draw with no steady state for either drive, or a non-finite value, is left out of both counts.
+    (0, 0) when the model carries no covariance.  Each draw predicts both drives with the same
+    coefficients, so the count is of the comparison, not of two independent spreads.
+    """
+    if draws < 1 or model.chol is None:
+        return 0, 0
+    back = time_reversed(gait)
+    rng = np.random.default_rng(seed)
+    wins = told = 0
+    for _ in range(draws):
+        coef = model.draw(rng)
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):  # (a draw far off: non-finite, left out)
+                here = predict_value(model, gait, objective, coef=coef)
+                there = predict_value(model, back, objective, coef=coef)
+        except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
+            continue
+        if math.isfinite(here) and math.isfinite(there):
+            told += 1
+            wins += there > here
+    return wins, told
 
 
 def draw_spread(values: Sequence[float]) -> float | None:
