@@ -115,9 +115,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                         "the joint bounds is run scaled to them (speed, turn; default 1.25; inf: never)")
     p.add_argument("--reverse-trial", action=argparse.BooleanOptionalAction, default=True,
                    help="--simulate: once, after the (scaled) start, when the model of its cycles (or most of its "
-                        "coefficient draws) predicts it better, run the incumbent backwards in time, the travelling wave the other way, and go on "
-                        "from whichever measures better (the steps are local: they do not turn a wave round; "
-                        "costs one run; default on)")
+                        "coefficient draws) predicts it better, run the incumbent backwards in time, the travelling "
+                        "wave the other way, and go on from whichever measures better (the steps are local: they "
+                        "do not turn a wave round; costs one run; default on)")
     p.add_argument("--pool-incumbents", type=int, default=0, metavar="N",
                    help="--simulate: also fit each step's model to the newest N stretches of the earlier incumbents "
                         "(default 0: the incumbent's and the rejected candidates' only)")

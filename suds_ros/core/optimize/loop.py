@@ -1311,7 +1311,7 @@ class GaitSearch:
                           step=step)
 
     def _reverse_request(self) -> RunRequest | None:
-        """The incumbent run backwards in time, once, after the scaled start, if its model (or most draws) predicts a gain.
+        """The incumbent backwards in time, once, after the scaled start, if its model (or most draws) predicts a gain.
 
         (``LoopConfig.reverse_trial``.)  The model of the incumbent's cycles predicts both drives; the
         reversed one lies far outside its data, so its prediction is only a hint, and the run judges.
