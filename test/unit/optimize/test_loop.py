@@ -600,6 +600,55 @@ def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_
     assert search.request().kind == "candidate"
 
 
+def _to_reverse_trial() -> Any:
+    """neck4 at half amplitude: the start and the scaled start run; the next request is the reverse trial."""
+    from suds_ros.core.optimize.loop import _Robot, _trim
+
+    system = load_system(str(ROBOTS / "neck4.yaml"))
+    nom, limits = nominal_gait(system), gait_limits(system)
+    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
+    cfg = LoopConfig(budget_cycles=40, seed=0)
+    search = GaitSearch(half, limits, cfg)
+    robot = _Robot(system, half, cfg)
+    for kind in ("start", "scale"):
+        req = search.request()
+        assert req.kind == kind
+        rec, _ = robot.run(req.gait, req.cycles)
+        search.observe(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle))
+    return search
+
+
+@pytest.mark.parametrize("holds", [False, True])
+def test_a_reversed_gait_measured_better_by_under_a_standard_error_is_run_again_before_it_is_kept(
+        monkeypatch: pytest.MonkeyPatch, holds: bool) -> None:
+    """A barely moving random robot's reversed wave read 0.046 ± 0.033 m/s against its start's 0.018 ± 0.004
+    (truly 0.006 against 0.014): a reversed gait, like a trust-region step, whose measured gain is under
+    ``confirm_sigmas`` se is run again, judged on both runs pooled, and as a reversed gait: rejected, the
+    search goes on from the incumbent as if it had not been tried; confirmed, it is kept."""
+    search = _to_reverse_trial()
+    best, kappa, old = search.best, search._kappa, search._best_meas
+    req = search.request()
+    assert req.kind == "reverse"
+    se = old.value_se("speed")
+    readings = iter([dataclasses.replace(old, speed=old.speed + 0.5 * se)])
+    monkeypatch.setattr(search, "_measure", lambda data, gait: next(readings))
+    it = search.observe(search._best_data[-1])
+    assert not it.accepted and "to be confirmed" in it.note and search.best is best
+    again = search.request()
+    assert again.kind == "confirm" and again.origin == "reverse" and again.gait is req.gait
+    pooled = old.speed + (0.5 if holds else -0.5) * se
+    # the new stretch, the first one again (the change test compares them), then both pooled
+    readings = iter([dataclasses.replace(old, speed=old.speed + 0.5 * se), dataclasses.replace(old, speed=pooled),
+                     dataclasses.replace(old, speed=pooled, speed_se=0.1 * se)])
+    it = search.observe(search._best_data[-1])
+    if holds:
+        assert it.accepted and "the incumbent backwards in time, run again" in it.note and search.best is req.gait
+    else:
+        assert not it.accepted and "reversed gait rejected" in it.note and search.best is best
+        assert search._kappa == kappa and search._near == [] and search._rejected == []
+        assert search.request().kind == "candidate"
+
+
 def test_a_stretch_of_one_cycle_is_no_obstacle_to_the_returned_gaits_origin() -> None:
     """A one-cycle stretch among the data (what a change can leave) still tells where the cycle goes
     furthest from: the measured speed counts every point of the cycle, so nothing is re-measured, and
