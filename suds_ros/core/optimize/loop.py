@@ -1596,10 +1596,8 @@ class GaitSearch:
         if accepted and marginal and se != 0:  # (se 0: exact measurements, nothing to confirm)
             z = abs(meas_gain) / se if math.isfinite(se) else 0.0  # (as _sigmas, on the se just taken)
             # NaN with an unknown se: then the measured gain alone decides; a reversed gait's prediction is an
-            # extrapolation far outside the model's data (a hint to try it, not a reason to believe a reading);
-            # a reading the motion test cannot tell from no motion is biased up: no prediction spares it either
-            spare = req.kind == "candidate" and motion_doubt(meas, cfg.objective) is None
-            z_pred = pred_gain / se if spare else math.nan
+            # extrapolation far outside the model's data (a hint to try it, not a reason to believe a reading)
+            z_pred = pred_gain / se if req.kind == "candidate" else math.nan
             if z < cfg.confirm_sigmas and not z_pred >= cfg.confirm_sigmas:
                 if self.cycles_used + self._step_cycles <= cfg.budget_cycles:
                     self._confirming = list(stretches)
