@@ -567,19 +567,10 @@ def test_a_reverse_trial_turns_a_wave_that_runs_the_slow_way_round() -> None:
     assert evaluate_gait(system, off.gait)["speed"] < 2 * evaluate_gait(system, nom)["speed"]
 
 
-def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_search_as_it_was() -> None:
-    """From a timid start the scaled start runs first, then the (scaled) incumbent backwards; told that the
-    reversed gait measured no better, the search goes on from the incumbent with its radius and data kept.
-    Not tried where backwards is the same drive started elsewhere (purcell3: one joint, one harmonic), nor
-    where the incumbent's model predicts the reversed drive no better (eel4's nominal wave)."""
+def _to_reverse_trial() -> Any:
+    """neck4 at half amplitude: the start and the scaled start run; the next request is the reverse trial."""
     from suds_ros.core.optimize.loop import _Robot, _trim
-    from suds_ros.core.physics.gait import time_reversed
 
-    for robot in (make_system("purcell3"), load_system(str(ROBOTS / "eel4.yaml"))):
-        # purcell3: backwards is the same drive; eel4's model predicts its reversed wave slower (it is)
-        search = GaitSearch(nominal_gait(robot), gait_limits(robot), LoopConfig(budget_cycles=30))
-        search.observe(_start_data(robot, nominal_gait(robot), LoopConfig(budget_cycles=30)))
-        assert search.request().kind == "candidate"
     system = load_system(str(ROBOTS / "neck4.yaml"))
     nom, limits = nominal_gait(system), gait_limits(system)
     half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
@@ -591,6 +582,22 @@ def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_
         assert req.kind == kind
         rec, _ = robot.run(req.gait, req.cycles)
         search.observe(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle))
+    return search
+
+
+def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_search_as_it_was() -> None:
+    """From a timid start the scaled start runs first, then the (scaled) incumbent backwards; told that the
+    reversed gait measured no better, the search goes on from the incumbent with its radius and data kept.
+    Not tried where backwards is the same drive started elsewhere (purcell3: one joint, one harmonic), nor
+    where the incumbent's model predicts the reversed drive no better (eel4's nominal wave)."""
+    from suds_ros.core.physics.gait import time_reversed
+
+    for robot in (make_system("purcell3"), load_system(str(ROBOTS / "eel4.yaml"))):
+        # purcell3: backwards is the same drive; eel4's model predicts its reversed wave slower (it is)
+        search = GaitSearch(nominal_gait(robot), gait_limits(robot), LoopConfig(budget_cycles=30))
+        search.observe(_start_data(robot, nominal_gait(robot), LoopConfig(budget_cycles=30)))
+        assert search.request().kind == "candidate"
+    search = _to_reverse_trial()
     best, kappa = search.best, search._kappa  # (the start, or the scaled start if it measured better)
     req = search.request()
     assert req.kind == "reverse" and req.gait.to_vector() == pytest.approx(time_reversed(best).to_vector())
@@ -598,24 +605,6 @@ def test_a_reverse_trial_follows_the_scaled_start_and_a_rejected_one_leaves_the_
     assert not it.accepted and "reversed gait rejected" in it.note and search.best is best
     assert search._kappa == kappa and search._near == [] and search._rejected == []
     assert search.request().kind == "candidate"
-
-
-def _to_reverse_trial() -> Any:
-    """neck4 at half amplitude: the start and the scaled start run; the next request is the reverse trial."""
-    from suds_ros.core.optimize.loop import _Robot, _trim
-
-    system = load_system(str(ROBOTS / "neck4.yaml"))
-    nom, limits = nominal_gait(system), gait_limits(system)
-    half = nom.from_vector(0.5 * nom.to_vector(), nom.order)
-    cfg = LoopConfig(budget_cycles=40, seed=0)
-    search = GaitSearch(half, limits, cfg)
-    robot = _Robot(system, half, cfg)
-    for kind in ("start", "scale"):
-        req = search.request()
-        assert req.kind == kind
-        rec, _ = robot.run(req.gait, req.cycles)
-        search.observe(_trim(rec, cfg.settle_cycles, cfg.samples_per_cycle))
-    return search
 
 
 @pytest.mark.parametrize("holds", [False, True])
