@@ -287,8 +287,8 @@ class LoopConfig:
         purcell3's half-amplitude start 24 points at 15 cycles: ``docs/results/optimize_loop.md``).
         The reverse trial's gait too, whatever its prediction (an extrapolation far outside the
         model's data): on a random 7-link robot that barely moves, its reversed wave read 0.046 ±
-        0.033 m/s against the start's 0.018 ± 0.004 (truly 0.006 against 0.014) and was kept until
-        2026-12-05, the returned gait at 33 % of the limit instead of 74 %.  Confirmed, it is
+        0.033 m/s against the start's 0.018 ± 0.004 (truly 0.006 against 0.014); kept on that one
+        reading, the run returned a gait at 33 % of the limit, run again 74 %.  Confirmed, it is
         judged as a reversed gait: rejected, the search goes on as if it had not been tried.
     rotation_margin : float
         The step asks the model for a predicted |rotation| ≤ ``rotation_margin``·``max_rotation``
