@@ -26,7 +26,8 @@ from optimize_sweep import random_robot
 
 from suds_ros.core.errors import SudsConfigError, SudsDataError
 from suds_ros.core.optimize.data import learn_model
-from suds_ros.core.optimize.loop import RESULT_DRAWS, LoopConfig, _Robot, _trim, predict_value, reverse_odds
+from suds_ros.core.optimize.loop import (RESULT_DRAWS, LoopConfig, _Robot, _trim, most_draws_faster, predict_value,
+                                         reverse_odds)
 from suds_ros.core.optimize.physics import evaluate_gait
 from suds_ros.core.physics.effects import apply_effects
 from suds_ros.core.physics.gait import nominal_gait, reversal_shift, time_reversed
@@ -62,7 +63,7 @@ def _tries(ratio, wins, told) -> tuple[bool, bool]:  # type: ignore[no-untyped-d
     if ratio is None:
         return False, False
     point = ratio > 1
-    return point, point or (2 * told >= RESULT_DRAWS and 2 * wins > told)
+    return point, point or most_draws_faster(wins, told, RESULT_DRAWS)
 
 
 def main() -> None:

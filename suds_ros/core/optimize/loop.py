@@ -1346,7 +1346,7 @@ class GaitSearch:
         why = ""
         if not there > here:  # the point prediction says no: ask its coefficient draws (far out, it is skewed)
             wins, told = reverse_odds(self._model, gait, objective, draws=RESULT_DRAWS, seed=self.config.seed)
-            if not (2 * told >= RESULT_DRAWS and 2 * wins > told):  # most draws expect nothing of it either
+            if not most_draws_faster(wins, told, RESULT_DRAWS):  # most draws expect nothing of it either
                 return None
             why = f"; {wins} of {told} coefficient draws predict it faster"
         step = ScaleStep(factor=1.0, value=there, recorded_value=here, trust_radius=self._kappa)
@@ -1798,8 +1798,18 @@ def _spread_over_draws(model: LearnedModel, value: Callable[[FloatArray], float]
     A draw with no steady state (an error, or a non-finite value) is left out.  None when the model
     carries no covariance, or fewer than two draws give a value.
     """
-    if draws < 2 or model.chol is None:
-        return None
+    return draw_spread(_draw_values(model, value, draws, seed)) if draws >= 2 else None
+
+
+def _draw_values(model: LearnedModel, value: Callable[[FloatArray], float], draws: int,
+                 seed: int) -> list[float]:
+    """The finite values of ``value(coef)`` over ``draws`` coefficient draws of ``model``, seeded by ``seed``.
+
+    A draw whose value raises (no steady state: :class:`SudsDataError`, a floating-point or linear-algebra
+    error) or is not finite is left out; none when the model carries no covariance.
+    """
+    if model.chol is None:
+        return []
     rng = np.random.default_rng(seed)
     values = []
     for _ in range(draws):
@@ -1808,7 +1818,7 @@ def _spread_over_draws(model: LearnedModel, value: Callable[[FloatArray], float]
                 values.append(value(model.draw(rng)))
         except (SudsDataError, FloatingPointError, np.linalg.LinAlgError):
             continue
-    return draw_spread(values)
+    return [v for v in values if math.isfinite(v)]
 
 
 def reverse_odds(model: LearnedModel, gait: Gait, objective: str, draws: int = RESULT_DRAWS,
@@ -1820,23 +1830,27 @@ def reverse_odds(model: LearnedModel, gait: Gait, objective: str, draws: int = R
     (0, 0) when the model carries no covariance.  Each draw predicts both drives with the same
     coefficients, so the count is of the comparison, not of two independent spreads.
     """
-    if draws < 1 or model.chol is None:
-        return 0, 0
     back = time_reversed(gait)
-    rng = np.random.default_rng(seed)
-    wins = told = 0
-    for _ in range(draws):
-        coef = model.draw(rng)
+
+    def faster(coef: FloatArray) -> float:  # +1 the reversed drive higher, -1 not; NaN: no comparison
         try:
-            with np.errstate(over="ignore", invalid="ignore"):  # (a draw far off: non-finite, left out)
-                here = predict_value(model, gait, objective, coef=coef)
-                there = predict_value(model, back, objective, coef=coef)
-        except (SudsDataError, SudsConfigError, FloatingPointError, np.linalg.LinAlgError):
-            continue
-        if math.isfinite(here) and math.isfinite(there):
-            told += 1
-            wins += there > here
-    return wins, told
+            here = predict_value(model, gait, objective, coef=coef)
+            there = predict_value(model, back, objective, coef=coef)
+        except SudsConfigError:
+            return math.nan
+        return (1.0 if there > here else -1.0) if math.isfinite(here) and math.isfinite(there) else math.nan
+
+    said = _draw_values(model, faster, draws, seed)
+    return sum(v > 0 for v in said), len(said)
+
+
+def most_draws_faster(wins: int, told: int, draws: int = RESULT_DRAWS) -> bool:
+    """Whether :func:`reverse_odds`'s counts say the reversed drive is faster.
+
+    More than half of the draws that predict both drives say so, and at least half of the ``draws``
+    predict.
+    """
+    return 2 * told >= draws and 2 * wins > told
 
 
 def draw_spread(values: Sequence[float]) -> float | None:
