@@ -45,6 +45,8 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
     (["optimize", "--physics", "--model", "{tmp}/none.yaml", "-o", "{tmp}/g.yaml"], "--model: no such file"),
     (["optimize", "--physics", "--system", "purcell3", "--order", "0", "-o", "{tmp}/g.yaml"],
      "--order: `order`: expected 1..8, got 0"),
+    (["optimize", "--physics", "--system", "purcell3", "--screen", "-1", "-o", "{tmp}/g.yaml"],
+     "--screen: `screen`: expected ≥ 0, got -1"),
     (["optimize", "--physics", "--system", "nosuch", "-o", "{tmp}/g.yaml"], "unknown system 'nosuch'"),
     (["optimize", "--physics", "--system", "purcell3", "--start", "{tmp}/none.yaml", "-o", "{tmp}/g.yaml"],
      "--start: no such file"),

@@ -30,8 +30,13 @@ How it is made fast
   with a relative margin of 1e-3 inside the optimiser (the speed floor is nominal·1.001, the
   rotation bound 0.04995 rad), so that the final scaling cannot break them.
 
-Several starts — the nominal gait (padded to order K) and random feasible gaits — run SLSQP
-with the time origin pinned; a gait that turns goes further counted from some points of its
+Several starts run SLSQP: the nominal gait (padded to order K), any given gaits, and the best
+of a screen.  The landscape has many local optima (a wave running one way or the other, with one
+wavelength or another), so ``screen`` candidate gaits — travelling waves of every lag at the
+largest amplitude the bounds allow, first harmonics of random phase per joint, random Fourier
+gaits — are run to their steady state in one batch (a fraction of a second) and the best distinct
+ones, by the objective with a penalty for a broken rotation bound or speed floor, are the other
+starts.  Each runs with the time origin pinned; a gait that turns goes further counted from some points of its
 cycle than from others, so each end that would beat the best counted from its best point is
 shifted there and optimised again with every coefficient free (``free_origin``).  The best
 feasible result is returned with its own steady-state evaluation.
@@ -88,9 +93,13 @@ class OptimizeConfig:
     order : int
         Harmonics K of the optimised gait (1 ≤ K ≤ 8; the spec's default bound is 3).
     starts : int
-        SLSQP starts: the nominal gait, then ``starts − 1`` random feasible gaits.
+        SLSQP starts: the nominal gait, then ``starts − 1`` more: the best distinct gaits of the
+        screen (:func:`screen_starts`), or random feasible gaits when ``screen`` is 0.
+    screen : int
+        Candidate gaits run to their steady state to choose the starts from; 0: no screen, the
+        starts are random feasible gaits (as before 2026-12-05).
     seed : int
-        Seed of the random starts.
+        Seed of the screen's random candidates (or of the random starts).
     max_rotation : float
         Bound on the net rotation per cycle for ``speed`` and ``efficiency``, rad.
     points_per_harmonic : int
@@ -118,6 +127,7 @@ class OptimizeConfig:
     objective: str = "speed"
     order: int = DEFAULT_MAX_ORDER
     starts: int = 4
+    screen: int = 256
     seed: int = 0
     max_rotation: float = 0.05
     points_per_harmonic: int = 64
@@ -132,6 +142,7 @@ class OptimizeConfig:
         if self.objective not in OBJECTIVES:
             raise SudsConfigError(f"`objective`: expected one of {list(OBJECTIVES)}, got {self.objective!r}")
         checks = [("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"), ("starts", self.starts >= 1, "≥ 1"),
+                  ("screen", self.screen >= 0, "≥ 0"),
                   ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
                   ("steps_per_cycle", self.steps_per_cycle is None or self.steps_per_cycle >= 8, "≥ 8"),
@@ -565,6 +576,89 @@ def feasible_scale(gait: Gait, limits: GaitLimits) -> float:
     return float(min(1.0, ratio.min()))
 
 
+def random_gait(na: int, limits: GaitLimits, order: int, rng: np.random.Generator) -> FloatArray:
+    """A random gait vector of ``order`` harmonics for ``na`` joints, not yet scaled into the bounds.
+
+    Offsets uniform within ±0.2 of each joint's range limit; harmonic k's coefficients normal of
+    size limit/k.
+    """
+    lim = np.asarray(limits.limit)
+    x = np.zeros((na, 2 * order + 1))
+    x[:, 0] = rng.uniform(-0.2, 0.2, na) * lim
+    amp = lim[:, None] / np.arange(1, order + 1)[None]
+    x[:, 1:order + 1] = rng.normal(size=(na, order)) * amp
+    x[:, order + 1:] = rng.normal(size=(na, order)) * amp
+    return x.ravel()
+
+
+def screen_candidates(nominal: Gait, limits: GaitLimits, order: int, count: int,
+                      rng: np.random.Generator) -> FloatArray:
+    """``count`` candidate gait vectors (count, p) on the bounds for :func:`screen_starts`.
+
+    A quarter are travelling waves r_j = a_j sin(ωt − jλ) at evenly spread lags λ ∈ [−π, π) (both
+    directions, and the standing wave), a quarter first harmonics of random phase per joint, both
+    at the largest first-harmonic amplitude a_j the range and speed bounds allow; the rest random
+    Fourier gaits (:func:`random_gait`).  Every candidate is scaled onto the bounds.
+    """
+    na = len(nominal.joints)
+    amp = np.minimum(np.asarray(limits.limit), np.asarray(limits.speed_limit) / (2 * np.pi * nominal.gait_hz))
+    n_wave = count // 4
+    n_phase = count // 4
+    phases = np.concatenate([np.outer(np.linspace(-np.pi, np.pi, n_wave, endpoint=False), np.arange(na)),
+                             rng.uniform(-np.pi, np.pi, (n_phase, na))])
+    first = np.zeros((phases.shape[0], na, 2 * order + 1))
+    first[:, :, 1] = -amp * np.sin(phases)  # a sin(ωt − φ) = −a sin φ · cos ωt + a cos φ · sin ωt
+    first[:, :, order + 1] = amp * np.cos(phases)
+    X = np.concatenate([first.reshape(phases.shape[0], -1),
+                        np.array([random_gait(na, limits, order, rng)
+                                  for _ in range(count - phases.shape[0])]).reshape(-1, first[0].size)])
+    scale = np.array([feasible_scale(nominal.from_vector(x, order), limits) for x in X])
+    return X * scale[:, None]
+
+
+def screen_starts(ev: CycleEvaluator, X: FloatArray, rp_guess: FloatArray, objective: str, max_rotation: float,
+                  speed_floor: float | None, n: int) -> list[FloatArray]:
+    """The ``n`` best distinct candidates X (B, p) at their steady state (one batch), best first.
+
+    Scored by the objective, times bound/|rotation| for ``speed`` and ``efficiency`` where the
+    rotation bound is broken (scaling a gait down brings its rotation in); with a ``speed_floor``
+    (``turn``, ``efficiency``) the candidates at or above it come first, then the rest scored times
+    speed/floor (only a faster gait meets the floor, and turning costs speed).  The steady state
+    is Newton's from a few plain cycles; where Newton fails for the batch, the last plain cycle's
+    outputs are used (close for a dissipative system).  Two candidates are distinct
+    when their time-pinned coefficient vectors (:func:`phase_pinned`) differ by more than a quarter
+    of the length of the better one.  Candidates without a finite cycle are left out.
+    """
+    B = X.shape[0]
+    with np.errstate(all="ignore"):
+        rp = np.repeat(np.asarray(rp_guess, dtype=float).reshape(1, -1), B, axis=0)
+        for _ in range(4):
+            rp, g, w = ev.cycle(X, rp)
+        try:
+            res, _, _ = ev.steady(X, rp)
+            g, w = res.g_c, res.work
+        except (FloatingPointError, np.linalg.LinAlgError):
+            pass
+        v = objective_values(CycleResult(g_c=g, work=w, r_p=rp), ev.gait_hz)
+        score = np.abs(v["turn"]) if objective == "turn" else v[objective].copy()
+        if objective != "turn":
+            score = score * np.minimum(1.0, max_rotation / np.abs(v["rotation"]))
+        above = np.ones(B, dtype=bool)
+        if speed_floor is not None:
+            above = v["speed"] >= speed_floor
+            score = score * np.minimum(1.0, v["speed"] / max(speed_floor, 1e-12))
+    score[~np.isfinite(score)] = -np.inf
+    na, K = ev.na, ev.order
+    picked: list[FloatArray] = []
+    for i in np.lexsort((-score, ~above)):  # those above the floor first, each group best first
+        if len(picked) == n or not np.isfinite(score[i]):
+            break
+        x = phase_pinned(X[i], na, K)
+        if all(np.linalg.norm(x - y) > 0.25 * np.linalg.norm(x) for y in picked):
+            picked.append(x)
+    return picked
+
+
 def evaluate_gait(system: SudsSystem, gait: Gait, *, steps: int | None = None,
                   work: bool = True) -> dict[str, float]:
     """Objective values of one gait at its passive periodic steady state (:func:`objective_values`)."""
@@ -637,15 +731,15 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
             raise SudsConfigError(f"`initial[{i}]`: expected at most {K} harmonics (`order`), got {g.order}")
         starts.append(("given", g.to_vector(K) * min(1.0, feasible_scale(g, limits))))
     na = len(nominal.joints)
-    for _ in range(cfg.starts - 1):
-        x = np.zeros((na, 2 * K + 1))
-        x[:, 0] = rng.uniform(-0.2, 0.2, na) * np.asarray(limits.limit)
-        amp = np.asarray(limits.limit)[:, None] / np.arange(1, K + 1)[None]
-        x[:, 1:K + 1] = rng.normal(size=(na, K)) * amp
-        x[:, K + 1:] = rng.normal(size=(na, K)) * amp
-        g = nominal.from_vector(x.ravel(), K)
-        s = feasible_scale(g, limits) * rng.uniform(0.6, 0.95)
-        starts.append(("random", s * x.ravel()))
+    if cfg.screen > 0 and cfg.starts > 1:
+        X = screen_candidates(nominal, limits, K, cfg.screen, rng)
+        floor = nom_vals["speed"] if cfg.objective in ("turn", "efficiency") else None
+        for x in screen_starts(ev, X, nom_res.r_p[0], cfg.objective, cfg.max_rotation, floor, cfg.starts - 1):
+            starts.append(("screened", x))
+    while len(starts) < cfg.starts + len(initial):  # no screen, or too few distinct candidates in it
+        x = random_gait(na, limits, K, rng)
+        s = feasible_scale(nominal.from_vector(x, K), limits) * rng.uniform(0.6, 0.95)
+        starts.append(("random", s * x))
     report: list[dict[str, Any]] = []
     p_all = x_nom.size
     pinned = np.flatnonzero(np.arange(p_all) != 1)  # joint 1's cos_1 stays 0 (phase_pinned)

@@ -13,13 +13,18 @@ from suds_ros.core.optimize.physics import (
     OptimizeConfig,
     best_origin,
     evaluate_gait,
+    feasible_scale,
     optimize_gait,
     origin_distances,
     phase_pinned,
+    screen_candidates,
+    screen_starts,
 )
 from suds_ros.core.physics.gait import constraint_violations, gait_limits, nominal_gait, time_shifted
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import load_system, make_system
+
+ROBOTS = Path(__file__).resolve().parents[2] / "data" / "robots"
 
 
 def test_steady_state_is_periodic_and_matches_the_simulator() -> None:
@@ -177,3 +182,58 @@ def test_a_turning_optimum_is_counted_from_its_best_point() -> None:
     assert free.value > 1.01 * pinned.value and free.value > pinned.speed_over_origins[1]
     assert abs(free.values["rotation"]) <= 0.05 and constraint_violations(free.gait, gait_limits(system)) == []
     assert evaluate_gait(system, free.gait)["speed"] == pytest.approx(free.value, rel=1e-6)
+
+
+def test_screen_candidates_lie_on_the_bounds_and_start_with_waves_of_every_lag() -> None:
+    system = load_system(str(ROBOTS / "neck4.yaml"))
+    nom, lim = nominal_gait(system), gait_limits(system)
+    X = screen_candidates(nom, lim, 3, 32, np.random.default_rng(0))
+    assert X.shape == (32, 2 * 7)
+    for x in X:  # each scaled onto its tightest bound, and within all of them
+        g = nom.from_vector(x, 3)
+        assert constraint_violations(g, lim) == []
+        assert feasible_scale(nom.from_vector(1.001 * x, 3), lim) < 1.0
+    # the first quarter: r_j = a_j sin(ωt − jλ), λ = −π, −3π/4, … (joint 2 lags joint 1 by λ)
+    c = X[:8].reshape(8, 2, 7)
+    lag = np.angle((c[:, 0, 4] + 1j * c[:, 0, 1]) / (c[:, 1, 4] + 1j * c[:, 1, 1]))
+    want = np.linspace(-np.pi, np.pi, 8, endpoint=False)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (lag - want))), 0.0, atol=1e-9)
+    assert np.all(c[:, :, [2, 3, 5, 6]] == 0.0)  # first harmonics only
+
+
+def test_screened_starts_find_the_wave_the_nominal_start_cannot_reach() -> None:
+    """neck4's nominal wave runs the slow way: SLSQP from it ends at a third of the limit, the screen's
+    first pick runs the fast way, is distinct from the next picks, and its start reaches the limit."""
+    system = load_system(str(ROBOTS / "neck4.yaml"))
+    nominal = optimize_gait(system, OptimizeConfig(starts=1))
+    screened = optimize_gait(system, OptimizeConfig(starts=2))
+    assert [s["kind"] for s in screened.starts] == ["nominal", "screened"]
+    assert screened.value > 2.5 * nominal.value
+    assert constraint_violations(screened.gait, gait_limits(system)) == []
+    nom = nominal_gait(system)
+    ev = CycleEvaluator(system, nom.gait_hz, 3, 128)
+    X = screen_candidates(nom, gait_limits(system), 3, 64, np.random.default_rng(0))
+    picks = screen_starts(ev, X, np.zeros(ev.np), "speed", 0.05, None, 3)
+    assert len(picks) == 3
+    assert all(np.linalg.norm(a - b) > 0.25 * np.linalg.norm(a) for i, a in enumerate(picks) for b in picks[i + 1:])
+    speeds = [evaluate_gait(system, nom.from_vector(x, 3))["speed"] for x in [nom.to_vector(3), *picks]]
+    assert speeds[1] > 2 * speeds[0] and speeds[1] >= max(speeds[2:]) * 0.999
+
+
+def test_without_a_screen_the_starts_are_random_feasible_gaits() -> None:
+    system = make_system("purcell3")
+    res = optimize_gait(system, OptimizeConfig(order=2, starts=3, screen=0, maxiter=2))
+    assert [s["kind"] for s in res.starts] == ["nominal", "random", "random"]
+    with pytest.raises(SudsConfigError, match="`screen`: expected ≥ 0, got -1"):
+        OptimizeConfig(screen=-1)
+
+
+def test_for_a_turn_the_screen_starts_from_gaits_that_keep_the_speed_floor() -> None:
+    """snake5 at order 2: from its nominal (straight) gait SLSQP turns 0.002 rad/s at the nominal speed;
+    the screen's first pick is a gait above the speed floor, and from it the turn is over 10 times that."""
+    system = load_system(str(SNAKE5))
+    nominal = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=1))
+    screened = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=2))
+    assert screened.value > 10 * nominal.value
+    assert screened.values["speed"] >= screened.nominal_values["speed"]
+    assert constraint_violations(screened.gait, gait_limits(system)) == []
