@@ -34,9 +34,10 @@ addition: distance and work both scale as the amplitude squared, so without one 
 efficiency is a gait that barely moves).  Every gait honours
 |r_j| ≤ limit_j and |ṙ_j| ≤ speed_limit_j (the model file's `limit` / `speed_limit`, else the
 nominal gait's range and largest speed) at the frequency of the nominal gait.  The gait file
-written loads back with `suds simulate --gait`.  On the physics SLSQP runs from the nominal gait
-and the best distinct gaits of a screen (--screen candidates: travelling waves of every lag and
-random gaits, all run to their steady state at once): a robot's gaits have many local optima.
+written loads back with `suds simulate --gait`.  On the physics SLSQP runs from the nominal gait,
+the best distinct gaits of a screen (--screen candidates: travelling waves of every lag and
+random gaits, all run to their steady state at once) and random gaits: a robot's gaits have many
+local optima.
 
 From a recording (BAG, no --physics): the SUDS model fitted to the whole recording predicts
 each candidate gait's cycle (passive joints by the learned ṙ_p, the pose by the learned body
@@ -97,7 +98,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="what to maximise (default speed)")
     p.add_argument("--order", type=int, default=3, metavar="K", help="harmonics of the gait, 1..8 (default 3)")
     p.add_argument("--starts", type=int, default=4,
-                   help="SLSQP starts: the nominal gait and the best distinct gaits of the screen (default 4)")
+                   help="SLSQP starts: the nominal gait, then 2/3 the best distinct gaits of the screen and 1/3 "
+                        "random feasible gaits (default 4)")
     p.add_argument("--screen", type=int, default=256, metavar="N",
                    help="candidate gaits (travelling waves, random phases, random Fourier gaits) run to their "
                         "steady state to choose the starts from (default 256; 0: random feasible starts)")

@@ -220,8 +220,10 @@ def test_screened_starts_find_the_wave_the_nominal_start_cannot_reach() -> None:
     assert speeds[1] > 2 * speeds[0] and speeds[1] >= max(speeds[2:]) * 0.999
 
 
-def test_without_a_screen_the_starts_are_random_feasible_gaits() -> None:
+def test_two_thirds_of_the_other_starts_come_from_the_screen_and_the_rest_are_random() -> None:
     system = make_system("purcell3")
+    res = optimize_gait(system, OptimizeConfig(order=2, starts=4, maxiter=2))
+    assert [s["kind"] for s in res.starts] == ["nominal", "screened", "screened", "random"]
     res = optimize_gait(system, OptimizeConfig(order=2, starts=3, screen=0, maxiter=2))
     assert [s["kind"] for s in res.starts] == ["nominal", "random", "random"]
     with pytest.raises(SudsConfigError, match="`screen`: expected ≥ 0, got -1"):
