@@ -35,8 +35,8 @@ efficiency is a gait that barely moves).  Every gait honours
 |r_j| ≤ limit_j and |ṙ_j| ≤ speed_limit_j (the model file's `limit` / `speed_limit`, else the
 nominal gait's range and largest speed) at the frequency of the nominal gait.  The gait file
 written loads back with `suds simulate --gait`.  On the physics SLSQP runs from the nominal gait,
-the best distinct gaits of a screen (--screen candidates: travelling waves of every lag and
-random gaits, all run to their steady state at once) and random gaits: a robot's gaits have many
+random gaits and the best distinct gaits of a screen (--screen candidates: travelling waves of
+every lag and random gaits, all run to their steady state at once): a robot's gaits have many
 local optima.
 
 From a recording (BAG, no --physics): the SUDS model fitted to the whole recording predicts
@@ -98,12 +98,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="what to maximise (default speed)")
     p.add_argument("--order", type=int, default=3, metavar="K", help="harmonics of the gait, 1..8 (default 3)")
     p.add_argument("--starts", type=int, default=4,
-                   help="SLSQP starts: the nominal gait, then 2/3 the best distinct gaits of the screen and 1/3 "
-                        "random feasible gaits (default 4)")
+                   help="SLSQP starts: the nominal gait and random feasible gaits (default 4)")
     p.add_argument("--screen", type=int, default=256, metavar="N",
                    help="candidate gaits (travelling waves, random phases, random Fourier gaits) run to their "
-                        "steady state to choose the starts from (default 256; 0: random feasible starts)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the screen's random candidates (default 0)")
+                        "steady state to choose --screened more starts from (default 256; 0: no screen)")
+    p.add_argument("--screened", type=int, default=2, metavar="M",
+                   help="more SLSQP starts: the best distinct gaits of the screen (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random starts and the screen (default 0)")
     p.add_argument("--start", metavar="GAIT",
                    help="BAG: the gait that drove the recording (default: the bag's suds_gait record, else the "
                         "robot's nominal gait with --system/--model, else the recording's gait template); "
@@ -181,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
     system = load_system(args.model or args.system)
     try:
         cfg = OptimizeConfig(objective=args.objective, order=args.order, starts=args.starts, seed=args.seed,
-                             screen=args.screen, steps_per_cycle=args.steps)
+                             screen=args.screen, screened=args.screened, steps_per_cycle=args.steps)
     except SudsConfigError as exc:
         name = str(exc).split("`")[1] if str(exc).count("`") >= 2 else ""
         flag = {"steps_per_cycle": "steps"}.get(name, name)
@@ -390,8 +391,8 @@ def _loop(args: argparse.Namespace) -> int:
     if args.limit == "yes" or (args.limit == "auto" and len(system.joint_names) <= CHEAP_LIMIT_JOINTS):
         limit_cfg = OptimizeConfig(objective=key, order=args.order, seed=args.seed)
         limit = optimize_gait(judge, limit_cfg).value
-        limit_note = (f"the physics optimiser (order {args.order}, {limit_cfg.starts} starts chosen from a screen "
-                      f"of {limit_cfg.screen} gaits)")
+        limit_note = (f"the physics optimiser (order {args.order}, {limit_cfg.starts} starts and {limit_cfg.screened} "
+                      f"from a screen of {limit_cfg.screen} gaits)")
     elif args.limit == "auto":
         limit_note = (f"skipped: {len(system.joint_names)} joints > {CHEAP_LIMIT_JOINTS} (minutes on 2 cores; "
                       "--limit yes computes it)")

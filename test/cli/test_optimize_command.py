@@ -29,7 +29,8 @@ def test_optimize_writes_a_gait_and_prints_json(tmp_path: Path, capsys: pytest.C
     assert main(["simulate", "purcell3", "--gait", str(out), "-o", str(tmp_path / "run.mcap"), "--cycles", "1"]) == 0
     # and it is a start of another optimisation (after the nominal gait)
     capsys.readouterr()
-    assert main(["optimize", "--physics", "--system", "purcell3", "--order", "2", "--starts", "1", "--start", str(out),
+    assert main(["optimize", "--physics", "--system", "purcell3", "--order", "2", "--starts", "1", "--screened", "0",
+                 "--start", str(out),
                  "-o", str(tmp_path / "again.yaml"), "--json"]) == 0
     again = json.loads(capsys.readouterr().out)
     assert [s["kind"] for s in again["starts"]] == ["nominal", "given"]

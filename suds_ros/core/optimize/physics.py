@@ -30,14 +30,17 @@ How it is made fast
   with a relative margin of 1e-3 inside the optimiser (the speed floor is nominal·1.001, the
   rotation bound 0.04995 rad), so that the final scaling cannot break them.
 
-Several starts run SLSQP: the nominal gait (padded to order K), any given gaits, the best of a
-screen and random feasible gaits.  The landscape has many local optima (a wave running one way
+Several starts run SLSQP: the nominal gait (padded to order K), any given gaits, random feasible
+gaits, and the best of a screen.  The landscape has many local optima (a wave running one way
 or the other, with one wavelength or another), so ``screen`` candidate gaits — travelling waves
 of every lag at the largest amplitude the bounds allow, first harmonics of random phase per
 joint, random Fourier gaits — are run to their steady state in one batch (a fraction of a
-second) and the best distinct ones, by the objective with a penalty for a broken rotation bound
-or speed floor, are two thirds of the other starts; the rest are random feasible gaits, as the
-screen's best can all lie in one basin.  Each runs with the time origin pinned; a gait that
+second) and the ``screened`` best distinct ones, by the objective with a penalty for a broken
+rotation bound or speed floor, are started from too.  They are added to the random starts, not
+put in their place: the screen's best can all lie in one basin (the nominal gait's, on a 7-link
+robot; a worse one than random starts found on purcell3 with stiffer springs), and the random
+starts are drawn and run first, as before, so the screened ends add to theirs.  Each runs with the time
+origin pinned; a gait that
 turns goes further counted from some points of its cycle than from others, so each end that
 would beat the best counted from its best point is
 shifted there and optimised again with every coefficient free (``free_origin``).  The best
@@ -95,14 +98,15 @@ class OptimizeConfig:
     order : int
         Harmonics K of the optimised gait (1 ≤ K ≤ 8; the spec's default bound is 3).
     starts : int
-        SLSQP starts: the nominal gait, then ``starts − 1`` more: two thirds of them (rounded up)
-        the best distinct gaits of the screen (:func:`screen_starts`), the rest random feasible
-        gaits (all random when ``screen`` is 0).
+        SLSQP starts: the nominal gait, then ``starts − 1`` random feasible gaits.
     screen : int
-        Candidate gaits run to their steady state to choose the starts from; 0: no screen, the
-        starts are random feasible gaits (as before 2026-12-05).
+        Candidate gaits run to their steady state to choose ``screened`` more starts from; 0: no
+        screen (as before 2026-12-05).
+    screened : int
+        More starts: the best distinct gaits of the screen (:func:`screen_starts`), after the
+        random ones.
     seed : int
-        Seed of the screen's random candidates and of the random starts.
+        Seed of the random starts and then of the screen's random candidates.
     max_rotation : float
         Bound on the net rotation per cycle for ``speed`` and ``efficiency``, rad.
     points_per_harmonic : int
@@ -131,6 +135,7 @@ class OptimizeConfig:
     order: int = DEFAULT_MAX_ORDER
     starts: int = 4
     screen: int = 256
+    screened: int = 2
     seed: int = 0
     max_rotation: float = 0.05
     points_per_harmonic: int = 64
@@ -145,7 +150,7 @@ class OptimizeConfig:
         if self.objective not in OBJECTIVES:
             raise SudsConfigError(f"`objective`: expected one of {list(OBJECTIVES)}, got {self.objective!r}")
         checks = [("order", 1 <= self.order <= MAX_ORDER, f"1..{MAX_ORDER}"), ("starts", self.starts >= 1, "≥ 1"),
-                  ("screen", self.screen >= 0, "≥ 0"),
+                  ("screen", self.screen >= 0, "≥ 0"), ("screened", self.screened >= 0, "≥ 0"),
                   ("max_rotation", self.max_rotation > 0, "> 0"),
                   ("points_per_harmonic", self.points_per_harmonic >= 8, "≥ 8"),
                   ("steps_per_cycle", self.steps_per_cycle is None or self.steps_per_cycle >= 8, "≥ 8"),
@@ -734,16 +739,7 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
             raise SudsConfigError(f"`initial[{i}]`: expected at most {K} harmonics (`order`), got {g.order}")
         starts.append(("given", g.to_vector(K) * min(1.0, feasible_scale(g, limits))))
     na = len(nominal.joints)
-    extra = cfg.starts - 1
-    if cfg.screen > 0 and extra > 0:
-        # two thirds (rounded up) of the starts after the nominal gait from the screen, the rest random:
-        # the screen's best can all lie in one basin, the nominal gait's too (a 7-link robot: 3 screened
-        # starts ended at 0.0156 m/s at two of three seeds, 2 screened and 1 random at 0.0192 at all three)
-        X = screen_candidates(nominal, limits, K, cfg.screen, rng)
-        floor = nom_vals["speed"] if cfg.objective in ("turn", "efficiency") else None
-        for x in screen_starts(ev, X, nom_res.r_p[0], cfg.objective, cfg.max_rotation, floor, extra - extra // 3):
-            starts.append(("screened", x))
-    while len(starts) < cfg.starts + len(initial):  # no screen, or too few distinct candidates in it
+    for _ in range(cfg.starts - 1):  # drawn first: the same random starts as without a screen
         x = random_gait(na, limits, K, rng)
         s = feasible_scale(nominal.from_vector(x, K), limits) * rng.uniform(0.6, 0.95)
         starts.append(("random", s * x))
@@ -797,6 +793,15 @@ def optimize_gait(system: SudsSystem, config: OptimizeConfig = OptimizeConfig(),
         return (value, x_end) if feasible else None
 
     ends = [e for kind, x0 in starts if (e := solve(kind, phase_pinned(x0, na, K), pinned)) is not None]
+    if cfg.screen > 0 and cfg.screened > 0:
+        # after the other starts have run: SLSQP's ends are sensitive to the last bit of every number,
+        # so running the screen first could move them (and the screen's candidates come after the
+        # random starts from the same generator)
+        X = screen_candidates(nominal, limits, K, cfg.screen, rng)
+        floor = nom_vals["speed"] if cfg.objective in ("turn", "efficiency") else None
+        for x in screen_starts(ev, X, nom_res.r_p[0], cfg.objective, cfg.max_rotation, floor, cfg.screened):
+            if (e := solve("screened", x, pinned)) is not None:
+                ends.append(e)
     if not ends:
         extra = {"speed": "", "turn": " and a speed ≥ the nominal gait's",
                  "efficiency": " and a speed ≥ the nominal gait's"}[cfg.objective]

@@ -72,7 +72,7 @@ def test_bad_settings_are_refused() -> None:
 @pytest.mark.parametrize("objective", ["turn", "efficiency"])
 def test_turn_and_efficiency_keep_the_nominal_speed(objective: str) -> None:
     system = make_system("purcell3")
-    res = optimize_gait(system, OptimizeConfig(objective=objective, order=3, starts=1))
+    res = optimize_gait(system, OptimizeConfig(objective=objective, order=3, starts=1, screened=0))
     assert res.values["speed"] >= res.nominal_values["speed"] * (1 - 1e-6)
     assert res.value > res.nominal_value and res.gait.objective == objective
     assert constraint_violations(res.gait, gait_limits(system)) == []
@@ -129,7 +129,7 @@ def test_a_given_start_is_run_after_the_nominal_gait() -> None:
     reach the optimum, one from a gait already at it keeps it; a gait for another robot is refused by name."""
     system = make_system("purcell3")
     best = optimize_gait(system, OptimizeConfig(order=3, starts=2, seed=1))
-    short = OptimizeConfig(order=3, starts=1, maxiter=1)
+    short = OptimizeConfig(order=3, starts=1, screened=0, maxiter=1)
     nom = nominal_gait(system)
     half = {"nominal": nom.from_vector(0.5 * nom.to_vector(), nom.order), "limits": gait_limits(system)}
     alone = optimize_gait(system, short, **half)
@@ -174,8 +174,8 @@ def test_origin_distances_are_the_time_shifted_gaits_own_speeds() -> None:
 def test_a_turning_optimum_is_counted_from_its_best_point() -> None:
     """With the rotation bound binding, the origin is a free variable: the optimiser takes it (+1.6 % here)."""
     system, _ = _turning_snake5()
-    pinned = optimize_gait(system, OptimizeConfig(order=2, starts=1, free_origin=False))
-    free = optimize_gait(system, OptimizeConfig(order=2, starts=1))
+    pinned = optimize_gait(system, OptimizeConfig(order=2, starts=1, screened=0, free_origin=False))
+    free = optimize_gait(system, OptimizeConfig(order=2, starts=1, screened=0))
     assert [s["kind"] for s in free.starts] == ["nominal", "origin"]
     lo, hi = free.speed_over_origins
     assert free.value == pytest.approx(hi, rel=1e-9) and hi > 1.05 * lo
@@ -205,8 +205,8 @@ def test_screened_starts_find_the_wave_the_nominal_start_cannot_reach() -> None:
     """neck4's nominal wave runs the slow way: SLSQP from it ends at a third of the limit, the screen's
     first pick runs the fast way, is distinct from the next picks, and its start reaches the limit."""
     system = load_system(str(ROBOTS / "neck4.yaml"))
-    nominal = optimize_gait(system, OptimizeConfig(starts=1))
-    screened = optimize_gait(system, OptimizeConfig(starts=2))
+    nominal = optimize_gait(system, OptimizeConfig(starts=1, screened=0))
+    screened = optimize_gait(system, OptimizeConfig(starts=1, screened=1))
     assert [s["kind"] for s in screened.starts] == ["nominal", "screened"]
     assert screened.value > 2.5 * nominal.value
     assert constraint_violations(screened.gait, gait_limits(system)) == []
@@ -220,22 +220,26 @@ def test_screened_starts_find_the_wave_the_nominal_start_cannot_reach() -> None:
     assert speeds[1] > 2 * speeds[0] and speeds[1] >= max(speeds[2:]) * 0.999
 
 
-def test_two_thirds_of_the_other_starts_come_from_the_screen_and_the_rest_are_random() -> None:
+def test_the_screened_starts_run_after_the_same_random_starts_as_without_a_screen() -> None:
+    """The screen adds starts: the nominal and random starts end exactly where they end without it."""
     system = make_system("purcell3")
-    res = optimize_gait(system, OptimizeConfig(order=2, starts=4, maxiter=2))
-    assert [s["kind"] for s in res.starts] == ["nominal", "screened", "screened", "random"]
-    res = optimize_gait(system, OptimizeConfig(order=2, starts=3, screen=0, maxiter=2))
-    assert [s["kind"] for s in res.starts] == ["nominal", "random", "random"]
-    with pytest.raises(SudsConfigError, match="`screen`: expected ≥ 0, got -1"):
-        OptimizeConfig(screen=-1)
+    res = optimize_gait(system, OptimizeConfig(order=2, starts=3, maxiter=3))
+    alone = optimize_gait(system, OptimizeConfig(order=2, starts=3, screen=0, maxiter=3))
+    assert [s["kind"] for s in res.starts] == ["nominal", "random", "random", "screened", "screened"]
+    assert [s["kind"] for s in alone.starts] == ["nominal", "random", "random"]
+    assert [s["value"] for s in res.starts[:3]] == [s["value"] for s in alone.starts]
+    assert res.value >= alone.value
+    for name in ("screen", "screened"):
+        with pytest.raises(SudsConfigError, match=f"`{name}`: expected ≥ 0, got -1"):
+            OptimizeConfig(**{name: -1})
 
 
 def test_for_a_turn_the_screen_starts_from_gaits_that_keep_the_speed_floor() -> None:
     """snake5 at order 2: from its nominal (straight) gait SLSQP turns 0.002 rad/s at the nominal speed;
     the screen's first pick is a gait above the speed floor, and from it the turn is over 10 times that."""
     system = load_system(str(SNAKE5))
-    nominal = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=1))
-    screened = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=2))
+    nominal = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=1, screened=0))
+    screened = optimize_gait(system, OptimizeConfig(objective="turn", order=2, starts=1, screened=1))
     assert screened.value > 10 * nominal.value
     assert screened.values["speed"] >= screened.nominal_values["speed"]
     assert constraint_violations(screened.gait, gait_limits(system)) == []
