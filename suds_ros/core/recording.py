@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from suds_ros.core._typing import BoolArray, FloatArray, IntArray
-from suds_ros.core.errors import NO_POSE, SudsDataError
+from suds_ros.core.errors import NO_POSE, TOO_LITTLE_DATA, SudsDataError
 
 #: How far (s, absolute) a stamp may lie outside the pose stream's span in :meth:`Recording.pose_at`
 #: and still get the end pose: a few float64 rounding steps of an epoch stamp (~2.4e-7 s at 1.7e9 s).
@@ -28,6 +28,41 @@ def joint_names(n_joints: int) -> tuple[str, ...]:
 def samples_per_cycle(dt: float, gait_hz: float) -> int:
     """Whole samples per gait cycle at sample interval ``dt`` (s) and gait frequency ``gait_hz`` (Hz)."""
     return int(round(1.0 / (gait_hz * dt)))
+
+
+def stream_period(t: FloatArray) -> float:
+    """A stream's sampling period from its stamps ``t`` (s), robust to lost messages and stamp jitter.
+
+    The median interval is the period while few messages are lost, but it drifts up with the
+    losses long before half of them are gone: with 45 % of a 100 Hz stream lost and 1 ms of stamp
+    jitter it is 20 % long, and a grid counted in it puts a run of four lost samples at four
+    periods instead of five.  The intervals between two messages received in a row form the
+    lowest cluster: starting from the median of the intervals up to 1.5 times the lower quartile,
+    the period is the median of the intervals within half a period of it, taken again until it
+    settles (a window symmetric about the period, so stamp jitter does not bias it).  Every
+    interval of an unbroken stream, the unbroken pairs of a lossy one.
+
+    Raises
+    ------
+    SudsDataError
+        (code ``too_little_data``) fewer than two distinct stamps.
+    """
+    d = np.diff(np.asarray(t, dtype=float))
+    d = d[d > 0]
+    if d.size == 0:
+        raise SudsDataError(f"`t`: expected at least 2 distinct stamps, got {np.size(t)} stamp(s) with none apart",
+                            code=TOO_LITTLE_DATA)
+    period = float(np.median(d[d <= 1.5 * np.quantile(d, 0.25)]))
+    for _ in range(PERIOD_ITERATIONS):
+        again = float(np.median(d[(d >= 0.5 * period) & (d <= 1.5 * period)]))
+        if again == period:
+            break
+        period = again
+    return period
+
+
+#: at most this many re-centrings of :func:`stream_period`'s window
+PERIOD_ITERATIONS = 20
 
 
 def _check_stamps(name: str, t: FloatArray) -> None:
@@ -205,10 +240,10 @@ class Recording:
 
     @property
     def dt(self) -> float:
-        """Median shape sampling interval, s."""
+        """The shape stream's sampling period, s (:func:`stream_period`: the median interval, robust to losses)."""
         if self.t.size < 2:
             raise SudsDataError("recording has fewer than 2 shape samples")
-        return float(np.median(np.diff(self.t)))
+        return stream_period(self.t)
 
     def pose_at(self, t: FloatArray) -> FloatArray:
         """Body pose interpolated at stamps ``t`` (s), shape (len(t), 3): x, y, yaw.

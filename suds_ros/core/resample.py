@@ -38,7 +38,7 @@ import scipy.sparse.linalg
 from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsDataError
 from suds_ros.core.midline import lost_runs
-from suds_ros.core.recording import Recording
+from suds_ros.core.recording import Recording, stream_period
 
 #: Weight of the rows that pull every knot toward plain linear interpolation (keeps the least
 #: squares well posed where a knot has little data; negligible elsewhere).
@@ -105,14 +105,40 @@ def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
     """The uniform grid a + b·k fitted (least squares) to stamps ``t`` against their nominal index k.
 
     k counts whole periods ``dt`` (s) between successive stamps (at least one), so dropped
-    messages and a slightly wrong ``dt`` do not shift the indices.  Returns (k, a, b): the
+    messages and a slightly wrong ``dt`` do not shift the indices; the periods are counted again
+    in the fitted step b while the new count fits the stamps better (a ``dt`` a few per cent long
+    would otherwise count a long run of lost messages one period short).  Stamp jitter of a fifth
+    of a period or more defeats the count: an interval stretched past 1.5 periods counts two
+    (``docs/results/grid_loss.md``).  Returns (k, a, b): the
     index of every stamp (float), the grid's offset (s, in the clock of ``t``) and its step (s).
     Subtract a reference time from large stamps first (1.7e9 s leaves 0.2 µs of precision).
     """
-    k = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(t) / dt), 1.0))])
-    A = np.column_stack([np.ones_like(k), k])
-    (a, b), *_ = np.linalg.lstsq(A, t, rcond=None)
-    return k, float(a), float(b)
+    k = _indices(t, dt)
+    a, b, sse = _line(k, t)
+    for _ in range(GRID_REFITS):
+        again = _indices(t, b)
+        if np.array_equal(again, k):
+            break
+        a2, b2, sse2 = _line(again, t)
+        if not sse2 < sse:  # a count that fits the stamps worse (heavy jitter): keep the one before
+            break
+        k, a, b, sse = again, a2, b2, sse2
+    return k, a, b
+
+
+#: at most this many recounts of :func:`fit_grid`'s indices with its own fitted step
+GRID_REFITS = 20
+
+
+def _indices(t: FloatArray, dt: float) -> FloatArray:
+    """Each stamp's index on a grid of period ``dt``: whole periods between successive stamps (≥ 1), summed."""
+    return np.concatenate([[0.0], np.cumsum(np.maximum(np.round(np.diff(t) / dt), 1.0))])
+
+
+def _line(k: FloatArray, t: FloatArray) -> tuple[float, float, float]:
+    """The least-squares line t ≈ a + b·k: (a, b, the sum of squared residuals)."""
+    (a, b), *_ = np.linalg.lstsq(np.column_stack([np.ones_like(k), k]), t, rcond=None)
+    return float(a), float(b), float(np.sum((t - a - b * k) ** 2))
 
 
 def _near(ts: FloatArray, grid: FloatArray) -> BoolArray:
@@ -128,7 +154,8 @@ def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
     """Grid points where the stream ``ts`` is interpolated across a missing sample (e.g. a dropped message).
 
     A grid point is a gap when no sample lies within half a grid step of it *and* the two
-    samples around it are more than 1.5 of the stream's own period P (median spacing) apart,
+    samples around it are more than 1.5 of the stream's own period P apart
+    (:func:`~suds_ros.core.recording.stream_period`),
     or it lies outside the stream.  So a stream slower than the grid (pose at 50 Hz on a
     100 Hz shape grid) is not a gap between its regular samples, only where one of them is
     missing.  At a gap the stream's value is interpolated across a possible kink (for the
@@ -136,7 +163,7 @@ def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
     residuals that use the value at such a point are left out of the statistics
     (:meth:`ChannelTable.residuals <suds_ros.core.diagnosis.locate.ChannelTable.residuals>`).
     """
-    period = max(float(np.median(np.diff(grid))), float(np.median(np.diff(ts))) if ts.size > 1 else 0.0)
+    period = max(float(np.median(np.diff(grid))), stream_period(ts) if ts.size > 1 else 0.0)
     i = np.searchsorted(ts, grid)
     inside = (i > 0) & (i < ts.size)
     span = np.full(grid.size, np.inf)

@@ -8,6 +8,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.diagnosis.data import Data
+from suds_ros.core.recording import stream_period
 
 #: Per-segment recorded and simulated r_p, each (B, m, np), and the fourth differences (K, 3)
 #: of the pose residual at the pose stream's own stamps, all segments together.
@@ -93,7 +94,7 @@ def floor_arrays(
     """
     m = min(length for _, length in segs)
     rr, ss, d4 = [], [], []
-    period = float(np.median(np.diff(data.pose_t))) if data.pose_t.size > 1 else np.inf
+    period = stream_period(data.pose_t) if data.pose_t.size > 1 else np.inf
     for k, (s0, length) in enumerate(segs):
         rec = data.r[s0:s0 + m][:, data.pas]
         if data.shape_lost is not None:  # a bridged sample is no measurement: its differences are left out

@@ -1269,7 +1269,7 @@ def recording_config(rec: Recording, gait_hz: float | None = None, **overrides: 
     if rec.t.size < 2:
         raise SudsDataError(f"recording has {rec.t.size} shape sample(s); the monitor needs a stream",
                             code=TOO_LITTLE_DATA)
-    spc = samples_per_cycle(float(np.median(np.diff(rec.t))), f)
+    spc = samples_per_cycle(rec.dt, f)
     return MonitorConfig(gait_hz=f, rate=spc * f, **overrides)
 
 

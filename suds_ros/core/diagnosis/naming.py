@@ -346,10 +346,15 @@ class Scorer:
 
     @staticmethod
     def _rss(e: FloatArray, ex: FloatArray, ok: FloatArray, n_measured: int) -> FloatArray:
-        """Mean squared residual per channel (torques over the ``n_measured`` measured intervals, then ξ)."""
+        """Mean squared residual per channel (torques over the ``n_measured`` measured intervals, then ξ).
+
+        A channel without a usable interval (every ξ window at a gap: n_eff 0) reads 1e-30 for
+        every candidate, so it adds nothing to a gain.
+        """
         ex = ex[ok]
         ex = np.where(np.isfinite(ex), ex, 0.0)
-        return np.concatenate([(e**2).sum(axis=0) / max(n_measured, 1), (ex**2).mean(axis=0)]) + 1e-30
+        torque = (e**2).sum(axis=0) / max(n_measured, 1)
+        return np.concatenate([torque, (ex**2).sum(axis=0) / max(ex.shape[0], 1)]) + 1e-30
 
     def gain(self, rss: FloatArray, rss0: FloatArray, n_eff: FloatArray) -> float:
         return float(0.5 * np.sum(n_eff * np.log(rss0 / np.maximum(rss, 1e-300))))

@@ -24,7 +24,7 @@ from suds_ros.core.diagnosis.lsq import fd_jacobian, with_jacobian
 from suds_ros.core.diagnosis.naming import Candidate
 from suds_ros.core.diagnosis.replay import Replay, replay, window_xi
 from suds_ros.core.diagnosis.report import DiagnoseConfig, FittedEffect, effect_label
-from suds_ros.core.errors import SudsConfigError
+from suds_ros.core.errors import SudsConfigError, SudsSimulationError
 from suds_ros.core.parallel import fork_map
 from suds_ros.core.physics.effects import EFFECTS, ParamSpec, apply_effects
 from suds_ros.core.physics.rft import ChainModel
@@ -231,7 +231,7 @@ def extension_gains(
         try:
             return fd_jacobian(residuals(c, x), c.neutral(model)[x.size:], r0, 1e-2 * c.scales()[x.size:],
                                np.asarray(c.bounds()[1][x.size:], dtype=float))
-        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, SudsSimulationError):
             return None
 
     out = []
@@ -267,11 +267,11 @@ def _refine(
     def fun(x: FloatArray) -> FloatArray:
         try:
             return sim(x).ravel()
-        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError):
+        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, SudsSimulationError):
             return np.full(n_res, 1e6)
 
     x0 = np.clip(x0, lo + 1e-3 * scales, hi - 1e-3 * scales)  # off the bounds (see Scorer.fit)
-    r0 = sim(x0)
+    x0, r0 = _replayable_start(sim, x0, np.clip(cand.neutral(base), lo, hi))
     n_res = r0.size
     c0 = float(np.sum(r0**2))
     value, jac = with_jacobian(fun, 1e-3, 1e-2 * scales, hi, parallel=True)
@@ -287,6 +287,29 @@ def _refine(
         J = fd_jacobian(fun, x, R, np.maximum(1e-3 * np.abs(x), 1e-2 * scales), hi, parallel=True)
     spread, p_value = misfit_spread(J, R, _residual_parts(data, length, w, R.shape[1]), cfg.misfit_alpha)
     return Refined(cand, x, _sandwich_stderr(J, R, x.size), spread, p_value)
+
+
+#: fractions of the way from the neutral parameters to the equation-error start tried, in order
+START_SHRINK = (1.0, 0.5, 0.25, 0.125, 0.0)
+
+
+def _replayable_start(sim: Callable[[FloatArray], FloatArray], x0: FloatArray,
+                      neutral: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The first start towards ``neutral`` whose replay stays finite, with its residuals.
+
+    The equation-error fit's parameters can make the simulated motion diverge (a softening
+    spring, k3 < 0, fitted where the joint only reached small angles, pushes it away once the
+    replay carries it further): the start is moved towards the neutral parameters, which replay
+    the nominal model, by :data:`START_SHRINK`.  The last failure is raised when none replays.
+    """
+    for frac in START_SHRINK[:-1]:
+        x = neutral + frac * (x0 - neutral)
+        try:
+            return x, sim(x)
+        except SudsSimulationError:
+            continue
+    x = neutral + START_SHRINK[-1] * (x0 - neutral)
+    return x, sim(x)
 
 
 def _sandwich_stderr(J: FloatArray, R: FloatArray, p: int) -> FloatArray:

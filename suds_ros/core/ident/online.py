@@ -49,7 +49,7 @@ from suds_ros.core.ident.shape_kernel import gait_kernel_scale
 from suds_ros.core.ident.sysid import AveragedTargets, SudsConfig, SudsRegressor
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.template import FourierTemplate
-from suds_ros.core.recording import Recording
+from suds_ros.core.recording import Recording, stream_period
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
 
@@ -278,7 +278,7 @@ class OnlineSudsEstimator:
         self._tracker = PhaseTracker(s.template, s.omega, float(s.phase[-1]), float(s.t[-1]))
         self._phase0 = float(s.phase[0])
         # a shape interval over a run of BRIDGED_RUN or more lost samples is not measured
-        period = float(np.median(np.diff(s.t)))
+        period = stream_period(s.t)
         self._rows = StreamFeaturiser(self.config.suds, s.template, s.omega, self._act, self._pas,
                                       max_interval=(BRIDGED_RUN + 0.5) * period)
         for tp, pose in self._early_poses:

@@ -36,6 +36,8 @@ residual variance, λ its ridge): ``draws`` coefficient sets are drawn from it a
 proposed gaits re-predicted with each; the spread of the objective and of the gain over the draws
 is the reported uncertainty.  It treats the residuals as independent and the model's form as
 right, so it is a lower bound on the real error (the benchmark compares it with the simulator).
+Channels fitted on averaged targets (the body velocity over the pose stream's own intervals, when
+motion capture runs at its own rate) are drawn from their own normal equations, (W·A)ᵀ(W·A) + λI.
 """
 
 from __future__ import annotations
@@ -81,6 +83,7 @@ from suds_ros.core.physics.gait import (
     with_predicted,
 )
 from suds_ros.core.recording import Recording
+from suds_ros.core.resample import Grid
 
 
 @dataclass(frozen=True)
@@ -176,12 +179,13 @@ class LearnedModel:
     template_order : int
     template_coef : (2·To + 1, nj) Fourier coefficients of θ(φ) ([1, cos φ, sin φ, …]).
     omega : float, the recording's mean phase rate ω̄, rad/s.
-    dt : float, the sample interval the model maps over, s.
+    dt : float, the sample interval the model maps over (the identifier's shape grid), s.
     gait_hz : float, the recording's gait frequency, Hz.
     suds : SudsConfig, kernel_scale : the regression's design.
     coef : (p, c) coefficients; channels ξx, ξy, ξθ, ṙ_p…, then τ_a… when ``torque``.
     torque : bool, whether actuator torques were learned.
-    chol : (p, p) lower Cholesky factor L of XᵀX + λI (LLᵀ), or None (no draws).
+    chol : (p, p) lower Cholesky factor L of XᵀX + λI (LLᵀ) of the channels fitted per sampling
+        interval, or None (no draws).
     resid_std : (c,) residual standard deviation per channel.
     spread_delta, spread_rate : (na,) std of δ_a (rad) and δ̇_a (rad/s) over the recording.
     spread_passive : (np,) std of δ_p (rad).
@@ -191,6 +195,11 @@ class LearnedModel:
     frame_weights : (nj,) or None, the body frame the model was fitted in (:func:`shape_frame`): the
         recorded yaw plus r·w; None: the recorded pose frame itself.  Recordings compared with the
         model go through :meth:`in_frame` first.
+    avg_columns : tuple of int, the channels fitted on averaged targets (the body velocity over the
+        pose stream's own intervals when it is not on the shape grid: the regression's
+        ``avg_columns_``); empty: none.
+    chol_avg : (p, p) or None, the factor of their own normal equations (W·A)ᵀ(W·A) + λI, which
+        their draws use; None with ``avg_columns``: no draws.
     """
 
     system: str
@@ -216,6 +225,8 @@ class LearnedModel:
     cycles: float
     identifier: Any = field(default=None, repr=False, compare=False)
     frame_weights: FloatArray | None = field(default=None, repr=False, compare=False)
+    avg_columns: tuple[int, ...] = ()
+    chol_avg: FloatArray | None = field(default=None, repr=False, compare=False)
 
     def theta(self, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
         """θ(φ) and dθ/dφ, each (n, nj), at phases (n,) rad."""
@@ -236,12 +247,26 @@ class LearnedModel:
         """``rec`` with its pose in the model's body frame (:func:`reframe`; unchanged in the pose frame)."""
         return rec if self.frame_weights is None else reframe(rec, self.frame_weights)
 
+    @property
+    def has_draws(self) -> bool:
+        """Whether the model carries the coefficient covariance :meth:`draw` needs (every part's factor)."""
+        return self.chol is not None and (not self.avg_columns or self.chol_avg is not None)
+
     def draw(self, rng: np.random.Generator) -> FloatArray:
-        """Coefficients (p, c) drawn from N(coef, s²_c (XᵀX + λI)⁻¹) per channel."""
-        if self.chol is None:
+        """Coefficients (p, c) drawn from N(coef, s²_c (XᵀX + λI)⁻¹) per channel.
+
+        XᵀX is the normal matrix the channel was fitted on: the sampling intervals' design for
+        most channels, the averaged design W·A for :attr:`avg_columns` (``chol_avg``).
+        """
+        if not self.has_draws:
             raise SudsConfigError("`draws`: the model carries no coefficient covariance")
         z = rng.standard_normal(self.coef.shape)
-        return self.coef + scipy.linalg.solve_triangular(self.chol, z, lower=True, trans="T") * self.resid_std
+        out = self.coef + scipy.linalg.solve_triangular(self.chol, z, lower=True, trans="T") * self.resid_std
+        if self.avg_columns:
+            cols = list(self.avg_columns)
+            out[:, cols] = self.coef[:, cols] + scipy.linalg.solve_triangular(
+                self.chol_avg, z[:, cols], lower=True, trans="T") * self.resid_std[cols]
+        return out
 
 
 def _phase_of(ident: Any, rec: Recording) -> FloatArray:
@@ -369,24 +394,29 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
         mid = 0.5 * (phase[1:] + phase[:-1])
         rates.append(np.diff(r.r, axis=0) / np.diff(r.t)[:, None] - ident.template_.derivative(mid) * ident.omega_)
     delta, rate = np.concatenate(deltas), np.concatenate(rates)
+    # the interval the regression maps over: the identifier's shape grid (a recording's median stamp
+    # interval is longer than the grid's when many shape samples are lost)
+    regrid = ident.config.regrid and ident.config.phase != "truth"
+    dt = Grid.of(rec).dt if regrid else rec.dt
     # the coefficients' covariance: (XᵀX + λI)⁻¹ per channel, scaled by its residual variance
-    chol, resid = None, np.zeros(reg.coef_.shape[1])
+    # (each part of the fit on its own normal equations: the averaged body channels on W·A)
+    factors, resid = [], np.zeros(reg.coef_.shape[1])
     parts = [(reg.normal_, [c for c in range(reg.coef_.shape[1]) if c not in reg.avg_columns_])]
     if reg.normal_avg_ is not None:
         parts.append((reg.normal_avg_, list(reg.avg_columns_)))
-    for i, (ne, cols) in enumerate(parts):
+    for ne, cols in parts:
         factor, dof = _ridge_factor(ne.xtx, reg.config.ridge)
-        if i == 0:
-            chol = factor
+        factors.append(factor)
         rss = ne.residual_ss(reg.coef_[:, cols])
         resid[cols] = np.sqrt(rss / max(ne.sw, 1.0) * ne.n / max(ne.n - dof, 1.0))
     return LearnedModel(
         system=rec.system, joint_names=rec.joint_names, actuated=rec.actuated, passive=rec.passive, act=act, pas=pas,
         template_order=int(ident.template_.config.order), template_coef=np.asarray(ident.template_.coef_),
-        omega=float(ident.omega_), dt=float(rec.dt), gait_hz=float(hz), suds=reg.config,
-        kernel_scale=ident.kernel_scale_, coef=np.asarray(reg.coef_), torque=bool(torque), chol=chol,
+        omega=float(ident.omega_), dt=float(dt), gait_hz=float(hz), suds=reg.config,
+        kernel_scale=ident.kernel_scale_, coef=np.asarray(reg.coef_), torque=bool(torque), chol=factors[0],
         resid_std=resid, spread_delta=delta[:, act].std(axis=0), spread_rate=rate[:, act].std(axis=0),
-        spread_passive=delta[:, pas].std(axis=0), cycles=cycles, identifier=ident, frame_weights=weights)
+        spread_passive=delta[:, pas].std(axis=0), cycles=cycles, identifier=ident, frame_weights=weights,
+        avg_columns=tuple(int(c) for c in reg.avg_columns_), chol_avg=factors[1] if len(factors) > 1 else None)
 
 
 @dataclass(frozen=True)
@@ -901,7 +931,7 @@ def optimize_from_data(model: LearnedModel, config: DataOptimizeConfig = DataOpt
         step_taken, x_end, res, new_vals, value = False, x0, base, rec_vals, rec_value
     # uncertainty: the recorded and proposed gaits under coefficient draws (paired)
     draws: list[tuple[float, float]] = []
-    if cfg.draws and model.chol is not None:
+    if cfg.draws and model.has_draws:
         rng = np.random.default_rng(cfg.seed)
         for _ in range(cfg.draws):
             ev_d = LearnedCycle(model, hz, K, work=ev.with_work, coef=model.draw(rng))

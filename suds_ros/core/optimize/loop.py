@@ -1808,7 +1808,7 @@ def _draw_values(model: LearnedModel, value: Callable[[FloatArray], float], draw
     A draw whose value raises (no steady state: :class:`SudsDataError`, a floating-point or linear-algebra
     error) or is not finite is left out; none when the model carries no covariance.
     """
-    if model.chol is None:
+    if not model.has_draws:
         return []
     rng = np.random.default_rng(seed)
     values = []

@@ -151,3 +151,18 @@ def test_candidate_slices_index_each_part_in_the_parameter_vector() -> None:
     assert cand.slices() == [slice(0, 3), slice(3, 4), slice(4, 6)]
     assert cand.slices()[-1].stop == len(cand.bounds()[0])
     assert Candidate(()).slices() == []
+
+
+def test_a_body_channel_without_a_usable_window_adds_nothing_to_a_candidates_evidence() -> None:
+    """Every ξ window at a gap (heavy shape losses): the channel's mean squared residual is the same tiny
+    constant for every candidate, not the NaN of an empty mean, so the evidence stays finite."""
+    from suds_ros.core.diagnosis.naming import Scorer
+
+    e = np.ones((50, 1))
+    ex = np.full((40, 3), 2.0)
+    none = np.zeros(40, dtype=bool)
+    rss = Scorer._rss(e, ex, none, 25)
+    np.testing.assert_allclose(rss, [2.0, 1e-30, 1e-30, 1e-30])
+    assert np.isfinite(Scorer.gain(None, rss, rss, np.array([25.0, 0.0, 0.0, 0.0])))  # type: ignore[arg-type]
+    some = np.arange(40) < 10
+    np.testing.assert_allclose(Scorer._rss(e, ex, some, 25), [2.0, 4.0, 4.0, 4.0], rtol=1e-12)

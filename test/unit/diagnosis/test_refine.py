@@ -198,3 +198,23 @@ def test_residual_parts_follow_the_residual_layout() -> None:
     xi = parts[100:].reshape(9, 3)  # window-major, (x, y, θ) per window
     assert np.array_equal(xi[:, 0] // 4, np.ones(9)) and np.array_equal(xi[:, 2] // 4, np.full(9, 3))
     assert list(xi[:, 0] % 4) == [0, 0, 1, 1, 1, 2, 2, 3, 3]  # centres 5, 15 | 25, 35, 45 | 55, 65 | 75, 85
+
+
+def test_a_start_whose_replay_diverges_is_moved_towards_the_neutral_parameters() -> None:
+    """The equation-error start of a softening spring can make the replay diverge: the refinement starts from
+    the first point towards the neutral value that replays (and the neutral value's own failure is raised)."""
+    from suds_ros.core.diagnosis.refine import _replayable_start
+    from suds_ros.core.errors import SudsSimulationError
+
+    tried = []
+
+    def sim(x: np.ndarray) -> np.ndarray:
+        tried.append(float(x[0]))
+        if abs(x[0]) > 2.0:
+            raise SudsSimulationError("diverged")
+        return np.array([[x[0]]])
+
+    x, r = _replayable_start(sim, np.array([-12.0]), np.array([0.0]))
+    assert tried == [-12.0, -6.0, -3.0, -1.5] and x[0] == -1.5 and r[0, 0] == -1.5
+    with pytest.raises(SudsSimulationError):  # not even the neutral parameters replay
+        _replayable_start(sim, np.array([12.0]), np.array([3.0]))

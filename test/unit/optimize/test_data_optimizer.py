@@ -337,3 +337,52 @@ def test_a_broken_down_slsqp_restarts_from_the_best_feasible_point_it_visited(
     assert "that point taken" in res.message
     np.testing.assert_allclose(res.gait.to_vector(cfg.order), x_good, atol=1e-12)
     assert res.value == pytest.approx(good.value, rel=1e-9)
+
+
+def test_the_body_channels_fitted_on_pose_intervals_are_drawn_from_their_own_normal_equations() -> None:
+    """With motion capture at its own rate the body velocity is fitted on the pose stream's intervals (the
+    averaged design W·A), the other channels on the shape grid: each channel's draws scatter as its own fit's
+    covariance s²_c (AᵀA + λI)⁻¹ says.  (They used to take the shape grid's factor for every channel: at a
+    47 Hz pose stream that made the body channels' draws, and so the predicted speed's σ, too narrow.)"""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+
+    system = make_system("purcell3")
+    rec = simulate_lab(system, SimConfig(cycles=10, seed=4), LabConditions(pose_hz=47.0, pose_phase=0.003))
+    model = learn_model(rec, frame="pose")
+    reg = model.identifier.regressor_
+    assert model.avg_columns == (0, 1, 2) and model.chol_avg is not None and model.has_draws
+
+    def covariance(xtx: np.ndarray) -> np.ndarray:
+        lam = reg.config.ridge * float(np.mean(np.diag(xtx)))
+        return np.linalg.inv(xtx + lam * np.eye(xtx.shape[0]))
+
+    v = np.random.default_rng(0).standard_normal(model.coef.shape[0])  # a linear functional of the coefficients
+    rng = np.random.default_rng(1)
+    draws = np.stack([model.draw(rng) for _ in range(3000)])  # (draws, p, c)
+    for c in model.avg_columns:
+        own = model.resid_std[c] ** 2 * v @ covariance(reg.normal_avg_.xtx) @ v
+        grid = model.resid_std[c] ** 2 * v @ covariance(reg.normal_.xtx) @ v
+        assert np.var(draws[:, :, c] @ v) == pytest.approx(own, rel=0.12), c
+        assert own > 1.5 * grid, c  # the shape grid's factor would be far too narrow here
+    assert not dataclasses.replace(model, chol_avg=None).has_draws
+    with pytest.raises(SudsConfigError, match="covariance"):
+        dataclasses.replace(model, chol_avg=None).draw(rng)
+
+
+def test_a_recording_with_pose_on_the_shape_grid_has_no_averaged_channels(purcell: tuple[object, LearnedModel]) -> None:
+    _, model = purcell
+    assert model.avg_columns == () and model.chol_avg is None and model.has_draws
+
+
+def test_the_model_maps_over_the_shape_grid_when_many_shape_samples_are_lost() -> None:
+    """Lost shape samples lengthen the recording's median stamp interval; the regression still maps over the
+    identifier's uniform grid, and the learned cycle takes that grid's steps."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+
+    system = make_system("purcell3")
+    rec = simulate_lab(system, SimConfig(cycles=10, seed=5),
+                       LabConditions(pose_hz=47.0, pose_phase=0.003, jitter=0.001, drop=0.45))
+    assert np.median(np.diff(rec.t)) > 1.05 * 0.01  # 100 samples a cycle at 1 Hz, nearly half of them lost
+    model = learn_model(rec)
+    assert model.dt == pytest.approx(0.01, rel=0.01)
+    assert LearnedCycle(model, 1.0, 2).steps == 100
