@@ -107,6 +107,7 @@ Modules: :mod:`.report` (config and report), :mod:`.data` (prepare a recording),
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -133,7 +134,7 @@ from suds_ros.core.diagnosis.report import (
     effect_label,
 )
 from suds_ros.core.diagnosis.selection import Naming, _compatible, name_mismatch
-from suds_ros.core.errors import SudsConfigError, SudsDataError
+from suds_ros.core.errors import SudsConfigError, SudsDataError, SudsSimulationError
 from suds_ros.core.parallel import fork_map, workers
 from suds_ros.core.physics.effects import EFFECTS, apply_effects, neutral_params
 from suds_ros.core.physics.rft import ChainModel, RFTChain
@@ -398,6 +399,9 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
     # the selection, those started from the first step's runners-up, and swaps of confounded
     # members: each is refined in the simulator, which arbitrates
     tried = fork_map(lambda opt: _try(nom, opt), _options(naming, config))  # each its own refinement
+    failed = [t for t in tried if t.failed]
+    if len(failed) == len(tried):
+        raise SudsSimulationError(failed[0].failed)
     # the output error arbitrates: replay evidence on the training half
     best = max(range(len(tried)), key=lambda i: tried[i].train_evidence)
     win = tried[best]
@@ -409,6 +413,7 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         notes.append(f"the simulator preferred {win.option.cand.label} (replay evidence on the training half "
                      f"{win.train_evidence:.1f} nats) to the forward selection's {naming.chosen.cand.label} "
                      f"({tried[0].train_evidence:.1f}{eq})")
+    notes += [f"{t.option.cand.label} left out: {t.failed}" for t in failed]
     extended, note = _extension(nom, naming, win)
     if extended is not None:
         win = extended
@@ -457,6 +462,8 @@ def _told_apart(win: _Tried, tried: list[_Tried], band: float) -> set[str]:
     kept = {effect_label(*p) for p in win.cand.parts}
     out: set[str] = set()
     for t in tried:
+        if t.failed:  # a set that could not be replayed tells nothing apart
+            continue
         theirs = {effect_label(*q) for q in t.cand.parts}
         if (t is not win and win.evidence - t.evidence > band
                 and len(theirs - kept) == 1 and len(kept - theirs) == 1):
@@ -499,6 +506,7 @@ class _Tried:
     E1: FloatArray
     train_evidence: float  # output-error evidence on the training half, nats: the arbitration
     evidence: float  # output-error evidence on the held-out half, nats: the ambiguity band
+    failed: str = ""  # the simulator's message when the option's motion diverged (evidence −∞)
 
     @property
     def cand(self) -> Candidate:
@@ -605,11 +613,21 @@ def _weak_rivals(naming: Naming, config: DiagnoseConfig, seen: set[frozenset]) -
 
 
 def _try(nom: _Nominal, opt: _Option) -> _Tried:
-    """Refine an option in the simulator and replay the whole recording with it."""
+    """Refine an option in the simulator and replay the whole recording with it.
+
+    An option whose simulated motion diverges (its refinement, or the replay of the whole recording
+    with its refined parameters) is a failed option: −∞ evidence, the nominal replay, and the
+    simulator's message in ``failed``.
+    """
     data, model, table = nom.data, nom.model, nom.table
-    got = refine_choice(opt.cand, opt.x, model, data, nom.config, nom.w, nom.substeps, nom.floors)
-    fitted_model, delay = apply_effects(model, got.cand.effects(got.x))
-    rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
+    try:
+        got = refine_choice(opt.cand, opt.x, model, data, nom.config, nom.w, nom.substeps, nom.floors)
+        fitted_model, delay = apply_effects(model, got.cand.effects(got.x))
+        rep1 = replay_recording(data, fitted_model, delay, nom.w, nom.substeps, None, nom.chunk, nom.warm)
+    except SudsSimulationError as exc:
+        nan = np.full(opt.x.size, np.nan)
+        return _Tried(opt, Refined(opt.cand, np.asarray(opt.x, dtype=float), nan, nan, nan), nom.replay, nom.E0,
+                      -math.inf, -math.inf, failed=str(exc))
     E1 = table.residuals(rep1.rp, rep1.xi)
     return _Tried(opt, got, rep1, E1,
                   table.evidence(nom.E0, E1, got.x.size, held=False), table.evidence(nom.E0, E1, got.x.size))
@@ -653,6 +671,8 @@ def _extension(nom: _Nominal, naming: Naming, win: _Tried) -> tuple[_Tried | Non
     cand = Candidate(win.cand.parts + (parts[k],))
     ext = _try(nom, _Option(cand, np.concatenate([win.x, starts[parts[k]]]), naming.evidence, naming.confounded,
                             float("nan")))
+    if ext.failed:
+        return None, f"{label} tried on top of {win.cand.label} in the simulator and not kept: {ext.failed}"
     d_train, d_held = ext.train_evidence - win.train_evidence, ext.evidence - win.evidence
     if parts[k] in ext.cand.parts and min(d_train, d_held) > config.evidence_threshold:
         return ext, (f"the simulator added {label}, {origin[parts[k]]}: replay evidence "

@@ -262,3 +262,41 @@ def test_a_member_the_preferred_set_lacks_is_tried_on_top(check_recovered) -> No
     rep = diagnose(rec, base)
     check_recovered(rep, effects)
     assert any("added pose_frame_offset, which the forward selection had chosen" in n for n in rep.notes), rep.notes
+
+
+def test_a_set_whose_simulated_motion_diverges_is_left_out_not_fatal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A refined set whose replay diverges (a softening spring far past its data, say) is left out of the
+    arbitration with a note; the diagnosis stops only when no set can be replayed."""
+    import suds_ros.core.diagnosis.pipeline as pipeline
+    from suds_ros.core.errors import SudsSimulationError
+
+    base = purcell3_model()
+    truth = [dict(name="joint_viscous_damping", joint="joint_2", d=0.5)]
+    model, _ = apply_effects(base, truth)
+    rec = simulate(RFTChain(model), SimConfig(cycles=20, seed=4))
+    config = DiagnoseConfig()
+    nom = replay_nominal(prepare(rec, base), base, config, None)
+    located = locate_channels(nom.F0, nom.E0, nom.table, nom.cycle, config)
+    sel = _Selector(Scorer(nom.data, base, config.eq_window, nom.floors[0]), config)
+    damping = sel.fit(Candidate((("joint_viscous_damping", "joint_2"),)), np.array([0.5]))
+    spring = sel.fit(Candidate((("spring_nonlinearity", "joint_2"),)), np.array([-10.0]))
+    assert damping.score.score > 0
+    naming = Naming((), damping, (), (100.0, 100.0), alternatives=(_Path(spring, (), (100.0, 100.0), (), ()),),
+                    fits={})
+    refine = pipeline.refine_choice
+    bad = {"spring_nonlinearity"}
+
+    def diverging(cand, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if any(name in bad for name, _ in cand.parts):
+            raise SudsSimulationError("the simulated motion diverged (test)")
+        return refine(cand, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "refine_choice", diverging)
+    fit = _refine(nom, naming, list(located), _Clock())
+    assert [(e.name, e.target) for e in fit.effects] == [("joint_viscous_damping", "joint_2")], fit.notes
+    assert fit.effects[0].parameters["d"] == pytest.approx(0.5, rel=0.05)
+    assert any("spring_nonlinearity:joint_2 left out: the simulated motion diverged (test)" in n
+               for n in fit.notes), fit.notes
+    bad.add("joint_viscous_damping")  # no set can be replayed
+    with pytest.raises(SudsSimulationError, match="diverged"):
+        _refine(nom, naming, list(located), _Clock())
