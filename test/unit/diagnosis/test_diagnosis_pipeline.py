@@ -123,8 +123,8 @@ def test_only_a_one_for_one_swap_tells_a_confounded_member_apart() -> None:
     tells that effect apart; the selection without its last member also lacks a member, and its
     deficit says nothing about the effect it holds instead of another (the lab sweep's case 10:
     joint_2 stiffness or stiffness-to-drag, beside an anisotropy the shorter set lacks)."""
-    def tried(parts, evidence):  # type: ignore[no-untyped-def]
-        return SimpleNamespace(cand=Candidate(parts), evidence=evidence)
+    def tried(parts, evidence, failed=""):  # type: ignore[no-untyped-def]
+        return SimpleNamespace(cand=Candidate(parts), evidence=evidence, failed=failed)
 
     offset, ratio = ("sensor_time_offset", None), ("drag_anisotropy_error", None)
     stiff, s2d, damp = ("joint_stiffness_error", "joint_2"), ("stiffness_to_drag_error", None), \
@@ -136,6 +136,8 @@ def test_only_a_one_for_one_swap_tells_a_confounded_member_apart() -> None:
     assert _told_apart(win, [win, shorter, close], 10.0) == set()  # type: ignore[arg-type]
     got = _told_apart(win, [win, shorter, swap, close], 10.0)  # type: ignore[arg-type]
     assert got == {"joint_viscous_damping:joint_2"}
+    diverged = tried((offset, damp, ratio), -np.inf, "the simulated motion diverged")  # could not be replayed
+    assert _told_apart(win, [win, shorter, diverged, close], 10.0) == set()  # type: ignore[arg-type]
 
 
 @pytest.mark.slow
