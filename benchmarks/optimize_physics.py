@@ -121,7 +121,7 @@ def cobyla(spec: str, order: int, starts: int = 3, seed: int = 0,
 
 
 def generic_check() -> list[str]:
-    rows = ["| robot | SLSQP multi-start (ours, 4 starts, screen 256) | the same, time origin pinned | "
+    rows = ["| robot | SLSQP multi-start (ours, 4 starts and 2 from a screen of 256) | the same, time origin pinned | "
             "COBYLA best of 3 starts "
             "| per COBYLA start | ours − COBYLA | time ours / COBYLA s |", "|---|---|---|---|---|---|---|"]
     for name, spec in GENERIC.items():

@@ -161,6 +161,11 @@ class IdentifyConfig:
     phase_block_samples: int = 200_000
     phase_margin_samples: int = 30_000
 
+    @property
+    def regrids(self) -> bool:
+        """Whether fit and predict bring the shape stream onto its grid: ``regrid``, unless the phase is the truth."""
+        return self.regrid and self.phase != "truth"
+
     def __post_init__(self) -> None:
         for name in ("block_samples", "select_max_rows", "phaser_fit_samples", "phase_block_samples"):
             if getattr(self, name) < 1:
@@ -511,7 +516,7 @@ class SudsIdentifier(BaseEstimator):
 
     def _prepared(self, rec: Recording) -> Recording:
         """``rec`` on its shape grid (``config.regrid``), refused when no interval of it was measured."""
-        if self.config.regrid and self.config.phase != "truth":
+        if self.config.regrids:
             from suds_ros.core.resample import on_shape_grid
 
             rec = on_shape_grid(rec)

@@ -396,8 +396,7 @@ def learn_model(rec: Recording | Sequence[Recording], *, torque: bool = False, c
     delta, rate = np.concatenate(deltas), np.concatenate(rates)
     # the interval the regression maps over: the identifier's shape grid (a recording's median stamp
     # interval is longer than the grid's when many shape samples are lost)
-    regrid = ident.config.regrid and ident.config.phase != "truth"
-    dt = Grid.of(rec).dt if regrid else rec.dt
+    dt = Grid.of(rec).dt if ident.config.regrids else rec.dt
     # the coefficients' covariance: (XᵀX + λI)⁻¹ per channel, scaled by its residual variance
     # (each part of the fit on its own normal equations: the averaged body channels on W·A)
     factors, resid = [], np.zeros(reg.coef_.shape[1])

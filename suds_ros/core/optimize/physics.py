@@ -39,10 +39,9 @@ second) and the ``screened`` best distinct ones, by the objective with a penalty
 rotation bound or speed floor, are started from too.  They are added to the random starts, not
 put in their place: the screen's best can all lie in one basin (the nominal gait's, on a 7-link
 robot; a worse one than random starts found on purcell3 with stiffer springs), and the random
-starts are drawn and run first, as before, so the screened ends add to theirs.  Each runs with the time
-origin pinned; a gait that
-turns goes further counted from some points of its cycle than from others, so each end that
-would beat the best counted from its best point is
+starts are drawn and run first, as before, so the screened ends add to theirs.  Each runs
+with the time origin pinned; a gait that turns goes further counted from some points of its
+cycle than from others, so each end that would beat the best counted from its best point is
 shifted there and optimised again with every coefficient free (``free_origin``).  The best
 feasible result is returned with its own steady-state evaluation.
 """
