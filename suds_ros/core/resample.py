@@ -104,14 +104,19 @@ class Grid:
 def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
     """The uniform grid a + b·k fitted (least squares) to stamps ``t`` against their nominal index k.
 
-    k counts whole periods ``dt`` (s) between successive stamps (at least one), so dropped
+    k first counts whole periods ``dt`` (s) between successive stamps (at least one), so dropped
     messages and a slightly wrong ``dt`` do not shift the indices; the periods are counted again
     in the fitted step b while the new count fits the stamps better (a ``dt`` a few per cent long
-    would otherwise count a long run of lost messages one period short).  Stamp jitter of a fifth
-    of a period or more defeats the count: an interval stretched past 1.5 periods counts two
-    (``docs/results/grid_loss.md``).  Returns (k, a, b): the
-    index of every stamp (float), the grid's offset (s, in the clock of ``t``) and its step (s).
-    Subtract a reference time from large stamps first (1.7e9 s leaves 0.2 µs of precision).
+    would otherwise count a long run of lost messages one period short).  Counting interval by
+    interval adds up its errors: with stamp jitter of a fifth of a period an interval stretched
+    past 1.5 periods counts two, and every later index is one off.  So when a stamp lies a quarter
+    step or more off that line, the indices are also locked to the phase of the stamps
+    (:func:`_locked`: each stamp rounded to the nearest point of a grid fitted to all of them, so a
+    stamp jittered the wrong way costs only its own index), and the count that fits the stamps
+    better is kept (``docs/results/grid_loss.md``).  Returns (k, a, b): the index of every stamp
+    (float; two stamps jittered towards each other may share one), the grid's offset (s, in the
+    clock of ``t``) and its step (s).  Subtract a reference time from large stamps first (1.7e9 s
+    leaves 0.2 µs of precision).
     """
     k = _indices(t, dt)
     a, b, sse = _line(k, t)
@@ -123,11 +128,57 @@ def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
         if not sse2 < sse:  # a count that fits the stamps worse (heavy jitter): keep the one before
             break
         k, a, b, sse = again, a2, b2, sse2
+    if np.max(np.abs(t - a - b * k)) >= LOCK_TRIGGER * b:
+        locked = _locked(t, dt)
+        if locked is not None:
+            a2, b2, sse2 = _line(locked, t)
+            if sse2 < sse:
+                k, a, b = locked, a2, b2
     return k, a, b
 
 
 #: at most this many recounts of :func:`fit_grid`'s indices with its own fitted step
 GRID_REFITS = 20
+#: :func:`fit_grid` locks its indices to the stamps' phase when a stamp is this many steps off its line
+LOCK_TRIGGER = 0.25
+#: the stamps whose phase gives :func:`_locked` its first grid
+LOCK_BLOCK = 512
+#: :func:`_locked` looks for the period within this fraction of the one it is given
+LOCK_RANGE = 0.05
+
+
+def _locked(t: FloatArray, dt: float) -> FloatArray | None:
+    """Each stamp's index on the grid locked to the phase of the stamps ``t``, near the period ``dt`` (s).
+
+    On the first :data:`LOCK_BLOCK` stamps the step is the one within :data:`LOCK_RANGE` of ``dt``
+    at which the stamps' phases agree best (the largest resultant |Σ exp(2πi t/b)|, on steps fine
+    enough that the phase moves a quarter turn over the block; lost stamps do not matter);
+    the offset is their mean phase.  Each stamp is rounded to the nearest point of that grid, the
+    line is fitted again until the indices settle, and the block doubles until it holds every
+    stamp.  None for fewer than 8 stamps.
+    """
+    if t.size < 8:
+        return None
+    m = min(t.size, LOCK_BLOCK)
+    span = max((t[m - 1] - t[0]) / dt, 1.0)
+    steps = dt * (1.0 + np.arange(-LOCK_RANGE, LOCK_RANGE, 1.0 / (4.0 * span)))
+    rel = t[:m] - t[0]
+    phasors = np.exp(2j * np.pi * rel[None, :] / steps[:, None]).sum(axis=1)
+    best = int(np.argmax(np.abs(phasors)))
+    b = float(steps[best])
+    a = t[0] + b * float(np.angle(phasors[best])) / (2.0 * np.pi)
+    k = np.zeros(0)
+    while True:
+        for _ in range(GRID_REFITS):  # round and fit again until the block's indices settle
+            again = np.round((t[:m] - a) / b)
+            again -= again[0]
+            if np.array_equal(again, k):
+                break
+            k = again
+            a, b, _ = _line(k, t[:m])
+        if m == t.size:
+            return k
+        m = min(2 * m, t.size)
 
 
 def _indices(t: FloatArray, dt: float) -> FloatArray:
