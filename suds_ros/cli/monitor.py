@@ -29,10 +29,13 @@ noise floor (F; WARN above 4, ERROR above 8), every 10 samples from the first re
 robot model file's (--model).
 
 Printed per channel: the worst level reached, the stamps of the first WARN (or worse) and of
-the first ERROR, in seconds after the recording's first stamp, and the largest F.  --json
-prints one object:
-  {"worst": "OK"|"WARN"|"ERROR",
-   "channels": {name: {"worst": ..., "first_warn_s": s or null, "first_error_s": s or null}}}
+the first ERROR, in seconds after the recording's first stamp, the largest F, and the reports at
+STALE.  A channel is STALE, not OK, when lost messages leave too few clean windows to test it
+(fewer than half a cycle's worth over the kept history) or no noise floor could be measured;
+STALE ranks between OK and WARN.  --json prints one object:
+  {"worst": "OK"|"STALE"|"WARN"|"ERROR",
+   "channels": {name: {"worst": ..., "first_warn_s": s or null, "first_error_s": s or null,
+                       "stale_reports": n}}}
 
 examples:
   suds monitor run.mcap
@@ -108,10 +111,15 @@ def run(args: argparse.Namespace) -> int:
           f"{config.rate:g} Hz; first report at {when(first)}, {record.updates} reports "
           f"(WARN F > {config.warn:g}, ERROR F > {config.error:g})")
     width = max(len("channel"), *(len(c.channel) for c in record.channels))
-    print(f"  {'channel':<{width}}  {'level':<5}  {'first WARN':>10}  {'first ERROR':>11}  {'max F':>8}")
+    print(f"  {'channel':<{width}}  {'level':<5}  {'first WARN':>10}  {'first ERROR':>11}  {'max F':>8}  "
+          f"{'STALE':>5}")
     for c in record.channels:
         print(f"  {c.channel:<{width}}  {c.worst_name:<5}  {when(c.first_warn):>10}  {when(c.first_error):>11}  "
-              f"{c.max_statistic:8.3g}")
+              f"{c.max_statistic:8.3g}  {c.stale:>5}")
+    stale = max((c.stale for c in record.channels), default=0)
+    if stale:
+        print(f"{stale} of {record.updates} reports STALE: too few windows free of lost messages to test a channel "
+              f"(`suds diagnose` uses the whole recording)")
     lag = record.lag
     if lag is not None and lag.score > config.warn and lag.share >= LAG_SHARE:
         print(f"the body channels' misfit is mostly ({100 * lag.share:.0f} %) what a pose stream "

@@ -9,7 +9,8 @@ Topics (relative names: ``--ros-args -r __ns:=/robot1`` moves them all)
   ignored) and ``suds/body_pose`` (geometry_msgs/PoseStamped), paired by stamps only;
 * ``suds/mismatch`` (diagnostic_msgs/DiagnosticArray) after every statistics update, stamped
   with the stamp of the newest sample: one status per channel (passive joints, ``xi_x``,
-  ``xi_y``, ``xi_theta``) named ``suds_monitor/<channel>``, level OK / WARN / ERROR, values
+  ``xi_y``, ``xi_theta``) named ``suds_monitor/<channel>``, level OK / WARN / ERROR (or STALE:
+  too few clean windows to test it, lost messages), values
   ``statistic`` (F = mean-square residual / noise floor), ``since`` (stamp, s, at which the
   channel entered its level), ``warn`` and ``error`` (the thresholds);
 * ``suds/diagnosis`` (std_msgs/String, latched): when a channel has stayed in ERROR for
@@ -41,6 +42,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from suds_ros.core.diagnosis.monitor import (
     LEVEL_NAMES,
+    STALE,
     DiagnosisWorker,
     MismatchMonitor,
     MonitorConfig,
@@ -165,7 +167,8 @@ class MonitorNode(Node):
         body = set(self.monitor.body_channels)
         msgs = []
         for s in self.monitor.statuses:
-            text = f"F = {s.statistic:.3g} since {s.since:.3f} s"
+            text = (f"not tested since {s.since:.3f} s: {s.note}" if s.level == STALE
+                    else f"F = {s.statistic:.3g} since {s.since:.3f} s")
             values = {"statistic": f"{s.statistic:.6g}", "since": f"{s.since:.6f}", "warn": f"{cfg.warn:g}",
                       "error": f"{cfg.error:g}"}
             if s.channel in body and math.isfinite(lag.score):  # the body channels' pose-lag fit (lag_statistic)

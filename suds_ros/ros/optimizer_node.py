@@ -262,10 +262,11 @@ class OptimizerNode(Node):
         except SudsError:
             self.skipped += 1
             return
-        bad = [r.name.split("/")[-1] for r in reports if r.level >= 2]
+        bad = [r.name.split("/")[-1] for r in reports if r.level == 2]  # ERROR (3, STALE: not tested, not bad)
         if bad and not self._in_error:
             self.robot_changed(f"the monitor's {', '.join(bad)} in ERROR")
-        self._in_error = bool(bad)
+        if bad or not any(r.level == 3 for r in reports):  # an episode is not ended by a report that could not tell
+            self._in_error = bool(bad)
 
     def robot_changed(self, reason: str) -> None:
         """The robot changed: the search re-measures its incumbent afresh (after the running step, if any)."""

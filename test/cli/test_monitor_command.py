@@ -56,8 +56,8 @@ def test_text_output_per_channel(bags: dict[str, Path], capsys: pytest.CaptureFi
 def test_json_output(bags: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["monitor", str(bags["nominal"]), "--json"]) == 0
     nominal = no_nan(capsys.readouterr().out)
-    assert nominal == {"worst": "OK", "channels": {c: {"worst": "OK", "first_warn_s": None, "first_error_s": None}
-                                                   for c in ("joint_2", "xi_x", "xi_y", "xi_theta")}}
+    clean = {"worst": "OK", "first_warn_s": None, "first_error_s": None, "stale_reports": 0}
+    assert nominal == {"worst": "OK", "channels": {c: clean for c in ("joint_2", "xi_x", "xi_y", "xi_theta")}}
     assert main(["monitor", str(bags["current"]), "--json", "--system", "purcell3"]) == 0
     current = no_nan(capsys.readouterr().out)
     assert set(current) == {"worst", "channels"} and current["worst"] == "ERROR"

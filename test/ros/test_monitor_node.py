@@ -156,3 +156,34 @@ def test_monitor_node_publishes_per_channel_statuses(ros_context):
     finally:
         node.close()
         node.destroy_node()
+
+
+def test_monitor_node_says_stale_when_lost_messages_leave_nothing_to_test(ros_context):
+    """30 % of each stream lost (seeded): too few clean windows for a statistic, so every channel is STALE, with
+    the reason in the message, not OK and not a false ERROR."""
+    import numpy as np
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.stream import StreamingSimulator
+    from suds_ros.ros.conversions import diagnostics_from_msg, joint_state_to_msg, pose_to_msg
+    from suds_ros.ros.monitor_node import MonitorNode
+
+    node = MonitorNode(context=ros_context, parameter_overrides=[Parameter("diagnose", value=False)])
+    try:
+        sim = StreamingSimulator(node.system, SimConfig(seed=0))
+        lost = np.random.default_rng(7).random((6, 100, 2)) < 0.3
+        for c in range(6):
+            ch = sim.step(100)
+            for k in range(100):
+                if not lost[c, k, 1] or (c, k) in ((0, 0), (5, 99)):
+                    node._on_pose(pose_to_msg(ch.t[k], *ch.pose[k]))
+                if not lost[c, k, 0] or (c, k) in ((0, 0), (5, 99)):
+                    node._on_shape(joint_state_to_msg(ch.t[k], ("joint_1", "joint_2"), ch.r[k]))
+        assert node.monitor.updated > 0
+        reports = diagnostics_from_msg(node.mismatch_msg())
+        assert [r.level for r in reports] == [3] * 4, [(r.level, r.message) for r in reports]
+        assert all("lost messages" in r.message for r in reports)
+    finally:
+        node.close()
+        node.destroy_node()

@@ -135,8 +135,12 @@ def test_the_monitors_alarm_says_the_robot_changed_once_per_episode(ros_context)
         assert said == []
         node._on_mismatch(array("ERROR", "OK"))
         node._on_mismatch(array("ERROR", "ERROR"))  # the same episode
+        node._on_mismatch(array("STALE", "STALE"))  # lost messages: the monitor cannot tell, the episode goes on
+        node._on_mismatch(array("ERROR", "STALE"))
         assert said == ["the monitor's joint_2 in ERROR"]
         node._on_mismatch(array("OK", "OK"))
+        node._on_mismatch(array("STALE", "OK"))  # not tested is not an alarm
+        assert said == ["the monitor's joint_2 in ERROR"]
         node._future = Future()  # a step is running in the worker: the change waits for its answer
         node._on_mismatch(array("OK", "ERROR"))
         assert said == ["the monitor's joint_2 in ERROR"] and node._changed == "the monitor's xi_x in ERROR"

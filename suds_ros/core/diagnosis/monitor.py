@@ -35,7 +35,13 @@ Lab streams
   jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
   A sample's pose is final once the replay reaches the next pose sample.
 * A lost message: windows across an interval longer than ``gap`` sample periods (or next to one),
-  or ending on a pose read across a lost pose or shape sample, are not scored.
+  or ending on a pose read across a lost pose or shape sample, are not scored.  A statistic needs
+  ``min_scored`` of its span's windows clean; with fewer it takes the newest clean windows of the
+  kept history, and with too few even there (or no noise floor measured yet: ``FLOOR_LEAST``
+  fourth differences) the channel is STALE, the diagnostic_msgs level for "no current data".
+  With 20 % of each stream lost a ten-interval window is clean about one time in fifteen, and
+  before this rule a nominal robot went to ERROR on two or three windows
+  (``docs/results/monitor_loss.md``).
 
 Noise floor (from the data's high-frequency content, shaped by the model)
 ------------------------------------------------------------------------
@@ -76,7 +82,9 @@ degree of freedom: a lag far too small for any one channel's statistic; :attr:`M
 keeps it at its largest score, and ``suds monitor`` says the lag when that score passes WARN and the lag
 explains most of the body channels' misfit).
 Level OK (F ≤ ``warn``), WARN
-(``warn`` < F ≤ ``error``), ERROR (F > ``error``), ``since`` = the stamp at which the channel
+(``warn`` < F ≤ ``error``), ERROR (F > ``error``), STALE (too little clean data to test the
+channel, see *Lab streams*; ranked between OK and WARN for the worst level reached, never a
+warning and never the end of an ERROR episode), ``since`` = the stamp at which the channel
 entered its level.  :attr:`MismatchMonitor.record` keeps, per channel, the worst level, the stamps
 of the first WARN (or worse) and of the first ERROR, and the largest F (``suds monitor`` prints
 them).  Nominal runs stay below ERROR and robots wrong from the first sample reach it at the first
@@ -124,8 +132,18 @@ from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
 from suds_ros.core.resample import fit_grid
 
-OK, WARN, ERROR = 0, 1, 2
-LEVEL_NAMES = ("OK", "WARN", "ERROR")
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")  # diagnostic_msgs' own levels
+#: how bad each level is, for the worst one reached: a channel that could not be checked (STALE) is worse
+#: than OK and better than WARN
+SEVERITY = (0, 2, 3, 1)
+
+
+def worse(a: int, b: int) -> int:
+    """The worse of two levels (:data:`SEVERITY`)."""
+    return a if SEVERITY[a] >= SEVERITY[b] else b
+
+
 #: std of the synthetic noise that measures the noise gain (rad or m; small: the response stays linear)
 SYNTHETIC_NOISE = 1e-6
 #: RK4 steps of the interval replays: h·λ_max ≤ this (λ the fastest passive relaxation; ≈1e-4 of the
@@ -137,6 +155,9 @@ STIFF = 2.0
 MAX_STEPS = 64
 #: statistics updates between two renewals of the noise floor (it spans ``floor_cycles``: it changes slowly)
 FLOOR_EVERY = 5
+#: fewest fourth differences (four clean intervals in a row) a noise floor is measured from; with fewer (many
+#: lost messages) the floor before stands, or, before the first, the channels are STALE
+FLOOR_LEAST = 50
 #: weight of the pull of the fitted noise levels toward one common level (relative to one channel's fit)
 LEVEL_PRIOR = 1e-2
 #: the floor's fourth differences are clipped at this many robust standard deviations before their mean square
@@ -191,6 +212,12 @@ class MonitorConfig:
         taken from ``MIN_COHERENT`` cycles of data on; 0: off).
     harmonics : int
         Gait harmonics the phase-coherent statistic tests.
+    min_scored : float
+        Share of the ``window_cycles`` span's windows that must be clean for a statistic.  With
+        fewer (lost messages) the statistic takes the newest clean windows of the whole history,
+        as many as that share of the span holds; when even the history has too few, or no noise
+        floor could be measured yet, the channel is STALE (it cannot be tested, so it is not
+        called OK).
     """
 
     gait_hz: float = setting(1.0, "gait frequency, Hz", gt=0.0, le=1000.0)
@@ -209,6 +236,9 @@ class MonitorConfig:
     update_every: int = setting(10, "samples between statistics updates (and suds/mismatch messages)",
                                 ge=1, le=100000)
     coherent_cycles: int = setting(8, "whole gait cycles of the phase-coherent statistic (0: off)", ge=0, le=1000)
+    min_scored: float = setting(0.5, "share of the statistic's windows that must be clean (no lost message in or "
+                                     "next to them); with fewer it reaches back into the history, else STALE",
+                                gt=0.0, le=1.0)
     harmonics: int = setting(2, "gait harmonics the phase-coherent statistic tests", ge=1, le=100)
 
     def __post_init__(self) -> None:
@@ -238,12 +268,13 @@ class MonitorConfig:
 
 
 class ChannelStatus(NamedTuple):
-    """The state of one channel: level (0 OK, 1 WARN, 2 ERROR), F, since when (stamp, s)."""
+    """The state of one channel: level (0 OK, 1 WARN, 2 ERROR, 3 STALE), F, since when (stamp, s), why STALE."""
 
     channel: str
     level: int
     statistic: float
     since: float
+    note: str = ""
 
     @property
     def level_name(self) -> str:
@@ -263,7 +294,8 @@ class DiagnosisRequest:
 class ChannelRecord:
     """What one channel went through: worst level, first stamps at WARN (or above) and at ERROR, largest F.
 
-    Stamps in s (the recording's clock), None when never reached.
+    Stamps in s (the recording's clock), None when never reached; ``stale`` the reports at STALE
+    (too little clean data to test the channel, :data:`SEVERITY` ranks it between OK and WARN).
     """
 
     channel: str
@@ -271,6 +303,7 @@ class ChannelRecord:
     first_warn: float | None = None
     first_error: float | None = None
     max_statistic: float = 0.0
+    stale: int = 0
 
     @property
     def worst_name(self) -> str:
@@ -278,10 +311,11 @@ class ChannelRecord:
 
     def seen(self, status: ChannelStatus, stamp: float) -> ChannelRecord:
         """This record updated with one status reported at ``stamp``."""
-        warn = self.first_warn if self.first_warn is not None or status.level < WARN else stamp
-        error = self.first_error if self.first_error is not None or status.level < ERROR else stamp
-        return ChannelRecord(self.channel, max(self.worst, status.level), warn, error,
-                             max(self.max_statistic, status.statistic))
+        warn = self.first_warn if self.first_warn is not None or status.level not in (WARN, ERROR) else stamp
+        error = self.first_error if self.first_error is not None or status.level != ERROR else stamp
+        f = status.statistic if math.isfinite(status.statistic) else 0.0
+        return ChannelRecord(self.channel, worse(self.worst, status.level), warn, error,
+                             max(self.max_statistic, f), self.stale + (status.level == STALE))
 
 
 @dataclass(frozen=True)
@@ -301,11 +335,14 @@ class MonitorRecord:
 
     @property
     def worst(self) -> int:
-        """Highest level any channel reached (OK before the first report)."""
-        return max((c.worst for c in self.channels), default=OK)
+        """Worst level any channel reached (:data:`SEVERITY`; OK before the first report)."""
+        out = OK
+        for c in self.channels:
+            out = worse(out, c.worst)
+        return out
 
     def to_dict(self, origin: float = 0.0) -> dict[str, Any]:
-        """JSON-ready: ``{"worst", "channels": {name: {"worst", "first_warn_s", "first_error_s"}}}``.
+        """JSON-ready: ``{"worst", "channels": {name: {"worst", "first_warn_s", "first_error_s", "stale_reports"}}}``.
 
         Stamps become seconds after ``origin`` (e.g. the recording's first stamp); None (JSON null)
         when never reached.
@@ -315,7 +352,8 @@ class MonitorRecord:
 
         return {"worst": LEVEL_NAMES[self.worst],
                 "channels": {c.channel: {"worst": c.worst_name, "first_warn_s": rel(c.first_warn),
-                                         "first_error_s": rel(c.first_error)} for c in self.channels}}
+                                         "first_error_s": rel(c.first_error), "stale_reports": c.stale}
+                             for c in self.channels}}
 
 
 # ------------------------------------------------------------------ prediction
@@ -529,21 +567,22 @@ def equation_residuals(system: SudsSystem, t: FloatArray, r: FloatArray, pose: F
     return np.concatenate([meas_p - pred_p, (meas_xi - pred_xi)[..., :nb]], axis=-1)
 
 
-def noise_power(t: FloatArray, e1: FloatArray, w: int, valid: FloatArray | None = None) -> FloatArray:
+def noise_power(t: FloatArray, e1: FloatArray, w: int, valid: FloatArray | None = None, least: int = 1) -> FloatArray:
     """Each channel's noise power in a window of ``w`` intervals, from the one-interval residuals.
 
     ``e1`` (n − 1, channels) the one-interval residuals over the stamps ``t`` (n,).  The noise of
     a windowed residual is (m_{k+w} − m_k)/T for a white series m; m is the white part of the
     accumulated residual S_k = Σ_{i<k} e1_i Δt_i, whose fourth difference keeps only it:
     σ_m = 1.4826·MAD(Δ⁴S)/√70, power 2σ_m²/T² (T the median window span).  ``valid`` (n − 1,)
-    bool: intervals to use (a fourth difference touching another one is left out).
+    bool: intervals to use (a fourth difference touching another one is left out).  NaN with fewer
+    than ``least`` fourth differences left.
     """
     S = np.cumsum(e1 * np.diff(t)[:, None], axis=0)
     d4 = S[4:] - 4 * S[3:-1] + 6 * S[2:-2] - 4 * S[1:-3] + S[:-4]
     if valid is not None:  # Δ⁴S at k uses the intervals k+1 … k+4
         ok = np.lib.stride_tricks.sliding_window_view(np.asarray(valid, dtype=bool)[1:], 4).all(axis=1)
         d4 = d4[ok]
-    if d4.shape[0] == 0:
+    if d4.shape[0] < max(least, 1):
         return np.full(e1.shape[1], np.nan)
     dev = d4 - np.median(d4, axis=0)
     mad = 1.4826 * np.median(np.abs(dev), axis=0)
@@ -1066,27 +1105,60 @@ class MismatchMonitor:
         n_stat = int(round(cfg.window_cycles * self._spc)) + w
         fresh = self._floor is None or self.updated % FLOOR_EVERY == 0
         # the floor's span when it is renewed, else the statistic's
-        t, R, P, split, shape_ok, pose_ok = self._series(ready, n if fresh else n_stat, fresh)
+        t, E, win_ok, new = self._residuals(ready, n if fresh else n_stat, fresh)
+        if fresh:
+            if not np.all(np.isfinite(new) & (new > 0)) and ready > n:  # lost messages: the whole kept history
+                t, E, win_ok, new = self._residuals(ready, ready, True)
+            measured = np.isfinite(new) & (new > 0)
+            self._floor = np.where(measured, new, np.nan if self._floor is None else self._floor)
+        floor = self._floor
+        scored, need = self._scored(ready, E[0, -(n_stat - w):], win_ok[-(n_stat - w):])
+        ok = np.isfinite(floor) & (floor > 0) & (scored.shape[0] >= need)
+        ms = np.mean(scored**2, axis=0) if scored.shape[0] else np.zeros(len(self.channels))
+        F = np.where(ok, ms / np.where(ok, floor, 1.0), np.nan)
+        if cfg.coherent_cycles:
+            F = np.where(ok, np.fmax(F, self._coherent(ready)), np.nan)
+        why = (f"{scored.shape[0]} of the {need} clean windows needed in the {ready / self._spc:.1f} cycles kept "
+               f"(lost messages)" if scored.shape[0] < need else
+               "no noise floor yet: too few runs of four clean intervals (lost messages)")
+        self._set_levels(t[-1], F, why)
+
+    def _residuals(self, ready: int, m: int, floor: bool) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]:
+        """Stamps, window residuals, clean windows and (``floor``) noise floor over the last ``m`` of ``ready`` samples.
+
+        The residuals are (versions, m − w, channels); the floor is NaN on a channel with too few
+        clean runs (:data:`FLOOR_LEAST`), and empty when not asked for.
+        """
+        w = self.config.diff_window
+        t, R, P, split, shape_ok, pose_ok = self._series(ready, m, floor)
         win_ok = (np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1)
                   & pose_ok[:-w] & pose_ok[w:])
         E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
-        if fresh:
-            valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
-            E1 = equation_residuals(self.system, t, R, P, 1, split)
-            floor = noise_power(t, E1[0], w, valid)
-            resp, resp1 = E[1:] - E[0], E1[1:] - E1[0]  # each noise group's response
-            P_g = np.array([noise_power(t, x, w, valid) for x in resp1])
-            W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
-            self._floor = fitted_gain(floor, P_g, W_g) * floor
-        floor = self._floor
-        stat_ok = win_ok[-(n_stat - w):]
-        tail = E[0, -(n_stat - w):][stat_ok]
-        ms = np.mean(tail**2, axis=0) if tail.shape[0] else np.zeros(len(self.channels))
-        ok = np.isfinite(floor) & (floor > 0)
-        F = np.where(ok, ms / np.where(ok, floor, 1.0), 0.0)
-        if cfg.coherent_cycles:
-            F = np.fmax(F, self._coherent(ready))
-        self._set_levels(t[-1], F)
+        if not floor:
+            return t, E, win_ok, np.zeros(0)
+        valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
+        E1 = equation_residuals(self.system, t, R, P, 1, split)
+        power = noise_power(t, E1[0], w, valid, FLOOR_LEAST)
+        resp, resp1 = E[1:] - E[0], E1[1:] - E1[0]  # each noise group's response
+        P_g = np.array([noise_power(t, x, w, valid, FLOOR_LEAST) for x in resp1])
+        W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
+        return t, E, win_ok, fitted_gain(power, P_g, W_g) * power
+
+    def _scored(self, ready: int, E: FloatArray, win_ok: BoolArray) -> tuple[FloatArray, int]:
+        """The windows the statistic is taken over, and how many it needs.
+
+        ``E`` and ``win_ok``: the residuals and clean windows of the statistic's own span
+        (``window_cycles``).  It needs ``min_scored`` of that span's windows clean; with fewer
+        (lost messages) it reaches back into the history for the newest clean windows, as many
+        as it needs, and returns those it found when even the history holds too few.
+        """
+        need = max(1, int(math.ceil(self.config.min_scored * win_ok.size)))
+        if np.count_nonzero(win_ok) >= need or ready <= win_ok.size + self.config.diff_window:
+            return E[win_ok], need
+        w = self.config.diff_window
+        t, R, P, split, shape_ok, pose_ok = self._series(ready, ready, False)
+        ok = np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1) & pose_ok[:-w] & pose_ok[w:]
+        return equation_residuals(self.system, t, R, P, w, split)[0][ok][-need:], need
 
     def _series(self, ready: int, m: int, twins: bool
                 ) -> tuple[FloatArray, FloatArray, FloatArray, tuple[FloatArray, FloatArray], BoolArray, BoolArray]:
@@ -1140,15 +1212,16 @@ class MismatchMonitor:
         """The body-velocity channels (the last ones), which the lag fit scores together."""
         return self.channels[len(self.system.passive):]
 
-    def _set_levels(self, stamp: float, F: FloatArray) -> None:
+    def _set_levels(self, stamp: float, F: FloatArray, why: str = "") -> None:
+        """Each channel's level from its F (NaN: STALE, for the reason ``why``)."""
         cfg = self.config
         old = {s.channel: s for s in self.statuses}
         out = []
         for name, f in zip(self.channels, F):
-            level = ERROR if f > cfg.error else WARN if f > cfg.warn else OK
+            level = STALE if not np.isfinite(f) else ERROR if f > cfg.error else WARN if f > cfg.warn else OK
             prev = old.get(name)
             since = prev.since if prev is not None and prev.level == level else stamp
-            out.append(ChannelStatus(name, level, float(f), float(since)))
+            out.append(ChannelStatus(name, level, float(f), float(since), why if level == STALE else ""))
         self.statuses = tuple(out)
         self.updated += 1
         rec = self.record
@@ -1192,8 +1265,11 @@ class MismatchMonitor:
 
     @property
     def worst(self) -> int:
-        """Highest level over the channels (OK before the first update)."""
-        return max((s.level for s in self.statuses), default=OK)
+        """Worst level over the channels (:data:`SEVERITY`; OK before the first update)."""
+        out = OK
+        for s in self.statuses:
+            out = worse(out, s.level)
+        return out
 
 
 # ------------------------------------------------------------------ diagnosis worker
@@ -1260,16 +1336,19 @@ def chain_model(system: SudsSystem) -> ChainModel | None:
 
 # ------------------------------------------------------------------ offline
 def recording_config(rec: Recording, gait_hz: float | None = None, **overrides: Any) -> MonitorConfig:
-    """The :class:`MonitorConfig` of a recording: its shape rate (median interval) and gait frequency.
+    """The :class:`MonitorConfig` of a recording: its shape rate and gait frequency.
 
-    ``gait_hz``: the recording's when None (then 1 Hz if it has none); the rate is rounded to a
-    whole number of samples per cycle.  ``overrides``: other settings.
+    The rate is the step of the grid fitted to the shape stamps (:func:`fit_grid`; the stream's
+    period from its intervals alone reads 1 % long with 2 ms of stamp jitter and a few lost
+    messages, 99 samples a cycle for 100), rounded to a whole number of samples per cycle.
+    ``gait_hz``: the recording's when None (then 1 Hz if it has none).  ``overrides``: other
+    settings.
     """
     f = gait_hz or rec.gait_hz or 1.0
     if rec.t.size < 2:
         raise SudsDataError(f"recording has {rec.t.size} shape sample(s); the monitor needs a stream",
                             code=TOO_LITTLE_DATA)
-    spc = samples_per_cycle(rec.dt, f)
+    spc = samples_per_cycle(fit_grid(rec.t - rec.t[0], rec.dt)[2], f)
     return MonitorConfig(gait_hz=f, rate=spc * f, **overrides)
 
 
