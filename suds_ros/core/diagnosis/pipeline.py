@@ -410,9 +410,11 @@ def _refine(nom: _Nominal, naming: Naming, located: list[Located], clock: _Clock
         diff = naming.chosen.score.score - win.option.eq_score
         eq = ("" if not np.isfinite(diff)
               else f"; equation-error evidence {abs(diff):.0f} nats {'higher' if diff > 0 else 'lower'}")
+        own = ("could not be replayed" if tried[0].failed
+               else f"{tried[0].train_evidence:.1f}{eq}")  # a set left out has no evidence (−inf) to print
         notes.append(f"the simulator preferred {win.option.cand.label} (replay evidence on the training half "
                      f"{win.train_evidence:.1f} nats) to the forward selection's {naming.chosen.cand.label} "
-                     f"({tried[0].train_evidence:.1f}{eq})")
+                     f"({own})")
     notes += [f"{t.option.cand.label} left out: {t.failed}" for t in failed]
     extended, note = _extension(nom, naming, win)
     if extended is not None:

@@ -299,6 +299,12 @@ def test_a_set_whose_simulated_motion_diverges_is_left_out_not_fatal(monkeypatch
     assert fit.effects[0].parameters["d"] == pytest.approx(0.5, rel=0.05)
     assert any("spring_nonlinearity:joint_2 left out: the simulated motion diverged (test)" in n
                for n in fit.notes), fit.notes
-    bad.add("joint_viscous_damping")  # no set can be replayed
+    bad.clear()
+    bad.add("joint_viscous_damping")  # the forward selection's own set cannot be replayed: the note says so
+    fit = _refine(nom, naming, list(located), _Clock())
+    own = [n for n in fit.notes if n.startswith("the simulator preferred")]
+    assert own and own[0].endswith("to the forward selection's joint_viscous_damping:joint_2 (could not be "
+                                   "replayed)") and "inf" not in own[0], fit.notes
+    bad.add("spring_nonlinearity")  # no set can be replayed
     with pytest.raises(SudsSimulationError, match="diverged"):
         _refine(nom, naming, list(located), _Clock())
