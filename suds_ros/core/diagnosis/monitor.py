@@ -63,7 +63,12 @@ interpolated onto the shape stamps as the pose is) through the same replays and 
 groups' noise levels are fitted to the measured floors of all channels, and a channel's floor is
 κ · 2σ_m²/T² with κ its fitted window power over its fitted high-frequency power
 (:func:`fitted_gain`; ≈ 1 wherever the first-difference picture holds).  The floor is renewed every
-``FLOOR_EVERY`` updates over the last ``floor_cycles`` cycles.
+``FLOOR_EVERY`` updates over the last ``floor_cycles`` cycles.  It is never below
+``FLOOR_RELATIVE`` (1e-4) of each channel's predicted rms, squared, nor is the noise the
+phase-coherent statistic compares against: with noise-free data the measured floor is round-off
+while the replay's own error is not, and a nominal purcell3 read F ≈ 25 000.  Measured limit: on
+swimmer9's stiff passive joints the replay's own error repeats with the gait, and with sensor
+noise of 1e-5 rad or less (1e-4 is fine) the phase-coherent statistic still flags a nominal run.
 
 Statistic and levels
 --------------------
@@ -167,6 +172,11 @@ CLIP_MEAN = float(1.0 - math.erfc(CLIP / math.sqrt(2.0)) * (1.0 - CLIP**2)
                   - 2.0 * CLIP * math.exp(-CLIP**2 / 2.0) / math.sqrt(2.0 * math.pi))
 #: seed of the synthetic noise (one stream per monitor: the statistics are reproducible)
 SYNTHETIC_SEED = 0
+#: the noise floor is at least this share of each channel's predicted rms, squared: the replay's own error
+#: (a few 1e-6 of the signal on purcell3) is smooth and escapes the fourth differences, so with noise-free
+#: data the floor fell to round-off and a nominal robot read F ≈ 25 000 (measurements with any noise, 1e-6
+#: rad or more, have a floor far above this)
+FLOOR_RELATIVE = 1e-4
 #: fewest whole gait cycles of the phase-coherent statistic (with fewer, its few noise bins make false alarms)
 MIN_COHERENT = 4
 #: the phase-coherent statistic's score: 0 down to this tail probability under noise, then SCORE_PER_DECADE per
@@ -881,6 +891,7 @@ class MismatchMonitor:
                                        for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
         self._since_update = 0
         self._floor: FloatArray | None = None  # the channels' noise floors, renewed every FLOOR_EVERY updates
+        self._least = np.zeros(len(self.channels))  # the floors' lower bound (FLOOR_RELATIVE), with them
         self.lag = NO_LAG  # the last lag_statistic
         self.statuses: tuple[ChannelStatus, ...] = ()
         self.record = MonitorRecord(tuple(ChannelRecord(c) for c in self.channels))
@@ -1142,7 +1153,11 @@ class MismatchMonitor:
         resp, resp1 = E[1:] - E[0], E1[1:] - E1[0]  # each noise group's response
         P_g = np.array([noise_power(t, x, w, valid, FLOOR_LEAST) for x in resp1])
         W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
-        return t, E, win_ok, fitted_gain(power, P_g, W_g) * power
+        (xi, rp) = split
+        predicted = np.concatenate([rp[0], xi[0][:, :E.shape[2] - rp.shape[2]]], axis=1)  # the channels' order
+        if valid.any():
+            self._least = (FLOOR_RELATIVE * np.sqrt(np.mean(predicted[valid] ** 2, axis=0))) ** 2
+        return t, E, win_ok, np.maximum(fitted_gain(power, P_g, W_g) * power, self._least)  # NaN (unmeasured) stays
 
     def _scored(self, ready: int, E: FloatArray, win_ok: BoolArray) -> tuple[FloatArray, int]:
         """The windows the statistic is taken over, and how many it needs.
@@ -1201,11 +1216,26 @@ class MismatchMonitor:
         if sp is None:
             self.lag = NO_LAG
             return np.full(e1.shape[1], np.nan)
+        sp = sp._replace(local=np.maximum(sp.local, self._least_local(t, sp)))
         score = _ratio_score(_ratio(sp), sp.noise_bins, cfg.harmonics)
         body = slice(e1.shape[1] - nb, None)
         self.lag = _lag(sp, body)
         score[body] = np.fmax(score[body], self.lag.score)
         return score
+
+    def _least_local(self, t: FloatArray, sp: _Spectrum) -> FloatArray:
+        """The bin power next to each harmonic (H, channels) of a noise at :data:`FLOOR_RELATIVE`'s floor.
+
+        A window floor f over a span T is a white accumulated residual of variance σ² = f·T²/2;
+        its increments put n·σ²·2(1 − cos θ) into a bin of phase step θ = 2π j Δt / L per
+        interval (n intervals of Δt), j = kN next to harmonic k.
+        """
+        w = self.config.diff_window
+        dt = float(np.median(np.diff(t)))
+        T = w * dt
+        n = int(round(sp.span / dt))
+        theta = 2.0 * np.pi * sp.N * np.arange(1, sp.local.shape[0] + 1) * dt / sp.span
+        return n * (self._least * T**2 / 2.0)[None, :] * (2.0 * (1.0 - np.cos(theta)))[:, None]
 
     @property
     def body_channels(self) -> tuple[str, ...]:

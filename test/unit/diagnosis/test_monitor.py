@@ -323,6 +323,19 @@ def test_a_longer_history_lets_the_monitor_test_a_robot_that_loses_a_fifth_of_it
     assert all(c.stale == short.updates for c in short.channels)
 
 
+def test_noise_free_nominal_data_is_not_a_mismatch(purcell3):
+    """With no sensor noise the measured floor is round-off, while the replay's own error (a few 1e-6 of the signal)
+    is smooth and periodic: F read about 25 000 on a nominal robot.  The floor's lower bound (FLOOR_RELATIVE of each
+    channel's predicted rms) keeps the nominal run OK, and a damping at 3× its detection limit still errs."""
+    rec = recording(purcell3, cycles=9, seed=1)
+    noise_free = simulate(purcell3, SimConfig(cycles=9, seed=1, warmup=1.0, noise_std=0.0))
+    assert monitor_recording(noise_free, purcell3).worst == OK
+    model, _ = apply_effects(purcell3.model, [{"name": "joint_viscous_damping", "joint": "joint_2", "d": 0.009}])
+    damped = simulate(RFTChain(model), SimConfig(cycles=9, seed=1, warmup=1.0, noise_std=0.0))
+    assert monitor_recording(damped, purcell3).worst == ERROR
+    assert monitor_recording(rec, purcell3).worst == OK
+
+
 def test_stale_ranks_between_ok_and_warn_and_is_no_warning():
     assert worse(OK, STALE) == STALE and worse(STALE, WARN) == WARN and worse(ERROR, STALE) == ERROR
     c = ChannelRecord("joint_2").seen(ChannelStatus("joint_2", STALE, math.nan, 1.0, "no floor"), 1.0)
