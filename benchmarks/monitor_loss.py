@@ -48,18 +48,22 @@ FAULTS = {"purcell3": {"name": "joint_viscous_damping", "joint": "joint_2", "d":
 
 @contextlib.contextmanager
 def old_rule() -> Iterator[None]:
-    """The old rule: any number of clean windows (none: F = 0), a floor from any fourth differences."""
-    saved = (monitor_mod.MismatchMonitor._scored, monitor_mod.FLOOR_LEAST)
+    """The old rule: any number of clean windows (none: F = 0), a floor from any fourth differences, no lower bound.
+
+    Emulated, not the old code: a floor that cannot be measured at all keeps the one before, as now.
+    """
+    saved = (monitor_mod.MismatchMonitor._scored, monitor_mod.FLOOR_LEAST, monitor_mod.FLOOR_RELATIVE)
 
     def scored(self: object, ready: int, E: np.ndarray, win_ok: np.ndarray) -> tuple[np.ndarray, int]:
         return E[win_ok], 0
 
     try:
         monitor_mod.MismatchMonitor._scored = scored  # type: ignore[method-assign]
-        monitor_mod.FLOOR_LEAST = 1
+        monitor_mod.FLOOR_LEAST, monitor_mod.FLOOR_RELATIVE = 1, 0.0
         yield
     finally:
-        monitor_mod.MismatchMonitor._scored, monitor_mod.FLOOR_LEAST = saved  # type: ignore[method-assign]
+        (monitor_mod.MismatchMonitor._scored, monitor_mod.FLOOR_LEAST,  # type: ignore[method-assign]
+         monitor_mod.FLOOR_RELATIVE) = saved
 
 
 def record(system: SudsSystem, effects: list[dict[str, object]], cycles: int, loss: float, seed: int,
@@ -121,7 +125,8 @@ def main() -> None:
         "(`core/diagnosis/monitor.py`, default settings: windows of 10 intervals, WARN F > 4, ERROR F > 8).  "
         "*before*: the rule until the evening of 2026-12-05, emulated in the same process (the mean square over "
         "whatever clean windows the last cycle had, F = 0 and OK with none; a noise floor from any number of "
-        "fourth differences).  "
+        "fourth differences and no lower bound; a floor that cannot be measured at all keeps the one before, as "
+        "now).  "
         "*now*: a statistic needs half a cycle's worth of clean windows (50), taken from the kept history (12 "
         "cycles) when the last cycle has too few, and a noise floor needs "
         f"{monitor_mod.FLOOR_LEAST} fourth differences; otherwise the channel is STALE.  *STALE reports*: of the "
