@@ -54,8 +54,8 @@ def old_rule() -> Iterator[None]:
     """
     saved = (monitor_mod.MismatchMonitor._scored, monitor_mod.FLOOR_LEAST, monitor_mod.FLOOR_RELATIVE)
 
-    def scored(self: object, ready: int, E: np.ndarray, win_ok: np.ndarray) -> tuple[np.ndarray, int]:
-        return E[win_ok], 0
+    def scored(self: object, ready: int, E: np.ndarray, win_ok: np.ndarray, span: int) -> tuple[np.ndarray, int]:
+        return E[-span:][win_ok[-span:]], 0
 
     try:
         monitor_mod.MismatchMonitor._scored = scored  # type: ignore[method-assign]
@@ -75,7 +75,7 @@ def record(system: SudsSystem, effects: list[dict[str, object]], cycles: int, lo
     return monitor_recording(rec, system, cfg if history is None else replace(cfg, history_cycles=history))
 
 
-def cells(mon: MonitorRecord, old: bool) -> str:
+def cells(mon: MonitorRecord, old: bool) -> tuple[str, str, str, str]:
     """Worst level, reports STALE, largest F, cycles from the first report to ERROR."""
     stale = max(c.stale for c in mon.channels)
     top = max(mon.channels, key=lambda c: c.max_statistic)
@@ -84,8 +84,7 @@ def cells(mon: MonitorRecord, old: bool) -> str:
     if old and worst == "STALE":  # the old rule had no STALE: a channel without windows read F = 0, OK
         worst = "OK"
     largest = "—" if top.max_statistic == 0.0 else f"{top.channel} {top.max_statistic:.3g}"  # 0: never tested
-    return (f"{worst} | {'—' if old else f'{stale}/{mon.updates}'} | {largest} | "
-            f"{'—' if err is None else f'{err:.1f}'}")
+    return worst, "—" if old else f"{stale}/{mon.updates}", largest, "—" if err is None else f"{err:.1f}"
 
 
 def cases(losses: tuple[float, ...]) -> Iterator[tuple[str, SudsSystem, str, list[dict[str, object]], float, int]]:
@@ -106,15 +105,15 @@ def main() -> None:
     for name, system, case, effects, loss, seed in cases(LOSSES):
         with old_rule():
             before = record(system, effects, 12, loss, seed)
-        b = cells(before, True).split(" | ")
+        b = cells(before, True)
         lines.append(f"| {name} | {case} | {100 * loss:.0f} % | {seed} | {b[0]} | {b[2]} | {b[3]} | "
-                     f"{cells(record(system, effects, 12, loss, seed), False)} |")
+                     f"{' | '.join(cells(record(system, effects, 12, loss, seed), False))} |")
         print(lines[-1], flush=True)
     longer = ["| robot | case | lost per stream | seed | worst | STALE reports | largest F | to ERROR |",
               "|---|---|---|---|---|---|---|---|"]
     for name, system, case, effects, loss, seed in cases(LONG_LOSSES):
         mon = record(system, effects, LONG, loss, seed, history=float(LONG))
-        longer.append(f"| {name} | {case} | {100 * loss:.0f} % | {seed} | {cells(mon, False)} |")
+        longer.append(f"| {name} | {case} | {100 * loss:.0f} % | {seed} | {' | '.join(cells(mon, False))} |")
         print(longer[-1], flush=True)
     text = "\n".join([
         "# The live monitor when many messages are lost", "",

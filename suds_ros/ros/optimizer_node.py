@@ -67,6 +67,7 @@ from suds_ros.core.optimize.loop import GaitSearch, LoopConfig, LoopIteration, R
 from suds_ros.core.physics.gait import Gait, check_gait, dump_gait, gait_limits, load_gait, nominal_gait
 from suds_ros.core.physics.systems import load_system
 from suds_ros.ros.conversions import (
+    LEVELS,
     diagnostics_from_msg,
     gait_switch_from_msg,
     gait_to_msg,
@@ -262,10 +263,10 @@ class OptimizerNode(Node):
         except SudsError:
             self.skipped += 1
             return
-        bad = [r.name.split("/")[-1] for r in reports if r.level == 2]  # ERROR (3, STALE: not tested, not bad)
+        bad = [r.name.split("/")[-1] for r in reports if r.level == LEVELS["ERROR"]]  # STALE: not tested, not bad
         if bad and not self._in_error:
             self.robot_changed(f"the monitor's {', '.join(bad)} in ERROR")
-        if bad or not any(r.level == 3 for r in reports):  # an episode is not ended by a report that could not tell
+        if bad or not any(r.level == LEVELS["STALE"] for r in reports):  # a report that could not tell ends nothing
             self._in_error = bool(bad)
 
     def robot_changed(self, reason: str) -> None:

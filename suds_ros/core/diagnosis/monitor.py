@@ -1116,14 +1116,17 @@ class MismatchMonitor:
         n_stat = int(round(cfg.window_cycles * self._spc)) + w
         fresh = self._floor is None or self.updated % FLOOR_EVERY == 0
         # the floor's span when it is renewed, else the statistic's
-        t, E, win_ok, new = self._residuals(ready, n if fresh else n_stat, fresh)
+        t, E, win_ok, new, least = self._residuals(ready, n if fresh else n_stat, fresh)
         if fresh:
             if not np.all(np.isfinite(new) & (new > 0)) and ready > n:  # lost messages: the whole kept history
-                t, E, win_ok, new = self._residuals(ready, ready, True)
+                t, E, win_ok, new, least = self._residuals(ready, ready, True)
+            if least is not None:
+                self._least = least
+            new = np.maximum(new, self._least)  # NaN (unmeasured) stays
             measured = np.isfinite(new) & (new > 0)
             self._floor = np.where(measured, new, np.nan if self._floor is None else self._floor)
         floor = self._floor
-        scored, need = self._scored(ready, E[0, -(n_stat - w):], win_ok[-(n_stat - w):])
+        scored, need = self._scored(ready, E[0], win_ok, n_stat - w)
         ok = np.isfinite(floor) & (floor > 0) & (scored.shape[0] >= need)
         ms = np.mean(scored**2, axis=0) if scored.shape[0] else np.zeros(len(self.channels))
         F = np.where(ok, ms / np.where(ok, floor, 1.0), np.nan)
@@ -1134,11 +1137,14 @@ class MismatchMonitor:
                "no noise floor yet: too few runs of four clean intervals (lost messages)")
         self._set_levels(t[-1], F, why)
 
-    def _residuals(self, ready: int, m: int, floor: bool) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]:
+    def _residuals(self, ready: int, m: int, floor: bool
+                   ) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray, FloatArray | None]:
         """Stamps, window residuals, clean windows and (``floor``) noise floor over the last ``m`` of ``ready`` samples.
 
-        The residuals are (versions, m − w, channels); the floor is NaN on a channel with too few
-        clean runs (:data:`FLOOR_LEAST`), and empty when not asked for.
+        The residuals are (versions, m − w, channels); the floor, before its lower bound, is NaN on
+        a channel with too few clean runs (:data:`FLOOR_LEAST`), and empty when not asked for; the
+        bound (:data:`FLOOR_RELATIVE` of each channel's predicted rms, squared) is None when not
+        asked for or when no interval is clean.
         """
         w = self.config.diff_window
         t, R, P, split, shape_ok, pose_ok = self._series(ready, m, floor)
@@ -1146,7 +1152,7 @@ class MismatchMonitor:
                   & pose_ok[:-w] & pose_ok[w:])
         E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
         if not floor:
-            return t, E, win_ok, np.zeros(0)
+            return t, E, win_ok, np.zeros(0), None
         valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
         E1 = equation_residuals(self.system, t, R, P, 1, split)
         power = noise_power(t, E1[0], w, valid, FLOOR_LEAST)
@@ -1155,25 +1161,27 @@ class MismatchMonitor:
         W_g = np.mean(resp[:, win_ok] ** 2, axis=1) if win_ok.any() else np.full(P_g.shape, np.nan)
         (xi, rp) = split
         predicted = np.concatenate([rp[0], xi[0][:, :E.shape[2] - rp.shape[2]]], axis=1)  # the channels' order
-        if valid.any():
-            self._least = (FLOOR_RELATIVE * np.sqrt(np.mean(predicted[valid] ** 2, axis=0))) ** 2
-        return t, E, win_ok, np.maximum(fitted_gain(power, P_g, W_g) * power, self._least)  # NaN (unmeasured) stays
+        least = (FLOOR_RELATIVE * np.sqrt(np.mean(predicted[valid] ** 2, axis=0))) ** 2 if valid.any() else None
+        return t, E, win_ok, fitted_gain(power, P_g, W_g) * power, least
 
-    def _scored(self, ready: int, E: FloatArray, win_ok: BoolArray) -> tuple[FloatArray, int]:
+    def _scored(self, ready: int, E: FloatArray, win_ok: BoolArray, span: int) -> tuple[FloatArray, int]:
         """The windows the statistic is taken over, and how many it needs.
 
-        ``E`` and ``win_ok``: the residuals and clean windows of the statistic's own span
-        (``window_cycles``).  It needs ``min_scored`` of that span's windows clean; with fewer
-        (lost messages) it reaches back into the history for the newest clean windows, as many
-        as it needs, and returns those it found when even the history holds too few.
+        ``E`` (windows, channels) and ``win_ok``: the data's residuals and clean windows up to the
+        newest sample, at least the statistic's own ``span`` windows (``window_cycles``).  It needs
+        ``min_scored`` of that span's windows clean; with fewer (lost messages) it reaches back into
+        the history (computed here unless ``E`` already covers it) for the newest clean windows, as
+        many as it needs, and returns those it found when even the history holds too few.
         """
-        need = max(1, int(math.ceil(self.config.min_scored * win_ok.size)))
-        if np.count_nonzero(win_ok) >= need or ready <= win_ok.size + self.config.diff_window:
-            return E[win_ok], need
         w = self.config.diff_window
-        t, R, P, split, shape_ok, pose_ok = self._series(ready, ready, False)
-        ok = np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1) & pose_ok[:-w] & pose_ok[w:]
-        return equation_residuals(self.system, t, R, P, w, split)[0][ok][-need:], need
+        need = max(1, int(math.ceil(self.config.min_scored * span)))
+        own = win_ok[-span:]
+        if np.count_nonzero(own) >= need or ready <= span + w:
+            return E[-span:][own], need
+        if E.shape[0] < ready - w:
+            _, every, win_ok, _, _ = self._residuals(ready, ready, False)
+            E = every[0]
+        return E[win_ok][-need:], need
 
     def _series(self, ready: int, m: int, twins: bool
                 ) -> tuple[FloatArray, FloatArray, FloatArray, tuple[FloatArray, FloatArray], BoolArray, BoolArray]:

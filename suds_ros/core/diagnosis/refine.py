@@ -231,7 +231,7 @@ def extension_gains(
         try:
             return fd_jacobian(residuals(c, x), c.neutral(model)[x.size:], r0, 1e-2 * c.scales()[x.size:],
                                np.asarray(c.bounds()[1][x.size:], dtype=float))
-        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, SudsSimulationError):
+        except _TRIAL_FAILURES:
             return None
 
     out = []
@@ -267,7 +267,7 @@ def _refine(
     def fun(x: FloatArray) -> FloatArray:
         try:
             return sim(x).ravel()
-        except (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, SudsSimulationError):
+        except _TRIAL_FAILURES:
             return np.full(n_res, 1e6)
 
     x0 = np.clip(x0, lo + 1e-3 * scales, hi - 1e-3 * scales)  # off the bounds (see Scorer.fit)
@@ -289,6 +289,8 @@ def _refine(
     return Refined(cand, x, _sandwich_stderr(J, R, x.size), spread, p_value)
 
 
+#: what a trial point's replay can raise: it then counts as a bad fit (the refinement) or as no gain (extensions)
+_TRIAL_FAILURES = (FloatingPointError, np.linalg.LinAlgError, SudsConfigError, SudsSimulationError)
 #: fractions of the way from the neutral parameters to the equation-error start tried, in order
 START_SHRINK = (1.0, 0.5, 0.25, 0.125, 0.0)
 

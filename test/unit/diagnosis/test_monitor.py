@@ -298,9 +298,9 @@ def test_a_statistic_short_of_clean_windows_reaches_back_into_the_history(purcel
     reached = []
     scored = MismatchMonitor._scored
 
-    def spy(self, ready, E, win_ok):
-        out, need = scored(self, ready, E, win_ok)
-        reached.append(np.count_nonzero(win_ok) < need <= out.shape[0])
+    def spy(self, ready, E, win_ok, span):
+        out, need = scored(self, ready, E, win_ok, span)
+        reached.append(np.count_nonzero(win_ok[-span:]) < need <= out.shape[0])
         return out, need
 
     monkeypatch.setattr(MismatchMonitor, "_scored", spy)
