@@ -5,7 +5,7 @@ stamps) and its lab twin (`simulate_lab` with the default `LabConditions`: pose 
 starting 3.7 ms later, 0.4 ms stamp jitter, 1 % drops per stream; same seed and physics).
 60 cycles, 30 train / 30 held out; batch identifier (regressor set 2, CV order selection) and
 the streaming estimator (its defaults, scored by replaying the predictor on the held-out
-cycles).  Body velocity is scored over the pose intervals (see docs/results/async.md).  Beside
+cycles brought onto their grid).  Body velocity is scored over the pose intervals (see docs/results/async.md).  Beside
 each, the exact-physics limit (:func:`exact_physics`: the nominal model's own velocities at the
 same inputs, same Γ and pose-interval scoring), so the table separates what the lab recording
 costs any model from what it costs ours; and a breakdown of the limit by condition (noise,
@@ -33,6 +33,7 @@ from suds_ros.core.ident.scoring import score_prediction
 from suds_ros.core.physics.lab import LabConditions, simulate_lab
 from suds_ros.core.physics.sim import SimConfig, simulate
 from suds_ros.core.physics.systems import make_system
+from suds_ros.core.resample import on_shape_grid
 
 SYSTEMS = ("purcell3", "swimmer9")
 BAGS = (("purcell3_lab_nominal.mcap", []), ("snake5_lab_damping.mcap", ["--model", SNAKE5]))
@@ -118,7 +119,7 @@ def scores(system, rec) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
     train, test = split_cycles(rec, 30, 30)
     ident = SudsIdentifier(IdentifyConfig()).fit(train)
     b = ident.scores(test)
-    s = score_prediction(evaluate_model(fit_streaming(train, OnlineConfig()).model(), test))
+    s = score_prediction(evaluate_model(fit_streaming(train, OnlineConfig()).model(), on_shape_grid(test)))
     x = exact_physics(system, ident, test)
     return b.gamma_body, b.gamma_passive, s.gamma_body, s.gamma_passive, x.gamma_body, x.gamma_passive
 
@@ -137,7 +138,9 @@ def main() -> None:
         "jitter and 1 % of the messages of each stream dropped.  Body velocity is fitted and scored",
         "against the pose displacement over each pose interval, the model's prediction being averaged",
         "over the parts of the shape intervals the pose interval overlaps.  Batch: `suds identify`;",
-        "streaming: `suds identify --streaming` (the estimator node's algorithm).",
+        "streaming: `suds identify --streaming` (the estimator node's algorithm; the shape stream brought onto",
+        "its grid as it arrives, `core/resample.LiveGrid`), scored, as the batch is, on the held-out cycles",
+        "brought onto their grid.",
         "",
         "*Exact physics*: the nominal model's own velocities at the same noisy inputs the identifier",
         "predicts from, scored with the same Γ, truth and template (body over the same pose intervals):",

@@ -210,6 +210,7 @@ def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
     from suds_ros.core.ident.online import OnlineConfig, fit_streaming
     from suds_ros.core.ident.predictor import evaluate_model
     from suds_ros.core.ident.scoring import score_prediction
+    from suds_ros.core.resample import on_shape_grid
 
     defaults = OnlineConfig()
     if args.regressors is None:
@@ -227,8 +228,8 @@ def _streaming(args: argparse.Namespace, rec: Recording, train: Recording,
         "running_gamma": est.running_gamma(),  # a group without channels: None
         "parameters_per_output": int(model.coef.shape[0]),
     }
-    if test is not None:
-        result.update(score_prediction(evaluate_model(model, test)).as_dict())
+    if test is not None:  # scored on the shape grid, as the batch identifier scores (aligned: unchanged)
+        result.update(score_prediction(evaluate_model(model, on_shape_grid(test))).as_dict())
     if args.model_out:
         Path(args.model_out).write_text(dumps(model.to_dict()))
         result["model"] = str(args.model_out)

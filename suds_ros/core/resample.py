@@ -393,6 +393,184 @@ def window_any(mask: BoolArray, span: int) -> BoolArray:
     return c[..., span + 1:] > c[..., : c.shape[-1] - span - 1]
 
 
+#: :class:`LiveGrid`: stamps read before the stream is judged uniform (passed on as they are) or locked to a grid
+LIVE_LOCK = 256
+#: :class:`LiveGrid`: grid points a knot waits for beyond it before its value is final (the spline's reach)
+LIVE_DELAY = 4
+#: :class:`LiveGrid`: final knots released together (one least-squares solve each)
+LIVE_BLOCK = 16
+#: :class:`LiveGrid`: samples after which a stamp counts half in the grid's line (slow clock drift is followed)
+LIVE_MEMORY = 4096.0
+#: :class:`LiveGrid` passes stamps on unchanged when none of the lock block is this many steps off its line
+LIVE_UNIFORM = 1e-3
+
+
+class LiveGrid:
+    """:func:`on_shape_grid` as samples arrive: a shape stream brought onto its fitted uniform grid, live.
+
+    Samples acquired with stamp jitter (a servo loop stamped by the host that reads it) are
+    taken at the drive's set-point times plus noise, and the drive bends at those times.
+    Differences over the raw stamps cut each bend that falls inside an interval, so a live
+    estimator fed raw jittered intervals learns a blurred map (``docs/results/streaming_jitter.md``).
+    This stage gives it what the batch identifier gets:
+
+    1. While every interval is a whole number of the shortest one (within :data:`LIVE_UNIFORM`
+       of it), samples pass on unchanged and at once.  If that holds for the first
+       :data:`LIVE_LOCK` stamps the stream is uniform, and so it stays.  From the first stamp
+       that breaks it, samples are held until there are :data:`LIVE_LOCK` of them.
+    2. Unless those stamps lie on their :func:`fit_grid` line after all (within
+       :data:`LIVE_UNIFORM` of a step: a uniform stream that lost its second message), the
+       indices of :func:`fit_grid` (counted, or locked to the stamps' phase) start a line
+       t ≈ a + b·k; each later stamp takes the nearest index on the line as it stands, then
+       updates it (exponentially weighted least squares, :data:`LIVE_MEMORY`).
+    3. A grid point with a sample within half a step is a knot; once samples reach
+       :data:`LIVE_DELAY` grid points past it, its value is final: the :func:`knot_fit` linear
+       spline over the held samples (a few grid points of context either side), released
+       :data:`LIVE_BLOCK` at a time, stamped with its grid time.  Grid points without a sample
+       (lost messages) are not released; the interval across them is the consumer's to judge.
+
+    Released stamps increase strictly.  :meth:`drain` releases what is held at the end of a
+    stream (the last knots pinned from one side, as at a recording's end).  The state is plain
+    numbers and lists (a checkpoint holds it).
+
+    Attributes
+    ----------
+    mode : str
+        ``"lock"`` (reading the first stamps), ``"raw"`` (uniform: passed on) or ``"grid"``.
+    last_stamp : float
+        Newest stamp taken (s, as given), −inf before the first.
+    """
+
+    def __init__(self) -> None:
+        self.mode = "lock"
+        self.last_stamp = -np.inf
+        self._t: list[float] = []  # held stamps, relative to _t0
+        self._r: list[FloatArray] = []
+        self._k: list[float] = []  # their grid indices (grid mode)
+        self._t0 = float("nan")
+        self._passed = 0  # samples of the lock block passed on while the stamps looked uniform
+        # the line t ≈ a + b·k as exponentially weighted sums: weight, means, co-moments
+        self._w = 0.0
+        self._mk = 0.0
+        self._mt = 0.0
+        self._ckk = 0.0
+        self._ckt = 0.0
+        self._next = 0.0  # first index not yet released
+        self._out = -np.inf  # newest stamp released
+
+    @property
+    def held(self) -> int:
+        """Samples taken and not yet released."""
+        if self.mode == "grid":
+            return sum(1 for k in self._k if k >= self._next)
+        return len(self._t) - self._passed if self.mode == "lock" else 0
+
+    @property
+    def step(self) -> float:
+        """The grid step b (s; NaN before the lock)."""
+        return self._ckt / self._ckk if self.mode == "grid" and self._ckk > 0 else float("nan")
+
+    def add(self, t: float, r: FloatArray) -> tuple[list[float], list[FloatArray]]:
+        """Take a sample (stamp ``t`` s, after the last; values ``r``); returns the samples now released."""
+        self.last_stamp = float(t)
+        if self.mode == "raw":
+            return [float(t)], [r]
+        if self.mode == "lock":
+            if not self._t:
+                self._t0 = float(t)
+            self._t.append(float(t) - self._t0)
+            self._r.append(r)
+            ts: list[float] = []
+            rs: list[FloatArray] = []
+            if self._passed == len(self._t) - 1 and self._uniform():
+                self._passed += 1
+                ts, rs = [float(t)], [r]
+            if len(self._t) >= LIVE_LOCK:
+                more = self._decide()
+                ts, rs = ts + more[0], rs + more[1]
+            return ts, rs
+        tr = float(t) - self._t0
+        b = self._ckt / self._ckk
+        k = float(np.round(self._mk + (tr - self._mt) / b))
+        self._t.append(tr)
+        self._r.append(r)
+        self._k.append(k)
+        self._update(k, tr)
+        return self._release(final=False)
+
+    def drain(self) -> tuple[list[float], list[FloatArray]]:
+        """Release every sample held (the end of the stream, or a pause)."""
+        if self.mode == "lock":
+            return self._decide() if self._t else ([], [])
+        return self._release(final=True) if self.mode == "grid" else ([], [])
+
+    def _uniform(self) -> bool:
+        """Every interval of the lock block so far a whole number of the shortest (within :data:`LIVE_UNIFORM`)."""
+        d = np.diff(np.asarray(self._t))
+        if d.size == 0:
+            return True
+        p = float(d.min())
+        return bool(p > 0 and np.all(np.abs(d - p * np.round(d / p)) <= LIVE_UNIFORM * p))
+
+    def _decide(self) -> tuple[list[float], list[FloatArray]]:
+        """At the end of the lock block: raw or grid mode; the held samples released as the mode says."""
+        t = np.asarray(self._t)
+        uniform = self._passed == t.size or t.size < 8  # (too few to fit a grid to: passed on too)
+        if not uniform:
+            k, a, b = fit_grid(t, stream_period(t))
+            uniform = bool(np.max(np.abs(t - a - b * k)) <= LIVE_UNIFORM * b)
+        if uniform:
+            ts, rs = [self._t0 + x for x in self._t[self._passed:]], self._r[self._passed:]
+            self.mode, self._t, self._r = "raw", [], []
+            return ts, rs
+        self.mode = "grid"
+        self._k = k.tolist()
+        for kk, tt in zip(self._k, self._t):
+            self._update(kk, tt)
+        if self._passed:  # those went on as they were: the grid takes over after them
+            self._next = self._k[self._passed - 1] + 1.0
+            self._out = self._t0 + self._t[self._passed - 1]
+        return self._release(final=False)
+
+    def _update(self, k: float, t: float) -> None:
+        """One point (k, t) into the exponentially weighted line."""
+        lam = 1.0 - 1.0 / LIVE_MEMORY
+        self._w = lam * self._w + 1.0
+        dk, dt = k - self._mk, t - self._mt
+        self._mk += dk / self._w
+        self._mt += dt / self._w
+        self._ckk = lam * self._ckk + dk * (k - self._mk)
+        self._ckt = lam * self._ckt + dk * (t - self._mt)
+
+    def _release(self, final: bool) -> tuple[list[float], list[FloatArray]]:
+        """The knots that are final now (all held ones when ``final``), a block at a time."""
+        if not self._k:
+            return [], []
+        last = self._k[-1] if final else self._k[-1] - LIVE_DELAY
+        ready = [k for k in self._k if self._next <= k <= last]
+        if not ready or (not final and len(set(ready)) < LIVE_BLOCK):
+            return [], []
+        b = self._ckt / self._ckk
+        a = self._mt - b * self._mk
+        k = np.asarray(self._k)
+        lo = float(k[0]) - 1.0
+        idx = np.arange(lo, float(k[-1]) + 2.0)  # the held samples' grid points and one beyond each end
+        grid = a + b * idx
+        values = knot_fit(np.asarray(self._t), np.asarray(self._r, dtype=float), grid)
+        ts: list[float] = []
+        rs: list[FloatArray] = []
+        for kk in sorted(set(ready)):
+            tk = self._t0 + a + b * kk
+            if tk > self._out:
+                ts.append(tk)
+                rs.append(values[int(kk - lo)])
+                self._out = tk
+        self._next = max(ready) + 1.0
+        keep = next((i for i, kk in enumerate(self._k) if kk >= self._next - LIVE_DELAY), len(self._k))
+        self._t, self._r, self._k = self._t[keep:], self._r[keep:], self._k[keep:]
+        return ts, rs
+
+
 def on_shape_grid(rec: Recording) -> Recording:
     """``rec`` with its shape stream brought onto its fitted uniform grid; the pose stream untouched.
 

@@ -44,11 +44,12 @@ from suds_ros.core.ident.shape_kernel import KernelScale
 from suds_ros.core.ident.sysid import FeatureLayout, SudsConfig, SudsRegressor
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.phase.template import FourierTemplate, FourierTemplateConfig
+from suds_ros.core.resample import LiveGrid
 
 #: the ``format`` field of the header
 FORMAT = "suds_ros.estimator_checkpoint"
 #: bumped whenever the state of a class below changes shape
-FORMAT_VERSION = 7
+FORMAT_VERSION = 8
 #: arrays up to this many elements are written inside the JSON header
 INLINE_MAX = 64
 
@@ -56,7 +57,7 @@ INLINE_MAX = 64
 STATE_CLASSES: dict[str, type] = {c.__name__: c for c in (
     OnlineSudsEstimator, OnlineConfig, SudsConfig, StampPairer, GaitInitialiser, FourierTemplate,
     FourierTemplateConfig, PhaseTracker, StreamFeaturiser, PrequentialSelector, SudsRegressor,
-    NormalEquations, KernelScale, FeatureLayout)}
+    NormalEquations, KernelScale, FeatureLayout, LiveGrid)}
 
 _NUMERIC = "fiub"  # float, signed and unsigned integer, bool: what np.load takes without pickle
 

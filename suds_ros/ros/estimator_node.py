@@ -22,7 +22,9 @@ it returns:
 * ``suds/measured/body_velocity`` (TwistStamped, frame ``frame_id``) and
   ``suds/measured/passive_velocity`` (velocity-only JointState): the velocities of
   every interval the model is fitted on, stamped with the interval's end sample as
-  the predictor stamps its prediction of the same interval.
+  the predictor stamps its prediction of the same interval.  (On a shape stream with
+  stamp jitter the estimator fits on its grid, ``regrid``: those intervals end at grid
+  times, which the predictor's raw-stamped predictions do not share.)
 * ``suds/gait_switch`` (the simulator's, or a driver's: the stamp from which a new gait runs):
   on a switch to a gait other than the last one, the estimator starts afresh
   (:meth:`~suds_ros.core.ident.session.EstimatorSession.new_gait`: the template and model are

@@ -127,3 +127,32 @@ def test_a_checkpoint_of_other_joints_is_refused(rec, tmp_path) -> None:
     save_estimator(path, fit_streaming(rec.slice(0, 800)))
     s = EstimatorSession(SessionConfig(actuated=("joint_2",), checkpoint=str(path)), checkpoints=checkpoint)
     assert s.est is None and s.refused_checkpoint.endswith(".refused-1")
+
+
+def test_a_checkpoint_holds_the_live_grid_of_a_jittered_stream(tmp_path) -> None:
+    """Saved mid-stream with samples held for the grid, the estimator resumes to the same model."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+
+    lab = simulate_lab(make_system("purcell3"), SimConfig(cycles=10, seed=2), LabConditions(jitter=0.002))
+    events = sorted([(t, 1, k) for k, t in enumerate(lab.t)] + [(t, 0, k) for k, t in enumerate(lab.pose_t)])
+
+    def feed(est: OnlineSudsEstimator, part) -> None:  # type: ignore[no-untyped-def]
+        for t, kind, k in part:
+            if kind:
+                est.add_shape(float(t), lab.joint_names, lab.r[k])
+            else:
+                est.add_pose(float(t), *map(float, lab.pose[k]))
+
+    ref = fit_streaming(lab)
+    est = OnlineSudsEstimator(lab.joint_names, lab.actuated)
+    cut = len(events) // 2
+    feed(est, events[:cut])
+    assert est.regrid.mode == "grid" and est.held > 0
+    save_estimator(tmp_path / "est.ckpt", est)
+    back = load_estimator(tmp_path / "est.ckpt")
+    assert back.held == est.held and back.last_shape_stamp == est.last_shape_stamp
+    feed(back, events[cut:])
+    back.drain()
+    np.testing.assert_allclose(back.model().coef, ref.model().coef, rtol=0, atol=1e-9)

@@ -24,16 +24,19 @@ def _checkpoint_samples(path) -> int:
         return 0
 
 
-def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_command, tmp_path):
+# the lab bag: pose at its own rate and stamp jitter on both streams (the live shape grid)
+@pytest.mark.parametrize("name", ["swimmer9_nominal.mcap", "purcell3_lab_nominal.mcap"])
+def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_command, tmp_path, name):
     from suds_ros.core.ident.session import SessionConfig
 
-    bag = shared_bag("swimmer9_nominal.mcap")
+    bag = shared_bag(name)
     rec = read_recording(bag)
     ckpt = tmp_path / "est.ckpt"
     actuated = "[" + ", ".join(f"'{j}'" for j in rec.actuated) + "]"
-    est = start_process(node_command("estimator_node", f"actuated:={actuated}",
-                                     f"gait_hz:={rec.gait_hz or 1.0}", f"checkpoint:={ckpt}",
-                                     "checkpoint_period:=0.5"), "estimator")
+    command = node_command("estimator_node", f"actuated:={actuated}", f"gait_hz:={rec.gait_hz or 1.0}",
+                           f"checkpoint:={ckpt}", "checkpoint_period:=0.5",
+                           "idle_flush:=3600.0")  # a stall of the player must not drain the live grid early
+    est = start_process(command, "estimator")
     wait_for(lambda: "ready: waiting for publishers" in est.output(), 60, "the estimator")
     player = start_process(node_command("player_node", f"bag:={bag}", "rate:=5.0", "wait_subscribers:=1",
                                         "topics:=['/suds/shape', '/suds/body_pose']"), "player")
@@ -49,9 +52,11 @@ def test_replayed_bag_gives_offline_model(shared_bag, start_process, node_comman
     gap = float(np.abs(model.coef - ref.coef).max())
     print(f"replayed {got.n_shape} shape / {got.n_pose} pose samples; max |Δcoef| = {gap:.3g}; "
           f"running Γ live {got.running_gamma()}, offline {ref_est.running_gamma()}")
-    assert got.n_shape == rec.n_samples and got.dropped_no_pose == 0
+    # (the lab bag's first shape sample comes before its first pose: offline it is not paired either)
+    assert got.n_shape == rec.n_samples and got.dropped_no_pose == ref_est.dropped_no_pose <= 1
     assert model.n_samples == ref.n_samples
     np.testing.assert_allclose(model.coef, ref.coef, rtol=0, atol=1e-6)
     np.testing.assert_allclose(model.template_coef, ref.template_coef, rtol=0, atol=1e-6)
     assert model.omega == pytest.approx(ref.omega, abs=1e-9)
     assert "skipped bad" not in est.output()
+    assert got.held == 0 and got.regrid.mode == ref_est.regrid.mode  # what the grid held was fitted at the stop

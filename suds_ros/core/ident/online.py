@@ -38,9 +38,9 @@ from suds_ros.core.config import check_settings, setting
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
-from suds_ros.core.resample import BRIDGED_RUN
+from suds_ros.core.resample import BRIDGED_RUN, LiveGrid
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
-from suds_ros.core.ident.model import SudsModel, check_shape_sample
+from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
 from suds_ros.core.ident.pairing import StampPairer
 from suds_ros.core.ident.phase_init import GaitInitialiser, GaitStart
 from suds_ros.core.ident.prequential import PrequentialSelector
@@ -101,6 +101,8 @@ class OnlineConfig:
     chunk: int = setting(100, "interval rows per regression update", ge=1, le=1_000_000)
     max_pose_wait: float = setting(60.0, "stamp s a shape sample may wait for a covering pose while later "
                                          "shape samples arrive, before it is dropped", gt=0.0, le=3600.0)
+    regrid: bool = setting(True, "bring a shape stream with stamp jitter onto its fitted uniform grid before "
+                                 "pairing (a uniform stream passes unchanged and without delay)")
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -155,6 +157,7 @@ class OnlineSudsEstimator:
         self._pas = np.array([self.joint_names.index(j) for j in self.passive], dtype=int)
         self.channels = tuple(BODY_CHANNELS) + tuple(f"rdot_{j}" for j in self.passive)
         self.pairer = StampPairer(config.max_pose_wait)
+        self.regrid: LiveGrid | None = LiveGrid() if config.regrid else None
         self.initialiser: GaitInitialiser | None = GaitInitialiser(
             config.init_cycles, config.gait_hz, config.template_order, config.phaser_order)
         self._early_poses: list[tuple[float, tuple[float, float, float]]] = []  # poses before the start
@@ -199,8 +202,13 @@ class OnlineSudsEstimator:
 
     @property
     def last_shape_stamp(self) -> float:
-        """Newest shape stamp accepted, s."""
-        return self.pairer.last_shape_stamp
+        """Newest shape stamp accepted, s (as given: before any regridding)."""
+        return self.pairer.last_shape_stamp if self.regrid is None else self.regrid.last_stamp
+
+    @property
+    def held(self) -> int:
+        """Shape samples held by the regridding stage (released a few grid points late, or by :meth:`drain`)."""
+        return 0 if self.regrid is None else self.regrid.held
 
     @property
     def last_pose_stamp(self) -> float:
@@ -244,13 +252,27 @@ class OnlineSudsEstimator:
             Wrong joint names/count, NaN, duplicate or out-of-order stamp.
         """
         r = check_shape_sample(t, names, position, self.joint_names)
-        self.pairer.add_shape(float(t), r)
+        if self.regrid is None:
+            self.pairer.add_shape(float(t), r)
+        else:
+            check_stamp("shape", float(t), self.regrid.last_stamp)
+            for tg, rg in zip(*self.regrid.add(float(t), r)):
+                self.pairer.add_shape(tg, rg)
         self.n_shape += 1
         return self._release()
 
+    def drain(self) -> int:
+        """Release the shape samples the regridding stage holds (the stream ended or paused); returns how many."""
+        if self.regrid is None:
+            return 0
+        ts, rs = self.regrid.drain()
+        for tg, rg in zip(ts, rs):
+            self.pairer.add_shape(tg, rg)
+        return self._release() if ts else 0
+
     def already_seen(self, t: float) -> bool:
         """True for a shape stamp at or before the last one accepted (e.g. replayed after a restart)."""
-        return t <= self.pairer.last_shape_stamp
+        return t <= self.last_shape_stamp
 
     def _release(self) -> int:
         ts, rs, ps = self.pairer.release()
@@ -407,5 +429,6 @@ def fit_streaming(rec: Recording, config: OnlineConfig = OnlineConfig()) -> Onli
             est.add_pose(float(t), float(x), float(y), float(yaw))
         else:
             est.add_shape(float(t), rec.joint_names, rec.r[k])
+    est.drain()
     est.flush()
     return est

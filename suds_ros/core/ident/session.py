@@ -170,7 +170,7 @@ class EstimatorSession:
         self._dirty = False
         self._rows_published = -1
         self._last_status = self._last_ckpt = self._last_model = now
-        self._saved_at = (-1, -1)
+        self._saved_at = (-1, -1, -1)
         if config.checkpoint and Path(config.checkpoint).exists():
             self._load(config.checkpoint)
 
@@ -368,6 +368,8 @@ class EstimatorSession:
         cfg = self.config
         model = None
         idle = self._last_arrival is not None and now - self._last_arrival > cfg.idle_flush
+        if idle and self.est is not None and self.est.held:
+            self._feed("shape", self.est.drain)  # the samples the regridding held for their successors
         if self._dirty and (idle or (cfg.model_period > 0 and now - self._last_model >= cfg.model_period)):
             model = self._take_model(now)
             if model is not None and idle:
@@ -397,6 +399,7 @@ class EstimatorSession:
                 "poses": str(est.n_pose), "rows": str(est.n_rows),
                 "gamma_body": _gamma_value(g["body"]), "gamma_passive": _gamma_value(g["passive"]),
                 "dropped_no_pose": str(est.dropped_no_pose),
+                "shape_grid": "off" if est.regrid is None else est.regrid.mode, "held_for_grid": str(est.held),
             })
             v.update({f"residual.{c}": f"{r:.6g}" for c, r in zip(est.channels, est.last_residual)})
         else:
@@ -430,7 +433,7 @@ class EstimatorSession:
         est = self.est
         if est is None or not self.config.checkpoint:
             return
-        mark = (est.n_shape, est.n_pose)
+        mark = (est.n_shape, est.n_pose, est.held)  # a drain of the live grid changes the state too
         if mark == self._saved_at:
             return
         try:
@@ -442,6 +445,8 @@ class EstimatorSession:
 
     def close(self) -> SudsModel | None:
         """At shutdown: save the checkpoint; returns the final model if it changed since the last one."""
+        if self.est is not None and self.est.held:
+            self._feed("shape", self.est.drain)
         model = self._take_model() if self._dirty else None
         self.save_checkpoint()
         return model

@@ -84,8 +84,12 @@ def test_streaming_matches_batch_on_async_data(lab_run) -> None:
     train, test = split_cycles(lab_run, 12, 8)
     est = fit_streaming(train, OnlineConfig(chunk=100))
     a = est.model()
-    b = fit_streaming(train, OnlineConfig(chunk=7)).model()
-    np.testing.assert_allclose(b.coef, a.coef, atol=1e-9 * np.abs(a.coef).max())
+    other = fit_streaming(train, OnlineConfig(chunk=7))
+    # every candidate's fit is the same whatever the chunking (which one the prequential choice
+    # publishes may differ: its losses are summed over the chunks)
+    for ra, rb in zip(est.selector.candidates, other.selector.candidates):
+        np.testing.assert_allclose(rb.coef_, ra.coef_, atol=1e-9 * np.abs(ra.coef_).max())
+    assert est.regrid.mode == "grid"  # the lab's stamp jitter
     assert est.regressor.avg_columns_ == (0, 1, 2)
     assert est.regressor.normal_avg_.n > 1.1 * est.regressor.normal_.n  # 120 Hz pose vs 100 Hz shape
     sc = score_prediction(evaluate_model(a, test))

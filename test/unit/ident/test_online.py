@@ -127,3 +127,24 @@ def test_the_published_model_follows_the_prequential_loss(swimmer9_run) -> None:
     g_sel = score_prediction(evaluate_model(est.model(), test))
     g_small = score_prediction(evaluate_model(only_small.model(), test))
     assert g_sel.gamma_passive > g_small.gamma_passive + 0.1
+
+
+def test_a_jittered_shape_stream_is_learned_on_its_grid_as_the_batch_identifier_does() -> None:
+    """2 ms of stamp jitter on a 100 Hz servo stream: the live grid gives the model the batch grid gives."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.core.resample import on_shape_grid
+
+    rec = simulate_lab(make_system("purcell3"), SimConfig(cycles=36, seed=5), LabConditions(jitter=0.002))
+    train, test = split_cycles(rec, 24, 12)
+    on_grid = on_shape_grid(test)  # scored as the batch identifier scores
+
+    def gamma(est: OnlineSudsEstimator) -> float:
+        return score_prediction(evaluate_model(est.model(), on_grid)).gamma_body
+
+    live = fit_streaming(train)
+    assert live.regrid.mode == "grid" and live.held == 0
+    raw = gamma(fit_streaming(train, OnlineConfig(regrid=False)))
+    batch_grid = gamma(fit_streaming(on_shape_grid(train), OnlineConfig(regrid=False)))
+    assert gamma(live) > raw + 0.02 and gamma(live) > batch_grid - 0.01

@@ -242,3 +242,31 @@ def test_a_new_gait_starts_the_estimator_afresh_from_a_cycle_after_the_switch(pu
     # a switch before the first sample taken is the gait the stream began with: nothing to forget
     again = run(long, [("s", 0), ("p", 0)])
     assert not again.new_gait(1.0, float(long.t[0]) - 0.5)
+
+
+def test_a_jittered_stream_in_any_interleaving_gives_one_model_and_idle_releases_the_held(tmp_path) -> None:
+    """The live grid sees shape stamps in order whatever the arrival; what it holds at a pause is fitted."""
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+
+    lab = simulate_lab(make_system("purcell3"), SimConfig(cycles=9, seed=4), LabConditions(jitter=0.002))
+    shapes = [Shape(float(t), lab.joint_names, lab.r[k]) for k, t in enumerate(lab.t)]
+    poses = [Pose(float(t), *map(float, lab.pose[k])) for k, t in enumerate(lab.pose_t)]
+    ref = fit_streaming(lab, SessionConfig().online_config(1.0)).model()
+    in_stamp_order = sorted([(m.stamp, 1, m) for m in shapes] + [(p.stamp, 0, p) for p in poses],
+                            key=lambda e: e[:2])
+    shapes_first = [(0.0, 1, m) for m in shapes] + [(0.0, 0, p) for p in poses]  # the pose stream all late
+    models = []
+    for order in (in_stamp_order, shapes_first):
+        s = EstimatorSession(SessionConfig(actuated=tuple(lab.actuated)), now=0.0)
+        for _, kind, msg in order:
+            (s.on_shape if kind else s.on_pose)(msg, now=0.0)
+        values = s.status_values()
+        assert values["shape_grid"] == "grid" and int(values["held_for_grid"]) > 0
+        model, _ = s.tick(now=10.0)  # idle: the held samples are released and fitted
+        assert model is not None and s.est.held == 0 and s.status_values()["held_for_grid"] == "0"
+        models.append(model)
+    for m in models:
+        assert m.n_samples == ref.n_samples
+        np.testing.assert_allclose(m.coef, ref.coef, rtol=0, atol=1e-9)
