@@ -34,7 +34,8 @@ Lab streams
   samples around it, plus the replay's own departure from that straight line (the body velocity
   jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
   A sample's pose is final once the replay reaches the next pose sample.
-* A lost message: windows across an interval longer than ``gap`` sample periods (or next to one),
+* A lost message: windows across an interval whose grid points lie more than ``gap`` sample
+  periods apart (or next to one),
   or ending on a pose read across a lost pose or shape sample, are not scored.  A statistic needs
   ``min_scored`` of its span's windows clean; with fewer it takes the newest clean windows of the
   kept history, and with too few even there (or no noise floor measured yet: ``FLOOR_LEAST``
@@ -135,7 +136,7 @@ from suds_ros.core.physics.rft import ChainModel, flow_in_body
 from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
-from suds_ros.core.resample import fit_grid
+from suds_ros.core.resample import fit_grid, knot_fit
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")  # diagnostic_msgs' own levels
@@ -208,8 +209,11 @@ class MonitorConfig:
     warn, error : float
         Thresholds on F = mean-square residual / noise floor (error > warn > 1).
     gap : float
-        An interval between paired samples longer than this many nominal sample periods is a
-        gap (a lost sample): the windows across it are not scored.
+        An interval between paired samples whose set-point grid points (the grid fitted to the
+        shape stamps) lie more than this many nominal sample periods apart is a gap (a lost
+        sample): the windows across it are not scored.  On the grid, not on the stamps: with 3 ms
+        of stamp jitter on a 100 Hz stream one interval in eight is longer than 1.5 periods with
+        nothing lost (``docs/results/monitor_jitter.md``).
     persist_cycles : int
         Cycles a channel must stay in ERROR before the recent window is diagnosed (≥ 4:
         the diagnosis trains on half of it and scores on the other half).
@@ -239,8 +243,8 @@ class MonitorConfig:
                                        "after them)", gt=0.0, le=100.0)
     warn: float = setting(4.0, "WARN when F = mean-square residual / floor exceeds this", gt=1.0, le=1e9)
     error: float = setting(8.0, "ERROR when F exceeds this (> warn)", gt=1.0, le=1e9)
-    gap: float = setting(1.5, "intervals longer than this many sample periods are gaps (lost samples): "
-                              "windows across them are not scored", gt=1.0, le=1000.0)
+    gap: float = setting(1.5, "intervals whose grid points lie more than this many sample periods apart are gaps "
+                              "(lost samples): windows across them are not scored", gt=1.0, le=1000.0)
     persist_cycles: int = setting(6, "cycles in ERROR before the recent window is diagnosed (≥ 4)", ge=4)
     history_cycles: float = setting(12.0, "cycles of samples kept", ge=1.0, le=10000.0)
     update_every: int = setting(10, "samples between statistics updates (and suds/mismatch messages)",
@@ -393,16 +397,28 @@ def drive_kinks(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float) 
     A servo set-point stream bends at its set-point times: the points ``grid`` (n,) of the
     uniform grid fitted to the shape stamps (:func:`~suds_ros.core.resample.fit_grid`), one next
     to each stamp of ``t`` (n,).  Sampled with jitter, a stamp t_j sits ε_j = t_j − g_j off its
-    grid point, so one interval can hold the bend of either end.  The angle at the bend is the
-    sample's, moved along the straight piece that holds both the bend and the sample (the chord
-    to the next sample when ε_j > 0, to the previous one when ε_j < 0).  Bends within 1e-3
-    ``period`` of a sample are not split off.  ``ra`` (n, na) the actuated angles.
+    grid point, so one interval can hold the bend of either end.  The angle at each bend is the
+    value of the least-squares linear spline of the samples with its knots at the grid points
+    (:func:`~suds_ros.core.resample.knot_fit`, as the batch identifier reads a jittered stream):
+    the drive is exactly such a spline.  (Until 2026-12-05 it was the sample's own angle moved
+    along the chord to its neighbour, which cuts the neighbour's bend too: with 2–3 ms of jitter
+    at 100 Hz that missed the drive by 1.5–2× the sensor noise, and a nominal swimmer9's stiff
+    passive joints went to WARN or ERROR; ``docs/results/monitor_jitter.md``.)  Bends within
+    1e-3 ``period`` of a sample are not split off.  ``ra`` (n, na) the actuated angles.
+    """
+    idx = np.round((grid - grid[0]) / period).astype(int) + 1  # each sample's grid point; one more each side,
+    step = (grid[-1] - grid[0]) / (idx[-1] - 1) if idx[-1] > 1 else period  # so every sample is inside the fit
+    knot = knot_fit(t, ra, grid[0] + step * np.arange(-1, idx[-1] + 1))[idx[1:-1]]  # samples 1 … n − 2
+    return bends(t, ra, grid, period, knot)
+
+
+def bends(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float, knot: FloatArray) -> Kinks:
+    """The :class:`Kinks` of the intervals t[1:-2] → t[2:-1] (:func:`drive_kinks`).
+
+    ``knot`` (n − 2, na): the drive's angle at the grid points of samples 1 … n − 2.
     """
     eps = t - grid
     tol = 1e-3 * period
-    fwd = np.diff(ra, axis=0) / np.diff(t)[:, None]  # chord j → j + 1
-    slope = np.where((eps[1:-1] > 0)[:, None], fwd[1:], fwd[:-1])  # samples 1 … n − 2
-    knot = ra[1:-1] - eps[1:-1, None] * slope
     e0, e1 = eps[1:-2], eps[2:-1]  # each interval's start and end sample
     t0 = t[1:-2]
     start = e0 < -tol  # the start sample's grid point lies inside, after it
@@ -413,6 +429,15 @@ def drive_kinks(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float) 
     ka = np.where(start[:, None], knot[:-1], ra[1:-2])
     kb = np.where(end[:, None], knot[1:], ra[2:-1])
     return Kinks(ta, ka, tb, kb)
+
+
+def lost_samples(t: FloatArray, grid: FloatArray, gap: float) -> BoolArray:
+    """Intervals of the stamps ``t`` (n,) holding a lost sample: their grid points ``grid`` more than ``gap`` s apart.
+
+    Counted on the grid fitted to the stamps, not on the stamps: with stamp jitter an interval can
+    be long with nothing lost (3 ms of jitter at 100 Hz: one in eight longer than 1.5 periods).
+    """
+    return np.diff(grid) > gap
 
 
 def _piecewise(s: FloatArray, times: FloatArray, values: FloatArray) -> FloatArray:
@@ -840,6 +865,13 @@ class _Interval(NamedTuple):
     stamps: FloatArray  # (M,) pose stamps inside (NaN: none)
     at: FloatArray  # (versions, M, 3) relative pose at them
     stiff: bool  # near a singular shape (:meth:`IntervalPhysics.between`): not scored
+    lost: bool  # its ends' grid points more than ``gap`` periods apart: a lost shape sample inside
+
+
+def _by_version(x: FloatArray, versions: int) -> FloatArray:
+    """(k, versions·c) columns side by side → (versions·k, c), version after version."""
+    k = x.shape[0]
+    return x.reshape(k, versions, -1).transpose(1, 0, 2).reshape(versions * k, -1)
 
 
 def _compose(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -1027,15 +1059,17 @@ class MismatchMonitor:
             brackets = np.concatenate([brackets[:1], brackets])
         act = self.physics.act
         V = R.shape[0]
-        kinks = [drive_kinks(t, R[v][:, act], g, 1.0 / self.config.rate) for v in range(V)]
+        # data and twins in one knot fit: their columns side by side (versions × actuated)
+        kinks = drive_kinks(t, R[:, :, act].transpose(1, 0, 2).reshape(t.size, -1), g, 1.0 / self.config.rate)
         t0, t1 = t[1:-2], t[2:-1]
         # pose stamps inside each interval: the start sample's next pose, the end sample's previous one
         cand = np.stack([brackets[1:-2, 1], brackets[2:-1, 0]], axis=1)
         inside = (cand > t0[:, None]) & (cand < t1[:, None])
         outputs = np.where(inside, cand - t0[:, None], np.nan)
         dt = t1 - t0
+        lost = lost_samples(t, g, self.config.gap / self.config.rate)[1:-1]
         mid_yaw = 0.5 * (yaw[:, 1:-2] + yaw[:, 2:-1])
-        both = Kinks(*(np.concatenate(parts) for parts in zip(*kinks)))
+        both = Kinks(np.tile(kinks.ta, V), _by_version(kinks.ka, V), np.tile(kinks.tb, V), _by_version(kinks.kb, V))
         lam = np.tile(self.physics.stiffness(R[0, 1:-2], R[0, 2:-1]), V)  # the twins: as the data
         xi, rp, at, stiff = self.physics.between(np.tile(dt, V), R[:, 1:-2].reshape(V * k, -1),
                                                  R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
@@ -1047,7 +1081,7 @@ class MismatchMonitor:
         for j in range(k):
             self._rates[first + j] = rates[:, j]
             self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j],
-                                                 bool(stiff.reshape(V, k)[:, j].any()))
+                                                 bool(stiff.reshape(V, k)[:, j].any()), bool(lost[j]))
         self._rated = self.paired - 1
 
     def _read_poses(self) -> None:
@@ -1075,7 +1109,7 @@ class MismatchMonitor:
                 h.pose_ok[0] = False  # older than the history or than the first replay: left as interpolated
                 pos += 1
                 continue
-            if np.any(np.diff(stamps[ia - 1:ib + 1]) > self.config.gap / self.config.rate):
+            if any(self._replays[i].lost for i in range(ia, ib + 1)):  # type: ignore[union-attr]
                 h.pose_ok[0] = False  # across a lost shape sample the replay does not know the drive
             a = self._motion(ia, ta, pos)  # (versions, 3)
             b = _compose(a, self._motion(pos + 1, h.t, ib, tb))
@@ -1192,7 +1226,6 @@ class MismatchMonitor:
         intervals neither across nor next to a gap (nor near a singular shape), ``pose_ok`` (m,)
         the samples whose pose was read between trusted pose samples.
         """
-        cfg = self.config
         last = list(self._hist)[:ready][-m:]
         m = len(last)
         versions = slice(None) if twins else slice(0, 1)
@@ -1201,7 +1234,7 @@ class MismatchMonitor:
         P = np.array([h.pose[versions] for h in last]).transpose(1, 0, 2)
         rates = np.array([x[versions] for x in list(self._rates)[ready - m + 1:ready]]).transpose(1, 0, 2)
         replays = list(self._replays)[ready - m + 1:ready]
-        gap = (np.diff(t) > cfg.gap / cfg.rate) | np.array([rep is None or rep.stiff for rep in replays])
+        gap = np.array([rep is None or rep.stiff or rep.lost for rep in replays])
         shape_ok = ~gap  # an interval next to a gap has a bend taken from across it
         shape_ok[1:] &= ~gap[:-1]
         shape_ok[:-1] &= ~gap[1:]

@@ -25,6 +25,7 @@ from suds_ros.core.diagnosis.monitor import (
     equation_residuals,
     harmonic_ratio,
     lag_statistic,
+    lost_samples,
     monitor_recording,
     recording_config,
     worse,
@@ -459,16 +460,20 @@ def test_pose_between_pose_samples_follows_the_replay(purcell3):
     assert err.max() < 0.05 * cut.max() and np.sqrt(np.mean(err**2)) < 0.02 * np.sqrt(np.mean(cut**2))
 
 
-def test_drive_kinks_put_the_bends_on_the_grid():
+# (with 2 and 3 ms of jitter the rule before 2026-12-05, the sample moved along the chord to its
+# neighbour, put the bends back to only 0.14–0.66 of the chord's error: benchmarks/monitor_jitter.py)
+@pytest.mark.parametrize("jitter", [0.0004, 0.002, 0.003])
+def test_drive_kinks_put_the_bends_on_the_grid(jitter):
     """Jittered samples of a piecewise-linear drive: the bends are found at the grid points."""
     rng = np.random.default_rng(10)
     grid = 0.01 * np.arange(40)
     knots = np.cumsum(rng.normal(scale=0.05, size=(40, 2)), axis=0)  # the set-points
-    t = grid + np.clip(rng.normal(scale=0.0004, size=40), -0.004, 0.004)
+    t = grid + np.clip(rng.normal(scale=jitter, size=40), -0.004, 0.004)
     ra = np.stack([np.interp(t, grid, knots[:, c]) for c in range(2)], axis=1)
     k, a, b = fit_grid(t, 0.01)
     g = a + b * k
-    assert np.abs(g - grid).max() < 3e-4
+    if jitter <= 0.002:  # (40 stamps: the line itself is that uncertain; at 3 ms they may not lock, grid_loss.md)
+        assert np.abs(g - grid).max() < 0.75 * jitter
     kinks = drive_kinks(t, ra, grid, 0.01)
     t0 = t[1:-2]
     # the drive rebuilt from the bends, compared with the truth inside each interval
@@ -560,3 +565,31 @@ def test_stream_effects_are_checked(purcell3):
     with pytest.raises(SudsConfigError, match="unknown effect"):
         sim.set_effects([{"name": "glue"}])
     assert sim.effects == ()
+
+
+def test_lost_samples_are_counted_on_the_grid_not_on_the_stamps():
+    """3 ms of stamp jitter at 100 Hz: many intervals exceed 1.5 periods with nothing lost."""
+    rng = np.random.default_rng(3)
+    grid = 0.01 * np.arange(600)
+    t = grid + np.clip(rng.normal(scale=0.003, size=grid.size), -0.004, 0.004)
+    keep = np.ones(grid.size, dtype=bool)
+    keep[[100, 300, 301]] = False  # one message lost, then two in a row
+    t = t[keep]
+    k, a, b = fit_grid(t - t[0], 0.01)
+    lost = lost_samples(t, t[0] + a + b * k, 0.015)
+    assert np.count_nonzero(np.diff(t) > 0.015) > 3 * 2  # the stamps alone would see many
+    np.testing.assert_array_equal(np.flatnonzero(lost), [99, 298])  # the intervals across the lost messages
+
+
+@pytest.mark.parametrize("name", ["purcell3", "swimmer9"])
+def test_a_nominal_robot_under_heavy_stamp_jitter_stays_ok(name):
+    """3 ms of jitter on both streams: the drive's bends from the knot fit, lost samples on the grid.
+
+    Before 2026-12-05 these runs went STALE (purcell3: jittered intervals counted as lost
+    messages) or to WARN (swimmer9, F 5.1: the bends read along the chord to a neighbour).
+    """
+    system = load_system(name)
+    rec = recording(system, cycles=12, seed=12, lab=LabConditions(jitter=0.003))
+    mon = monitor_recording(rec, system)
+    assert mon.worst == OK, [(c.channel, c.max_statistic, c.stale) for c in mon.channels]
+    assert max(c.stale for c in mon.channels) == 0
