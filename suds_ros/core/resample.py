@@ -403,6 +403,8 @@ LIVE_BLOCK = 16
 LIVE_MEMORY = 4096.0
 #: :class:`LiveGrid` passes stamps on unchanged when none of the lock block is this many steps off its line
 LIVE_UNIFORM = 1e-3
+#: :class:`LiveGrid`: a pause of more than this many grid steps without a sample ends the grid; it is locked afresh
+LIVE_PAUSE = 256
 
 
 class LiveGrid:
@@ -430,7 +432,9 @@ class LiveGrid:
        (lost messages) are not released; the interval across them is the consumer's to judge.
 
     Released stamps increase strictly.  :meth:`drain` releases what is held at the end of a
-    stream (the last knots pinned from one side, as at a recording's end).  The state is plain
+    stream (the last knots pinned from one side, as at a recording's end).  A pause of more than
+    :data:`LIVE_PAUSE` grid steps does the same, and the samples after it are locked afresh: a
+    restarted driver may read on another clock phase, and no knot fit spans the pause.  The state is plain
     numbers and lists (a checkpoint holds it).
 
     Attributes
@@ -492,11 +496,24 @@ class LiveGrid:
         tr = float(t) - self._t0
         b = self._ckt / self._ckk
         k = float(np.round(self._mk + (tr - self._mt) / b))
+        if self._k and k - self._k[-1] > LIVE_PAUSE:
+            # a pause: what is held is final, and the stream may come back on another clock phase (a
+            # restarted driver), so it is locked afresh (the knot fits never span the pause)
+            ts, rs = self._release(final=True)
+            self._restart()
+            more = self.add(t, r)
+            return ts + more[0], rs + more[1]
         self._t.append(tr)
         self._r.append(r)
         self._k.append(k)
         self._update(k, tr)
         return self._release(final=False)
+
+    def _restart(self) -> None:
+        """Back to reading a lock block; the stamps released so far stay released (``_out``)."""
+        out, last = self._out, self.last_stamp
+        self.__init__()  # type: ignore[misc]
+        self._out, self.last_stamp = out, last
 
     def drain(self) -> tuple[list[float], list[FloatArray]]:
         """Release every sample held (the end of the stream, or a pause)."""

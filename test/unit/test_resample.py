@@ -146,3 +146,21 @@ def test_live_grid_passes_a_stream_whose_stamps_wander_by_microseconds() -> None
     assert g.mode == "raw" and not at_once.all()
     np.testing.assert_array_equal(ts, t)
     np.testing.assert_array_equal(rs, r)
+
+
+def test_live_grid_locks_afresh_after_a_pause_on_another_clock_phase() -> None:
+    """A driver restarted after 5 s reads 0.45 of a period later: the grid after the pause is the new one."""
+    from suds_ros.core.resample import LIVE_PAUSE
+
+    grid, setpoints, t, r = _servo_stream(jitter=0.002, drop=0.05, n=3000)
+    first, second = t < 15.0, t > 20.0 + 0.0045  # a 5 s pause, then every stamp 4.5 ms later
+    shift = np.where(second, 0.0045, 0.0)
+    keep = first | second
+    ts, rs, _, g = _live((t + shift)[keep], r[keep])
+    assert 500 > LIVE_PAUSE  # 5 s at 100 Hz: a pause
+    assert g.mode == "grid" and np.all(np.diff(ts) > 0.5 * 0.01)
+    before, after = ts[ts < 15.5], ts[ts > 20.0]
+    on_old = np.abs((before - grid[0] + 0.005) % 0.01 - 0.005)
+    on_new = np.abs((after - grid[0] - 0.0045 + 0.005) % 0.01 - 0.005)
+    # each side on its own acquisition grid (kept on the old line, the new side read 8.6e-4 s off)
+    assert np.median(on_old) < 4e-4 and np.median(on_new) < 4e-4
