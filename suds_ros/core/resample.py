@@ -517,9 +517,14 @@ class LiveGrid:
 
     def drain(self) -> tuple[list[float], list[FloatArray]]:
         """Release every sample held (the end of the stream, or a pause)."""
-        if self.mode == "lock":
-            return self._decide() if self._t else ([], [])
-        return self._release(final=True) if self.mode == "grid" else ([], [])
+        ts: list[float] = []
+        rs: list[FloatArray] = []
+        if self.mode == "lock" and self._t:
+            ts, rs = self._decide()
+        if self.mode == "grid":
+            more = self._release(final=True)
+            ts, rs = ts + more[0], rs + more[1]
+        return ts, rs
 
     def _uniform(self) -> bool:
         """Every interval of the lock block so far a whole number of the shortest (within :data:`LIVE_UNIFORM`)."""

@@ -164,3 +164,9 @@ def test_live_grid_locks_afresh_after_a_pause_on_another_clock_phase() -> None:
     on_new = np.abs((after - grid[0] - 0.0045 + 0.005) % 0.01 - 0.005)
     # each side on its own acquisition grid (kept on the old line, the new side read 8.6e-4 s off)
     assert np.median(on_old) < 4e-4 and np.median(on_new) < 4e-4
+
+
+def test_live_grid_drains_a_stream_shorter_than_its_lock_block() -> None:
+    _, _, t, r = _servo_stream(jitter=0.002, drop=0.0, n=100)
+    ts, rs, at_once, g = _live(t, r)  # _live checks that nothing is held after the drain
+    assert g.mode == "grid" and ts.size == np.unique(np.round((t - 5.0) / 0.01)).size
