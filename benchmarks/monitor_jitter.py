@@ -25,19 +25,15 @@ import numpy as np
 
 from _common import machine, stamp, write
 from monitor_delay import to_error
-from monitor_loss import FAULTS, SEEDS
+from monitor_loss import FAULTS, SEEDS, record
 
 import suds_ros.core.diagnosis.monitor as monitor_mod
-from suds_ros.core.diagnosis.monitor import (LEVEL_NAMES, Kinks, MonitorRecord, bends, monitor_recording,
-                                             recording_config)
-from suds_ros.core.physics.effects import apply_effects
-from suds_ros.core.physics.lab import LabConditions, simulate_lab
-from suds_ros.core.physics.rft import RFTChain
-from suds_ros.core.physics.sim import SimConfig
-from suds_ros.core.physics.system import SudsSystem
+from suds_ros.core.diagnosis.monitor import LEVEL_NAMES, Kinks, MonitorRecord, bends
+from suds_ros.core.physics.lab import LabConditions
 from suds_ros.core.physics.systems import load_system
 
 JITTERS = (0.0004, 0.001, 0.002, 0.003)  # stamp jitter (standard deviation), s
+LOSS = LabConditions().drop  # messages lost per stream: the lab default
 
 
 def chord_kinks(t: np.ndarray, ra: np.ndarray, grid: np.ndarray, period: float) -> Kinks:
@@ -64,13 +60,6 @@ def old_rule() -> Iterator[None]:
         monitor_mod.drive_kinks, monitor_mod.lost_samples = saved
 
 
-def record(system: SudsSystem, effects: list[dict[str, object]], jitter: float, seed: int) -> MonitorRecord:
-    """Simulate ``system`` with ``effects`` from the first sample, the lab way, and monitor it against the nominal."""
-    sim = RFTChain(apply_effects(system.model, effects)[0]) if effects else system  # type: ignore[attr-defined]
-    rec = simulate_lab(sim, SimConfig(cycles=12, seed=seed, warmup=1.0), LabConditions(jitter=jitter))
-    return monitor_recording(rec, system, recording_config(rec))
-
-
 def cells(mon: MonitorRecord) -> str:
     """Worst level, the channel with the largest F and that F, cycles from the first report to ERROR."""
     top = max(mon.channels, key=lambda c: c.max_statistic)
@@ -90,8 +79,8 @@ def main() -> None:
             for jitter in JITTERS:
                 for seed in SEEDS:
                     with old_rule():
-                        before = record(system, list(effects), jitter, seed)
-                    now = record(system, list(effects), jitter, seed)
+                        before = record(system, list(effects), 12, LOSS, seed, jitter=jitter)
+                    now = record(system, list(effects), 12, LOSS, seed, jitter=jitter)
                     lines.append(f"| {name} | {case} | {1e3 * jitter:g} | {seed} | {cells(before)} | {cells(now)} |")
                     print(lines[-1], flush=True)
     rows = [ln.split("|") for ln in lines[2:]]

@@ -67,10 +67,13 @@ def old_rule() -> Iterator[None]:
 
 
 def record(system: SudsSystem, effects: list[dict[str, object]], cycles: int, loss: float, seed: int,
-           history: float | None = None) -> MonitorRecord:
-    """Simulate ``system`` with ``effects`` from the first sample, the lab way, and monitor it against the nominal."""
+           history: float | None = None, jitter: float = LabConditions().jitter) -> MonitorRecord:
+    """Simulate ``system`` with ``effects`` from the first sample, the lab way, and monitor it against the nominal.
+
+    Each stream loses ``loss`` of its messages; stamps have ``jitter`` s of jitter.
+    """
     sim = RFTChain(apply_effects(system.model, effects)[0]) if effects else system  # type: ignore[attr-defined]
-    rec = simulate_lab(sim, SimConfig(cycles=cycles, seed=seed, warmup=1.0), LabConditions(drop=loss))
+    rec = simulate_lab(sim, SimConfig(cycles=cycles, seed=seed, warmup=1.0), LabConditions(drop=loss, jitter=jitter))
     cfg = recording_config(rec)
     return monitor_recording(rec, system, cfg if history is None else replace(cfg, history_cycles=history))
 

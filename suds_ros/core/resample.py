@@ -263,6 +263,16 @@ def _knot_operator(ts: FloatArray, grid: FloatArray, margin: int) -> _KnotOp:
     return lo, hi, rows, scipy.sparse.linalg.splu(N), _interp_matrix(grid, knots), ends
 
 
+def knots_around(ts: FloatArray, Y: FloatArray, first: float, last: float, a: float, b: float) -> FloatArray:
+    """:func:`knot_fit` of the samples ``Y`` at ``ts`` at the grid points a + b·j, j = first … last.
+
+    The grid fitted spans one point more on each side, so a sample jittered past the first or the
+    last of them is still inside the fit (:func:`knot_fit` fits the samples within its grid's span).
+    """
+    values = knot_fit(ts, Y, a + b * np.arange(first - 1, last + 2))
+    return values[1:-1]
+
+
 def knot_fit(ts: FloatArray, Y: FloatArray, grid: FloatArray) -> FloatArray:
     """Least-squares linear spline of the samples ``Y`` (m, c) at sorted stamps ``ts``, evaluated at ``grid``.
 
@@ -421,7 +431,7 @@ class LiveGrid:
        :data:`LIVE_LOCK` stamps the stream is uniform, and so it stays.  From the first stamp
        that breaks it, samples are held until there are :data:`LIVE_LOCK` of them.
     2. Unless those stamps lie on their :func:`fit_grid` line after all (within
-       :data:`LIVE_UNIFORM` of a step: a uniform stream that lost its second message), the
+       :data:`LIVE_UNIFORM` of a step: a uniform stream whose stamps wander by microseconds), the
        indices of :func:`fit_grid` (counted, or locked to the stamps' phase) start a line
        t ≈ a + b·k; each later stamp takes the nearest index on the line as it stands, then
        updates it (exponentially weighted least squares, :data:`LIVE_MEMORY`).
@@ -468,11 +478,6 @@ class LiveGrid:
         if self.mode == "grid":
             return sum(1 for k in self._k if k >= self._next)
         return len(self._t) - self._passed if self.mode == "lock" else 0
-
-    @property
-    def step(self) -> float:
-        """The grid step b (s; NaN before the lock)."""
-        return self._ckt / self._ckk if self.mode == "grid" and self._ckk > 0 else float("nan")
 
     def add(self, t: float, r: FloatArray) -> tuple[list[float], list[FloatArray]]:
         """Take a sample (stamp ``t`` s, after the last; values ``r``); returns the samples now released."""
@@ -574,18 +579,15 @@ class LiveGrid:
             return [], []
         b = self._ckt / self._ckk
         a = self._mt - b * self._mk
-        k = np.asarray(self._k)
-        lo = float(k[0]) - 1.0
-        idx = np.arange(lo, float(k[-1]) + 2.0)  # the held samples' grid points and one beyond each end
-        grid = a + b * idx
-        values = knot_fit(np.asarray(self._t), np.asarray(self._r, dtype=float), grid)
+        first = self._k[0]  # the held samples' grid points
+        values = knots_around(np.asarray(self._t), np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
         ts: list[float] = []
         rs: list[FloatArray] = []
         for kk in sorted(set(ready)):
             tk = self._t0 + a + b * kk
             if tk > self._out:
                 ts.append(tk)
-                rs.append(values[int(kk - lo)])
+                rs.append(values[int(kk - first)])
                 self._out = tk
         self._next = max(ready) + 1.0
         keep = next((i for i, kk in enumerate(self._k) if kk >= self._next - LIVE_DELAY), len(self._k))

@@ -136,7 +136,7 @@ from suds_ros.core.physics.rft import ChainModel, flow_in_body
 from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
-from suds_ros.core.resample import fit_grid, knot_fit
+from suds_ros.core.resample import fit_grid, knots_around
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")  # diagnostic_msgs' own levels
@@ -399,16 +399,16 @@ def drive_kinks(t: FloatArray, ra: FloatArray, grid: FloatArray, period: float) 
     to each stamp of ``t`` (n,).  Sampled with jitter, a stamp t_j sits ε_j = t_j − g_j off its
     grid point, so one interval can hold the bend of either end.  The angle at each bend is the
     value of the least-squares linear spline of the samples with its knots at the grid points
-    (:func:`~suds_ros.core.resample.knot_fit`, as the batch identifier reads a jittered stream):
+    (:func:`~suds_ros.core.resample.knots_around`, as the batch identifier reads a jittered stream):
     the drive is exactly such a spline.  (Until 2026-12-05 it was the sample's own angle moved
     along the chord to its neighbour, which cuts the neighbour's bend too: with 2–3 ms of jitter
     at 100 Hz that missed the drive by 1.5–2× the sensor noise, and a nominal swimmer9's stiff
     passive joints went to WARN or ERROR; ``docs/results/monitor_jitter.md``.)  Bends within
     1e-3 ``period`` of a sample are not split off.  ``ra`` (n, na) the actuated angles.
     """
-    idx = np.round((grid - grid[0]) / period).astype(int) + 1  # each sample's grid point; one more each side,
-    step = (grid[-1] - grid[0]) / (idx[-1] - 1) if idx[-1] > 1 else period  # so every sample is inside the fit
-    knot = knot_fit(t, ra, grid[0] + step * np.arange(-1, idx[-1] + 1))[idx[1:-1]]  # samples 1 … n − 2
+    idx = np.round((grid - grid[0]) / period).astype(int)  # each sample's grid point, counted from the first
+    step = (grid[-1] - grid[0]) / idx[-1] if idx[-1] > 0 else period
+    knot = knots_around(t, ra, 0, idx[-1], grid[0], step)[idx[1:-1]]  # samples 1 … n − 2
     return bends(t, ra, grid, period, knot)
 
 

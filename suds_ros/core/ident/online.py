@@ -256,8 +256,7 @@ class OnlineSudsEstimator:
             self.pairer.add_shape(float(t), r)
         else:
             check_stamp("shape", float(t), self.regrid.last_stamp)
-            for tg, rg in zip(*self.regrid.add(float(t), r)):
-                self.pairer.add_shape(tg, rg)
+            self._pair_shapes(*self.regrid.add(float(t), r))
         self.n_shape += 1
         return self._release()
 
@@ -266,9 +265,13 @@ class OnlineSudsEstimator:
         if self.regrid is None:
             return 0
         ts, rs = self.regrid.drain()
+        self._pair_shapes(ts, rs)
+        return self._release() if ts else 0
+
+    def _pair_shapes(self, ts: list[float], rs: list[FloatArray]) -> None:
+        """The samples the regridding released, to the pairer."""
         for tg, rg in zip(ts, rs):
             self.pairer.add_shape(tg, rg)
-        return self._release() if ts else 0
 
     def already_seen(self, t: float) -> bool:
         """True for a shape stamp at or before the last one accepted (e.g. replayed after a restart)."""

@@ -326,6 +326,11 @@ class EstimatorSession:
         self._dirty = True
         return True
 
+    def _drain(self) -> None:
+        """Fit what the regridding holds for its successors (the stream paused or ended)."""
+        if self.est is not None and self.est.held:
+            self._feed("shape", self.est.drain)
+
     def _model_if_fitted(self, now: float) -> SudsModel | None:
         """The model to publish after each fitted chunk (``model_period`` 0)."""
         est = self.est
@@ -368,8 +373,8 @@ class EstimatorSession:
         cfg = self.config
         model = None
         idle = self._last_arrival is not None and now - self._last_arrival > cfg.idle_flush
-        if idle and self.est is not None and self.est.held:
-            self._feed("shape", self.est.drain)  # the samples the regridding held for their successors
+        if idle:
+            self._drain()
         if self._dirty and (idle or (cfg.model_period > 0 and now - self._last_model >= cfg.model_period)):
             model = self._take_model(now)
             if model is not None and idle:
@@ -445,8 +450,7 @@ class EstimatorSession:
 
     def close(self) -> SudsModel | None:
         """At shutdown: save the checkpoint; returns the final model if it changed since the last one."""
-        if self.est is not None and self.est.held:
-            self._feed("shape", self.est.drain)
+        self._drain()
         model = self._take_model() if self._dirty else None
         self.save_checkpoint()
         return model
