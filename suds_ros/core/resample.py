@@ -23,6 +23,11 @@ streams onto it.
 - The windowed body velocity's noise floor then needs the gain of that linear operator on white
   pose noise (:func:`xi_noise_gain`, calibrated on seeded white noise at the pose stamps); the
   noise itself is measured at the pose stream's own stamps, where it is white.
+- A stream stamped late, not read late: a host that stamps each message as it arrives from a
+  device sampling on its own clock (a serial encoder, a USB servo bus) puts the jitter in the
+  stamps alone; the values are the device's, at its regular ticks.  Then each sample belongs at
+  its grid point (:func:`values_on_grid` tells the two apart from the data), and it is taken
+  there as it is instead of being fitted at its stamp.
 Cycles are counted from the time the grid spans, never from the number of messages received.
 """
 
@@ -52,6 +57,9 @@ class Grid:
     t: FloatArray
     dt: float
     resampled: bool
+    #: where the shape samples' values belong when not at their stamps (s): each sample's grid
+    #: point, for values that follow the grid rather than the stamps (:func:`values_on_grid`)
+    shape_t: FloatArray | None = None
 
     @classmethod
     def of(cls, rec: Recording) -> "Grid":
@@ -63,6 +71,7 @@ class Grid:
                 and np.allclose(np.diff(rel), dt, rtol=1e-3, atol=0.0)):
             return cls(t, dt, False)
         k, a, b = fit_grid(rel, dt)
+        shape_t = t[0] + a + b * k if values_on_grid(rel, rec.r, k, b) else None
         # grid points less than a step outside either stream's span (a pose stream starting a few
         # ms after the shape stream does not cost the first grid point: its first sample, within
         # the knot's support, still pins it; such an end point is marked unreliable)
@@ -76,11 +85,20 @@ class Grid:
                 code=TOO_LITTLE_DATA,
             )
         grid = t[0] + a + b * np.arange(k0, k1 + 1)
-        return cls(grid, float(b), True)
+        return cls(grid, float(b), True, shape_t)
+
+    @property
+    def snapped(self) -> bool:
+        """True when the shape values are taken at their samples' grid points (:func:`values_on_grid`)."""
+        return self.shape_t is not None
 
     def shape(self, rec: Recording) -> FloatArray:
         """Joint angles at the grid points (n, nj)."""
-        return rec.r if not self.resampled else knot_fit(rec.t, rec.r, self.t)
+        return rec.r if not self.resampled else knot_fit(self.shape_stamps(rec), rec.r, self.t)
+
+    def shape_stamps(self, rec: Recording) -> FloatArray:
+        """Where ``rec``'s shape values belong (s): its stamps, or their grid points when :attr:`snapped`."""
+        return rec.t if self.shape_t is None else self.shape_t
 
     def unreliable(self, ts: FloatArray) -> BoolArray:
         """:func:`gaps` of the stream ``ts``, the two ends, and their neighbours (none when not resampled).
@@ -135,6 +153,76 @@ def fit_grid(t: FloatArray, dt: float) -> tuple[FloatArray, float, float]:
             if sse2 < sse:
                 k, a, b = locked, a2, b2
     return k, a, b
+
+
+#: :func:`values_on_grid`: standard errors by which the data must refuse values at their stamps
+SNAP_SIGMAS = 4.0
+#: :func:`values_on_grid`: fewest intervals it judges from
+SNAP_MIN_INTERVALS = 32
+#: :class:`LiveGrid` on the grid (not snapped) asks :func:`values_on_grid` again every this many samples
+SNAP_EVERY = 128
+
+
+def snap_sums(t: FloatArray, r: FloatArray, k: FloatArray, b: float) -> FloatArray:
+    """The sums :func:`values_on_grid` judges from: (4, nj) rows Σx², Σxy, Σy², count per joint.
+
+    For every run of four samples on four neighbouring grid points (t, r and grid indices ``k``;
+    grid step ``b``), the middle interval gives x = v̂·(Δt − b) and y = Δr − v̂·b per joint, v̂
+    the velocity over the run.  Sums of several stretches add.
+    """
+    t, r, k = np.asarray(t, dtype=float), np.asarray(r, dtype=float), np.asarray(k, dtype=float)
+    if r.ndim == 1:
+        r = r[:, None]
+    i = np.arange(1, max(t.size - 2, 1))
+    i = i[(k[i + 2] - k[i - 1] == 3) & (k[i + 1] - k[i] == 1)] if t.size >= 4 else i[:0]
+    v = (r[i + 2] - r[i - 1]) / (t[i + 2] - t[i - 1])[:, None]
+    x = v * (t[i + 1] - t[i] - b)[:, None]
+    y = r[i + 1] - r[i] - v * b
+    return np.stack([(x * x).sum(axis=0), (x * y).sum(axis=0), (y * y).sum(axis=0),
+                     np.full(r.shape[1], float(i.size))])
+
+
+def snap_verdict(sums: FloatArray) -> bool:
+    """:func:`values_on_grid`'s decision from :func:`snap_sums` (per joint fits, weighted by their precision)."""
+    sxx, sxy, syy, n = np.asarray(sums, dtype=float)
+    ok = (sxx > 0) & (n >= SNAP_MIN_INTERVALS)
+    if not ok.any():
+        return False
+    sxx, sxy, syy, n = sxx[ok], sxy[ok], syy[ok], n[ok]
+    alpha = sxy / sxx
+    var = np.maximum(syy - alpha * sxy, 0.0) / (n - 1) / sxx
+    if not np.all(np.isfinite(var)) or np.any(var <= 0):
+        return False
+    w = 1.0 / var
+    a, se = float((w * alpha).sum() / w.sum()), float(np.sqrt(1.0 / w.sum()))
+    return bool(a < 0.5 and 1.0 - a > SNAP_SIGMAS * se)
+
+
+def values_on_grid(t: FloatArray, r: FloatArray, k: FloatArray, b: float) -> bool:
+    """True when a jittered stream's values follow its grid's times rather than its own stamps.
+
+    Two ways a stream gets stamp jitter.  Read late: the host reads the joints at irregular
+    times and stamps each reading with its time (the contract's reading of a stamp, and the lab
+    recordings'); each value is r(stamp).  Stamped late: a device samples on its own regular
+    clock and the host stamps each message as it arrives; each value is r(grid point), and the
+    stamp is off by the transport's delay.  Over an interval k → k+1 between neighbouring
+    samples, the change Δr is v·Δt when read late and v·b when stamped late (v the velocity, Δt
+    the stamps' interval, b the grid step).  With v̂ the velocity over the three intervals
+    around it (its end stamps are other samples', so their errors are not this interval's),
+    Δr − v̂·b = α·v̂·(Δt − b) is fitted per joint (least squares, :func:`snap_sums`), and the
+    joints' α are pooled by their precision: α ≈ 1 read late, α ≈ 0 stamped late.  True only
+    when α < 0.5 and α is below 1 by more than :data:`SNAP_SIGMAS` standard errors: a stream
+    that follows the contract is not taken for the other kind unless the data leave no doubt.
+    With little jitter the two cannot be told apart (nor does it matter much), and the stamps
+    are kept.
+
+    Parameters
+    ----------
+    t : (n,) stamps (s, relative), increasing.
+    r : (n, nj) values.
+    k, b : the grid index of every stamp and the grid step (:func:`fit_grid`).
+    """
+    return snap_verdict(snap_sums(t, r, k, b))
 
 
 #: at most this many recounts of :func:`fit_grid`'s indices with its own fitted step
@@ -223,9 +311,13 @@ def gaps(ts: FloatArray, grid: FloatArray) -> BoolArray:
 
 
 def _interp_matrix(x: FloatArray, nodes: FloatArray) -> scipy.sparse.csr_matrix:
-    """Rows: linear interpolation at ``x`` of values given at ``nodes`` (clamped at the ends)."""
+    """Rows: linear interpolation at ``x`` of values given at ``nodes`` (clamped at the ends).
+
+    ``nodes`` ascending; two equal nodes (two samples put on one grid point) make a step there.
+    """
     j = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
-    u = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+    width = nodes[j + 1] - nodes[j]
+    u = np.clip((x - nodes[j]) / np.where(width > 0, width, 1.0), 0.0, 1.0)
     rows = np.repeat(np.arange(x.size), 2)
     return scipy.sparse.csr_matrix((np.stack([1.0 - u, u], axis=1).ravel(),
                                     (rows, np.stack([j, j + 1], axis=1).ravel())),
@@ -417,6 +509,9 @@ LIVE_UNIFORM = 1e-3
 LIVE_PAUSE = 256
 
 
+_ON_GRID = ("grid", "snap")
+
+
 class LiveGrid:
     """:func:`on_shape_grid` as samples arrive: a shape stream brought onto its fitted uniform grid, live.
 
@@ -441,6 +536,10 @@ class LiveGrid:
        :data:`LIVE_BLOCK` at a time, stamped with its grid time.  Grid points without a sample
        (lost messages) are not released; the interval across them is the consumer's to judge.
 
+    On a stream stamped late, not read late (:func:`values_on_grid`, judged on the lock block:
+    mode ``"snap"``), each sample is fitted at its grid point instead of its stamp, so a knot's
+    value is its sample's.
+
     Released stamps increase strictly.  :meth:`drain` releases what is held at the end of a
     stream (the last knots pinned from one side, as at a recording's end).  A pause of more than
     :data:`LIVE_PAUSE` grid steps does the same, and the samples after it are locked afresh: a
@@ -450,7 +549,8 @@ class LiveGrid:
     Attributes
     ----------
     mode : str
-        ``"lock"`` (reading the first stamps), ``"raw"`` (uniform: passed on) or ``"grid"``.
+        ``"lock"`` (reading the first stamps), ``"raw"`` (uniform: passed on), ``"grid"`` or
+        ``"snap"`` (on the grid; the values belong to their grid points).
     last_stamp : float
         Newest stamp taken (s, as given), −inf before the first.
     """
@@ -471,11 +571,13 @@ class LiveGrid:
         self._ckt = 0.0
         self._next = 0.0  # first index not yet released
         self._out = -np.inf  # newest stamp released
+        self._snap: FloatArray | None = None  # values_on_grid's sums so far (grid mode), snap_sums
+        self._since = 0  # samples since values_on_grid was last asked
 
     @property
     def held(self) -> int:
         """Samples taken and not yet released."""
-        if self.mode == "grid":
+        if self.mode in _ON_GRID:
             return sum(1 for k in self._k if k >= self._next)
         return len(self._t) - self._passed if self.mode == "lock" else 0
 
@@ -512,7 +614,21 @@ class LiveGrid:
         self._r.append(r)
         self._k.append(k)
         self._update(k, tr)
+        if self.mode == "grid":
+            self._judge()
         return self._release(final=False)
+
+    def _judge(self) -> None:
+        """Add the newest run of four samples to :func:`values_on_grid`'s sums; now and then ask it."""
+        if len(self._k) >= 4 and self._snap is not None:
+            b = self._ckt / self._ckk
+            self._snap = self._snap + snap_sums(np.asarray(self._t[-4:]), np.asarray(self._r[-4:], dtype=float),
+                                                np.asarray(self._k[-4:]), b)
+        self._since += 1
+        if self._since >= SNAP_EVERY:
+            self._since = 0
+            if self._snap is not None and snap_verdict(self._snap):
+                self.mode = "snap"  # from the next release on; never back
 
     def _restart(self) -> None:
         """Back to reading a lock block; the stamps released so far stay released (``_out``)."""
@@ -526,7 +642,7 @@ class LiveGrid:
         rs: list[FloatArray] = []
         if self.mode == "lock" and self._t:
             ts, rs = self._decide()
-        if self.mode == "grid":
+        if self.mode in _ON_GRID:
             more = self._release(final=True)
             ts, rs = ts + more[0], rs + more[1]
         return ts, rs
@@ -550,7 +666,8 @@ class LiveGrid:
             ts, rs = [self._t0 + x for x in self._t[self._passed:]], self._r[self._passed:]
             self.mode, self._t, self._r = "raw", [], []
             return ts, rs
-        self.mode = "grid"
+        self._snap = snap_sums(t, np.asarray(self._r, dtype=float), k, b)
+        self.mode = "snap" if snap_verdict(self._snap) else "grid"
         self._k = k.tolist()
         for kk, tt in zip(self._k, self._t):
             self._update(kk, tt)
@@ -580,7 +697,8 @@ class LiveGrid:
         b = self._ckt / self._ckk
         a = self._mt - b * self._mk
         first = self._k[0]  # the held samples' grid points
-        values = knots_around(np.asarray(self._t), np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
+        at = a + b * np.asarray(self._k) if self.mode == "snap" else np.asarray(self._t)
+        values = knots_around(at, np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
         ts: list[float] = []
         rs: list[FloatArray] = []
         for kk in sorted(set(ready)):
@@ -601,10 +719,12 @@ def on_shape_grid(rec: Recording) -> Recording:
     For a recording whose shape stamps are already uniform and shared with the pose stream the
     recording itself is returned.  Otherwise the shape samples are replaced by the least-squares
     linear spline of :func:`knot_fit` at the grid points (the servo set-point times, where the
-    drive has its kinks), so shape intervals coincide with the drive's straight-line segments.
-    Ground truth, which belongs to the original stamps, is dropped.  Grid points inside a run of
-    at least ``BRIDGED_RUN`` lost samples are marked in ``bridged`` (:func:`bridged`): the spline
-    bridges them for the phase, but they were never measured.
+    drive has its kinks), so shape intervals coincide with the drive's straight-line segments;
+    a stream stamped late (:func:`values_on_grid`) has each value fitted at its sample's grid
+    point instead of its stamp, so there the samples are taken as they are.  Ground truth, which
+    belongs to the original stamps, is dropped.  Grid points inside a run of at least
+    ``BRIDGED_RUN`` lost samples are marked in ``bridged`` (:func:`bridged`): the spline bridges
+    them for the phase, but they were never measured.
     """
     grid = Grid.of(rec)
     if not grid.resampled:
@@ -613,5 +733,6 @@ def on_shape_grid(rec: Recording) -> Recording:
     if t.size < 3:
         raise SudsDataError("`rec`: fewer than 3 grid points inside the pose stream's span",
                             code=TOO_LITTLE_DATA)
-    effort = None if rec.effort is None else knot_fit(rec.t, rec.effort, t)
-    return replace(rec, t=t, r=knot_fit(rec.t, rec.r, t), effort=effort, truth={}, bridged=bridged(rec.t, t))
+    at = grid.shape_stamps(rec)
+    effort = None if rec.effort is None else knot_fit(at, rec.effort, t)
+    return replace(rec, t=t, r=knot_fit(at, rec.r, t), effort=effort, truth={}, bridged=bridged(rec.t, t))

@@ -9,7 +9,10 @@ out of sample (prequential): no held-out split of the training data is needed
 to score it honestly.
 
 The measured velocities are the forward differences of the recorded shape and
-pose over the same intervals (:mod:`suds_ros.core.ident.intervals`).  The reference
+pose over the same intervals (:mod:`suds_ros.core.ident.intervals`).  On a shape
+stream with stamp jitter the predictor predicts the intervals of its live grid,
+stamped with grid times; such predictions are scored on the recording's fitted
+grid (the identifier's), each interval whose two ends were predicted.  The reference
 is the phase-only template of the paper's Γ: the phaser is fitted on the first
 ``train_cycles`` of the recording and the template (a Fourier series in phase)
 is fitted to the measured velocities of those cycles; both are evaluated on the
@@ -128,12 +131,37 @@ def read_predictions(bag: str | Path, passive: tuple[str, ...], namespace: str =
             np.asarray(pas_ns, dtype=np.int64), np.asarray(pas, dtype=float).reshape(len(pas_ns), len(passive)))
 
 
-def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The values at each stamp (NaN rows where no key is within 1 µs); the last duplicate wins.
+#: a prediction stamped with its sample's own stamp matches it within this (ns): float-second
+#: stamps near 1.7e9 s are only good to ~240 ns
+_EXACT = 1_000
+#: predictions stamped with grid times match the recording's grid points within this fraction of a step
+#: (the predictor's live grid and the batch grid fitted to the whole stream differ by far less)
+_GRID_MATCH = 0.25
 
-    (Float-second stamps near 1.7e9 s are only good to ~240 ns, hence the tolerance.)
+
+def _prediction_grid(rec: Recording, body_ns: np.ndarray) -> tuple[Recording, int]:
+    """The recording whose shape intervals the predictions are for, and the stamp tolerance (ns).
+
+    The predictor stamps each prediction with the sample that closes its interval: its own
+    stamp on a uniform stream (or with ``regrid`` off), a grid time on a stream with stamp
+    jitter (its live grid, :class:`~suds_ros.core.ident.predictor.GridPredictor`).  When fewer
+    than half of the predictions carry a recorded shape stamp, they are scored on the
+    recording's fitted grid (:func:`~suds_ros.core.resample.on_shape_grid`, as the
+    identifier fits and scores), each matched to the nearest grid point.
     """
-    tol = 1_000
+    own = np.isfinite(_lookup(body_ns, float_to_ns(rec.t), np.zeros((rec.t.size, 1)))[:, 0])
+    if own.sum() >= 0.5 * body_ns.size:
+        return rec, _EXACT
+    from suds_ros.core.resample import on_shape_grid
+
+    grid = on_shape_grid(rec)
+    if grid is rec:
+        return rec, _EXACT
+    return grid, int(_GRID_MATCH * grid.dt * 1e9)
+
+
+def _lookup(stamps_ns: np.ndarray, keys_ns: np.ndarray, values: np.ndarray, tol: int = _EXACT) -> np.ndarray:
+    """The values at each stamp (NaN rows where no key is within ``tol`` ns); the last duplicate wins."""
     order = np.argsort(keys_ns, kind="stable")
     keys, vals = keys_ns[order], values[order]
     idx = np.clip(np.searchsorted(keys, stamps_ns + tol, side="right") - 1, 0, keys.size - 1)
@@ -193,13 +221,20 @@ def score_live_predictions(bag: str | Path, train_cycles: float | None = None,
         raise SudsDataError(f"{bag}: {cycles:.1f} cycles recorded; cannot keep {train_cycles:g} for "
                             "the template and at least 1 to score (need ≥ 2 for the template)")
     body_ns, body, pas_ns, pas = read_predictions(bag, rec.passive, namespace)
+    rec, tol = _prediction_grid(rec, body_ns)
 
     iv = make_intervals(rec)
     k = iv.k.astype(np.int64)
     end_ns = float_to_ns(rec.t[k + 1])  # a prediction is stamped t_{k+1}
     meas = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
-    pred_p = _lookup(end_ns, pas_ns, pas) if rec.passive else np.empty((end_ns.size, 0))
-    pred = np.concatenate([_lookup(end_ns, body_ns, body), pred_p], axis=1)
+    pred_p = _lookup(end_ns, pas_ns, pas, tol) if rec.passive else np.empty((end_ns.size, 0))
+    pred = np.concatenate([_lookup(end_ns, body_ns, body, tol), pred_p], axis=1)
+    if tol > _EXACT:
+        # on the grid a lost sample is not released, so the prediction after it spans two grid
+        # steps, while the grid's measured intervals are one step each: only intervals whose
+        # both ends were predicted are the predictor's own
+        start = np.all(np.isfinite(_lookup(float_to_ns(rec.t[k]), body_ns, body, tol)), axis=1)
+        pred[~start] = np.nan
 
     cut = rec.t[0] + train_cycles / hz
     train_s = rec.t < cut

@@ -4,7 +4,14 @@ For every ``suds/shape`` sample it publishes the prediction for the interval
 ending at that sample: ``suds/predicted/body_velocity``
 (geometry_msgs/TwistStamped, body frame ``frame_id``) and
 ``suds/predicted/passive_velocity`` (sensor_msgs/JointState, passive joint
-names and ``velocity``), both stamped with the shape sample's stamp.  The
+names and ``velocity``), both stamped with the shape sample's stamp.  A shape
+stream with stamp jitter (a host-stamped servo loop) is first brought onto its
+fitted uniform grid, as the estimator fits it (``regrid``,
+:class:`~suds_ros.core.ident.predictor.GridPredictor`): then each prediction is
+for a grid interval and stamped with its grid time (the stamps of the
+estimator's ``suds/measured/*``), and comes a few grid points late (held
+samples are released after ``idle_flush`` s without a sample).  A uniform stream
+passes unchanged and without delay.  The
 model's joints are taken from each shape message by name, in the model's order
 (other joints, e.g. of a robot's ``/joint_states``, are ignored).  Topic names are
 relative (:mod:`suds_ros.ros.topics`): ``__ns`` and remapping apply.
@@ -23,6 +30,7 @@ see docs/results/latency.md) or ``single`` (SingleThreadedExecutor).
 from __future__ import annotations
 
 import sys
+import time
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,12 +41,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from suds_ros.core.config import check_settings
 from suds_ros.core.errors import SudsConfigError, SudsError, error_code
-from suds_ros.core.ident.predictor import StreamingPredictor, carry_over
+from suds_ros.core.ident.predictor import GridPredictor
 from suds_ros.ros.conversions import (
     joint_state_from_msg,
     joint_velocity_to_msg,
     model_from_msg,
-    select_joints,
     twist_to_msg,
 )
 from suds_ros.ros.params import config_from_parameters
@@ -59,6 +66,12 @@ class PredictorConfig:
     executor: str = field(default="events", metadata={
         "description": "events (EventsExecutor, if available) or single (SingleThreadedExecutor)"})
     system: str = field(default="", metadata={"description": "unused; accepted for the pipeline"})
+    regrid: bool = field(default=True, metadata={
+        "description": "bring a shape stream with stamp jitter onto its fitted uniform grid, as the estimator "
+                       "does, and predict its intervals (a uniform stream passes unchanged and without delay)"})
+    idle_flush: float = field(default=2.0, metadata={
+        "description": "wall s without a shape sample before the samples held for the grid are predicted",
+        "range": (0.01, 3600.0)})
 
     def __post_init__(self) -> None:
         check_settings(self)  # the ranges in the field metadata
@@ -85,18 +98,19 @@ class PredictorNode(Node):
         self.create_subscription(String, MODEL, self._on_model, MODEL_QOS)
         self._shape_cls = JointState
         self._shape_sub: Any = None
-        self.predictor: StreamingPredictor | None = None
+        self.stream = GridPredictor(self.config.regrid)
         self.before_model = 0
         self.predictions = 0
         self.models = 0
         self.skipped: Counter[str] = Counter()
-        self._last: Any = None
         self._twist: Any = None  # the prediction messages, filled in again for every sample
         self._rates: Any = None
+        self._last_arrival: float | None = None  # wall (monotonic) s of the newest shape message
         self._discovery = self.create_timer(0.1, self._discover)
+        self.create_timer(min(0.5, self.config.idle_flush / 2), self._on_idle_check)
         cfg = self.config
-        self.get_logger().info(f"ready: frame_id {cfg.frame_id}, depth {cfg.depth}, executor {cfg.executor}; "
-                               f"waiting for publishers of {self.resolve_topic_name(SHAPE)}")
+        self.get_logger().info(f"ready: frame_id {cfg.frame_id}, depth {cfg.depth}, executor {cfg.executor}, "
+                               f"regrid {cfg.regrid}; waiting for publishers of {self.resolve_topic_name(SHAPE)}")
         self._discover()
 
     def _discover(self) -> None:
@@ -119,53 +133,62 @@ class PredictorNode(Node):
             self.get_logger().warning(f"skipping bad {stream} message(s) [{key}]: {exc} (logged once)")
         self.skipped[key] += 1
 
+    @property
+    def predictor(self) -> Any:
+        """The streaming predictor of the newest model (None before the first)."""
+        return self.stream.predictor
+
     def _on_model(self, msg: Any) -> None:
+        first = self.stream.predictor is None
         try:
             model = model_from_msg(msg)
-            last = self._last
-            if last is not None and set(model.joint_names) <= set(last.names):
-                last = select_joints(last, model.joint_names)
-            new, how = carry_over(self.predictor, model, last)
+            how = self.stream.set_model(model)
         except Exception as exc:  # noqa: BLE001 - never die on a bad model message
             self._skip("model", exc)
             return
-        if self.predictor is None:
+        if first:
             self.get_logger().info(f"first model ({model.n_samples} rows; passive {list(model.passive)}); "
                                    f"{self.before_model} samples arrived before it")
-        self.predictor = new
         self.models += 1
         self.get_logger().debug(f"model {self.models} ({model.n_samples} rows, continuity: {how})")
 
     def _on_shape(self, msg: Any) -> None:
+        self._last_arrival = time.monotonic()
         try:
             s = joint_state_from_msg(msg)
-        except SudsError as exc:
-            self._skip("shape", exc)
-            return
-        if self.predictor is None:
-            self.before_model += 1
-            self._last = s
-            return
-        try:
-            s = select_joints(s, self.predictor.model.joint_names)
-            out = self.predictor.update(s.stamp, s.names, s.position)
+            if self.stream.predictor is None:
+                self.before_model += 1
+            out = self.stream.add(s.stamp, s.names, s.position)
         except Exception as exc:  # noqa: BLE001 - the node never dies on traffic
             self._skip("shape", exc)
             return
-        self._last = s
-        if out is None:
+        self._publish(out, s.stamp, msg.header.stamp)
+
+    def _on_idle_check(self) -> None:
+        """Predict what the grid stage holds once no shape sample has come for ``idle_flush`` s."""
+        if (self._last_arrival is None or not self.stream.held
+                or time.monotonic() - self._last_arrival <= self.config.idle_flush):
             return
-        xi, rdot_p = out
-        try:  # stamped with the shape message's own stamp, to the nanosecond; the two outputs reused
-            self._twist = twist_to_msg(msg.header.stamp, xi[0], xi[1], xi[2], frame_id=self.config.frame_id,
-                                       out=self._twist)
-            self._rates = joint_velocity_to_msg(msg.header.stamp, self.predictor.passive, rdot_p, out=self._rates)
-        except SudsError as exc:  # a model that predicts NaN
-            self._skip("prediction", exc)
-            return
-        self._body_pub.publish(self._twist)
-        self._passive_pub.publish(self._rates)
-        self.predictions += 1
+        self._publish(self.stream.drain(), None, None)
+
+    def _publish(self, out: list[tuple[float, Any, Any]], t_msg: float | None, header_stamp: Any) -> None:
+        """Publish the released predictions (a raw sample's keeps its message's stamp to the ns)."""
+        for exc in self.stream.errors:
+            self._skip("shape", exc)
+        self.stream.errors.clear()
+        passive = self.stream.predictor.passive if self.stream.predictor is not None else ()
+        for t, xi, rdot_p in out:
+            stamp = header_stamp if t == t_msg else t
+            try:  # the two outputs reused
+                self._twist = twist_to_msg(stamp, xi[0], xi[1], xi[2], frame_id=self.config.frame_id,
+                                           out=self._twist)
+                self._rates = joint_velocity_to_msg(stamp, passive, rdot_p, out=self._rates)
+            except SudsError as exc:  # a model that predicts NaN
+                self._skip("prediction", exc)
+                continue
+            self._body_pub.publish(self._twist)
+            self._passive_pub.publish(self._rates)
+            self.predictions += 1
 
 
 def make_executor(kind: str) -> Any:

@@ -233,3 +233,66 @@ def test_a_fully_actuated_robot_has_no_passive_score(worm8_run, tmp_path, capsys
     assert suds_main(["score", str(tmp_path / "empty.mcap"), "--train-cycles", str(TRAIN)]) == 0
     text = capsys.readouterr().out
     assert "Γ passive none" in text and "passive velocity none" in text and "nan" not in text.lower(), text
+
+
+def write_lab_bag(path, rec, preds) -> None:
+    """Shape and pose each on their own stamps, and predictions (stamp s → (ξ, ṙ_p)) on theirs."""
+    events = [(float_to_ns(t), 0, k) for k, t in enumerate(rec.t)]
+    events += [(float_to_ns(t), 1, k) for k, t in enumerate(rec.pose_t)]
+    events += [(float_to_ns(t), 2, t) for t in preds]
+    with BagWriter(path) as w:
+        for topic, type_name in ((SHAPE_TOPIC, SHAPE_TYPE), (POSE_TOPIC, POSE_TYPE), (PREDICTED_BODY_TOPIC, TWIST_TYPE),
+                                 (PREDICTED_PASSIVE_TOPIC, SHAPE_TYPE)):
+            w.add_topic(topic, type_name)
+        w.write_metadata(METADATA_NAME, {"system": rec.system, "actuated": ",".join(rec.actuated),
+                                         "passive": ",".join(rec.passive), "gait_hz": "1.0"})
+        for ns, kind, k in sorted(events, key=lambda e: e[:2]):
+            if kind == 0:
+                w.write_raw(SHAPE_TOPIC, cdr.joint_state(ns, rec.joint_names, rec.r[k], (), ()), ns, ns)
+            elif kind == 1:
+                x, y, yaw = rec.pose[k]
+                w.write_raw(POSE_TOPIC, cdr.pose_stamped(ns, (x, y, 0.0), yaw_quaternion(yaw)), ns, ns)
+            else:
+                xi, rp = preds[k]
+                twist = {"header": _header(ns), "twist": {
+                    "linear": {"x": xi[0], "y": xi[1], "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": xi[2]}}}
+                w.write_raw(PREDICTED_BODY_TOPIC, cdr.encode(TWIST_TYPE, twist), ns, ns)
+                w.write_raw(PREDICTED_PASSIVE_TOPIC, cdr.joint_state(ns, rec.passive, (), rp, ()), ns, ns)
+
+
+def test_predictions_on_the_live_grid_of_a_jittered_stream_are_scored_on_its_grid(tmp_path):
+    """2 ms of stamp jitter: the predictor's grid-stamped predictions are scored on the recording's
+    fitted grid (as `suds identify --streaming` scores the same model), and read better than the
+    raw intervals' predictions, which are still scored on the raw stamps they carry."""
+    from suds_ros.core.ident.predictor import GridPredictor, evaluate_model
+    from suds_ros.core.ident.scoring import score_prediction
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.core.resample import on_shape_grid
+
+    rec = simulate_lab(make_system("purcell3"), SimConfig(cycles=36, seed=5), LabConditions(jitter=0.002))
+    train, test = split_cycles(rec, 24, 12)
+    model = fit_streaming(train).model()
+    on_grid, on_raw = GridPredictor(), StreamingPredictor(model)
+    grid_preds, raw_preds = {}, {}
+    for k in range(rec.n_samples):
+        if k == train.n_samples - 1:
+            on_grid.set_model(model)  # the model arrives as the training cycles end
+        for t, xi, rp in on_grid.add(float(rec.t[k]), rec.joint_names, rec.r[k]):
+            grid_preds[t] = (xi, rp)
+        if k >= train.n_samples - 1:
+            out = on_raw.update(float(rec.t[k]), rec.joint_names, rec.r[k])
+            if out is not None:
+                raw_preds[float(rec.t[k])] = out
+    for t, xi, rp in on_grid.drain():
+        grid_preds[t] = (xi, rp)
+    write_lab_bag(tmp_path / "grid.mcap", rec, grid_preds)
+    write_lab_bag(tmp_path / "raw.mcap", rec, raw_preds)
+    s_grid = score_live_predictions(tmp_path / "grid.mcap", 24)
+    s_raw = score_live_predictions(tmp_path / "raw.mcap", 24)
+    offline = score_prediction(evaluate_model(model, on_shape_grid(test)))
+    assert s_grid.coverage > 0.95 and s_raw.coverage > 0.98, (s_grid, s_raw)
+    assert abs(s_grid.gamma_body - offline.gamma_body) < 0.02, (s_grid, offline)
+    assert abs(s_grid.gamma_passive - offline.gamma_passive) < 0.02, (s_grid, offline)
+    assert s_grid.gamma_body > s_raw.gamma_body + 0.03, (s_grid, s_raw)

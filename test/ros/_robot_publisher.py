@@ -8,6 +8,9 @@ two joints the model does not know, positions, velocities and efforts) and
 system at half the joint rate.  It first waits (≤ 60 s) until ``/joint_states``
 has 2 subscribers and ``/mocap/pose`` one, then publishes (reliable, so none is
 lost), waits until every sample is acknowledged and prints ``published N``.
+``python _robot_publisher.py CYCLES JITTER_MS`` stamps the joint states with
+host-clock jitter (normal, sd JITTER_MS ms, clipped at ±4 ms, seeded); the
+motion capture keeps its own clock.
 """
 
 import sys
@@ -30,6 +33,8 @@ EXTRA = ("camera_pan", "gripper")
 
 def main() -> int:
     cycles = int(sys.argv[1])
+    jitter = float(sys.argv[2]) * 1e-3 if len(sys.argv) > 2 else 0.0
+    rng = np.random.default_rng(7)
     system = make_system("purcell3")
     sim = StreamingSimulator(system, SimConfig(samples_per_cycle=100, gait_hz=1.0, noise_std=1e-3,
                                                seed=5, t0=1.7e9))
@@ -42,8 +47,8 @@ def main() -> int:
 
     joints = node.create_publisher(JointState, "/joint_states", QOS)
     mocap = node.create_publisher(PoseStamped, "/mocap/pose", QOS)
-    wait_for(lambda: joints.get_subscription_count() >= 2 and mocap.get_subscription_count() >= 1,
-             60.0, "the estimator and predictor on /joint_states and /mocap/pose")
+    wait_for(lambda: joints.get_subscription_count() >= 3 and mocap.get_subscription_count() >= 1,
+             60.0, "the estimator, the predictor and the test's probe on /joint_states, the estimator on /mocap/pose")
     print("publishing", flush=True)
     sent = 0
     for c in range(cycles):
@@ -51,7 +56,8 @@ def main() -> int:
         for k in range(chunk.t.size):
             r = dict(zip(names, chunk.r[k]))
             pos = np.array([0.3 if n == EXTRA[0] else 0.01 if n == EXTRA[1] else r[n] for n in published_names])
-            joints.publish(joint_state_to_msg(float(chunk.t[k]), published_names, pos,
+            t = float(chunk.t[k]) + (float(np.clip(rng.normal(0.0, jitter), -0.004, 0.004)) if jitter else 0.0)
+            joints.publish(joint_state_to_msg(t, published_names, pos,
                                               velocity=np.zeros(pos.size), effort=np.zeros(pos.size)))
             if k % 2 == 0 or (c == cycles - 1 and k == chunk.t.size - 1):  # and the last sample's
                 p = chunk.pose[k]

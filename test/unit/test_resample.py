@@ -170,3 +170,63 @@ def test_live_grid_drains_a_stream_shorter_than_its_lock_block() -> None:
     _, _, t, r = _servo_stream(jitter=0.002, drop=0.0, n=100)
     ts, rs, at_once, g = _live(t, r)  # _live checks that nothing is held after the drain
     assert g.mode == "grid" and ts.size == np.unique(np.round((t - 5.0) / 0.01)).size
+
+
+def _stamped_late(jitter: float, drop: float, seed: int = 1,  # type: ignore[no-untyped-def]
+                  n: int = 3000, dt: float = 0.01):
+    """The same drive sampled by a device on its own 100 Hz clock and stamped late by the host:
+    each value is its set-point, each stamp its tick plus a transport delay that varies."""
+    rng = np.random.default_rng(seed)
+    grid = 5.0 + dt * np.arange(n)
+    setpoints = np.cumsum(rng.normal(0.0, 0.02, (n, 2)), axis=0)
+    keep = rng.random(n) >= drop
+    t = grid + np.clip(rng.normal(0.0, jitter, n), -0.4 * dt, 0.4 * dt)
+    return grid, setpoints, t[keep], setpoints[keep]
+
+
+@pytest.mark.parametrize("jitter", [0.0004, 0.001, 0.002, 0.003])
+def test_values_read_at_their_stamps_are_never_taken_for_values_on_the_grid(jitter: float) -> None:
+    """The contract's stamps (each the value's acquisition time): 12 seeds, with and without losses."""
+    from suds_ros.core.resample import values_on_grid
+
+    for seed in range(12):
+        _, _, t, r = _servo_stream(jitter, 0.1 * (seed % 2), seed=seed, n=1500)
+        k, a, b = fit_grid(t - t[0], 0.01)
+        assert not values_on_grid(t - t[0], r, k, b), seed
+
+
+@pytest.mark.parametrize("jitter, n", [(0.001, 3000), (0.002, 1500), (0.003, 1500)])
+def test_values_stamped_late_are_told_from_values_read_late(jitter: float, n: int) -> None:
+    """On a drive as rough as a random walk of set-points; at 1 ms it takes 30 s of samples to be sure."""
+    from suds_ros.core.resample import values_on_grid
+
+    for seed in range(12):
+        _, _, t, r = _stamped_late(jitter, 0.1 * (seed % 2), seed=seed, n=n)
+        k, a, b = fit_grid(t - t[0], 0.01)
+        assert values_on_grid(t - t[0], r, k, b), seed
+    t = 0.01 * np.arange(500)  # uniform stamps carry no evidence either way
+    assert not values_on_grid(t, np.sin(t)[:, None], np.arange(500.0), 0.01)
+
+
+@pytest.mark.parametrize("jitter, drop", [(0.002, 0.0), (0.002, 0.3), (0.003, 0.1)])
+def test_live_grid_takes_values_stamped_late_at_their_grid_points(jitter: float, drop: float) -> None:
+    """The set-points come back as they were sampled, at their ticks; the batch grid does the same."""
+    from suds_ros.core.recording import Recording
+    from suds_ros.core.resample import Grid
+
+    grid, setpoints, t, r = _stamped_late(jitter, drop)
+    ts, rs, _, g = _live(t, r)
+    assert g.mode == "snap"
+    ts, rs = ts[2:], rs[2:]  # the first two go on as they came
+    idx = np.round((ts - grid[0]) / 0.01).astype(int)
+    assert np.abs(ts - grid[idx]).max() < 0.05 * 0.01 and np.unique(idx).size == idx.size
+    late = slice(idx.size // 2, None)  # (the stage may judge after its lock block, from more samples)
+    np.testing.assert_allclose(rs[late], setpoints[idx[late]], atol=1e-4)
+    rec = Recording(system="test", joint_names=("a", "b"), actuated=("a",), passive=("b",), t=t, r=r,
+                    pose_t=grid[::2], pose=np.zeros((grid[::2].size, 3)))
+    bg = Grid.of(rec)
+    assert bg.snapped
+    inside = (bg.t > grid[1]) & (bg.t < grid[-2])
+    j = np.round((bg.t[inside] - grid[0]) / 0.01).astype(int)
+    have = np.isin(j, np.round((t - grid[0]) / 0.01).astype(int))
+    np.testing.assert_allclose(bg.shape(rec)[inside][have], setpoints[j[have]], atol=1e-4)

@@ -3,23 +3,26 @@
 :class:`StreamingPredictor` turns a stream of shape samples into predictions of
 the body and passive-joint velocities over each interval; :func:`carry_over`
 decides how a new model takes over a running stream without a gap;
-:func:`evaluate_model` runs a predictor over a recording for scoring.
+:class:`GridPredictor` puts the live shape grid in front of both (the predictor
+node's logic); :func:`evaluate_model` runs a predictor over a recording for scoring.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+import math
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import SudsDataError, SudsError
+from suds_ros.core.errors import NAN_OR_INF, WRONG_JOINT_COUNT, WRONG_JOINT_NAMES, SudsDataError, SudsError
 from suds_ros.core.ident.intervals import make_intervals
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, model_template
 from suds_ros.core.ident.scoring import Prediction, average_over_pose_intervals
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.ident.sysid import interval_state
 from suds_ros.core.recording import Recording
+from suds_ros.core.resample import LiveGrid
 
 
 class JointSample(Protocol):
@@ -129,6 +132,150 @@ def carry_over(old: StreamingPredictor | None, model: SudsModel,
         except SudsError:
             pass
     return new, "fresh"
+
+
+class _Sample(NamedTuple):
+    """A shape sample released by the grid stage: stamp (s), joint names, positions."""
+
+    stamp: float
+    names: tuple[str, ...]
+    position: FloatArray
+
+
+class GridPredictor:
+    """The predictor node's logic without ROS: the live shape grid, then :class:`StreamingPredictor`.
+
+    The estimator fits a shape stream with stamp jitter on its fitted uniform grid
+    (:class:`~suds_ros.core.resample.LiveGrid`, ``OnlineConfig.regrid``), where each interval
+    is one of the drive's straight segments; predicting the raw intervals instead cuts each
+    segment's bend and reads worse than the model is (``docs/results/streaming_jitter.md``).
+    With ``regrid`` this class runs the same stage on the same samples, so its predictions are
+    for the grid intervals and stamped with their grid times, the times of the estimator's
+    measured rows.  On a uniform stream (every simulator stream, an aligned bag) the stage
+    passes each sample at once and unchanged: each prediction is made, and stamped, at the
+    sample that closes its interval.  On a jittered one it costs latency: the first
+    ``LIVE_LOCK`` samples are held to lock the grid, then samples come out
+    ``LIVE_DELAY`` to ``LIVE_DELAY + LIVE_BLOCK`` grid points late
+    (:mod:`~suds_ros.core.resample`); :meth:`drain` releases what is held when the stream
+    stops.
+
+    Every sample enters the grid, before the first model too (so the grid is the estimator's,
+    which also reads from the first sample); the newest released sample primes a new model's
+    predictor (:func:`carry_over`).  Samples are taken with all the joints of their message, in
+    its order (a robot's ``/joint_states``); a change of joint names drains the stage and
+    starts it afresh.  The model's joints are picked by name as each sample is predicted.
+
+    Attributes
+    ----------
+    predictor : StreamingPredictor or None
+        The predictor of the newest model (None before the first).
+    last : the newest sample released by the grid stage (stamp, names, position), or None.
+    last_stamp : float
+        Newest stamp taken (s, as given), −inf before the first.
+    errors : list of SudsError
+        Released samples the predictor refused (e.g. the model's joints missing from the
+        message), in order; the caller reports and clears them.
+    """
+
+    def __init__(self, regrid: bool = True) -> None:
+        self.regrid = bool(regrid)
+        self.grid: LiveGrid | None = LiveGrid() if self.regrid else None
+        self.names: tuple[str, ...] | None = None
+        self.predictor: StreamingPredictor | None = None
+        self.last: _Sample | None = None
+        self.last_stamp = -np.inf
+        self.errors: list[SudsError] = []
+        self._pick: tuple[tuple[str, ...], tuple[str, ...], np.ndarray | None] | None = None
+
+    @property
+    def held(self) -> int:
+        """Samples held by the grid stage (not yet released)."""
+        return 0 if self.grid is None else self.grid.held
+
+    @property
+    def mode(self) -> str:
+        """The grid stage's mode: ``off``, ``lock``, ``raw`` or ``grid`` (see :class:`LiveGrid`)."""
+        return "off" if self.grid is None else self.grid.mode
+
+    def set_model(self, model: SudsModel) -> str:
+        """Predict with ``model`` from the next released sample on; returns how (:func:`carry_over`)."""
+        last = self.last
+        if last is not None:
+            try:
+                last = _Sample(last.stamp, model.joint_names, self._select(last, model.joint_names))
+            except SudsDataError:
+                last = None
+        self.predictor, how = carry_over(self.predictor, model, last)
+        return how
+
+    def add(self, t: float, names: tuple[str, ...], position: FloatArray
+            ) -> list[tuple[float, FloatArray, FloatArray]]:
+        """Take a shape sample; returns the predictions (stamp s, ξ (3,), ṙ_p) it releases, in order.
+
+        Raises
+        ------
+        SudsDataError
+            The sample itself is bad (NaN or Inf, a position count other than the name count, a
+            duplicate or out-of-order stamp); the stage is unchanged.
+        """
+        t, names = float(t), tuple(names)
+        r = np.asarray(position, dtype=float).reshape(-1)
+        if r.size != len(names):
+            raise SudsDataError(f"`position`: expected {len(names)} values (one per joint name), got {r.size}",
+                                code=WRONG_JOINT_COUNT)
+        if not math.isfinite(t) or not np.all(np.isfinite(r)):
+            raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
+        check_stamp("shape", t, self.last_stamp)
+        out: list[tuple[float, FloatArray, FloatArray]] = []
+        if names != self.names:
+            if self.names is not None:
+                out = self.drain()
+                self.grid = LiveGrid() if self.regrid else None
+            self.names = names
+        self.last_stamp = t
+        ts, rs = self.grid.add(t, r) if self.grid is not None else ([t], [r])
+        return out + self._predict(ts, rs)
+
+    def drain(self) -> list[tuple[float, FloatArray, FloatArray]]:
+        """Release what the grid stage holds (the stream stopped); returns those predictions."""
+        if self.grid is None or self.names is None:
+            return []
+        return self._predict(*self.grid.drain())
+
+    def _select(self, sample: _Sample, want: tuple[str, ...]) -> FloatArray:
+        """The positions of ``want`` in ``sample`` (by name; the index map is cached)."""
+        if self._pick is None or self._pick[:2] != (sample.names, want):
+            if sample.names == want:
+                idx = None
+            else:
+                index = {n: i for i, n in enumerate(sample.names)}
+                missing = [n for n in want if n not in index]
+                if missing:
+                    raise SudsDataError(f"`name`: joints {missing} are missing; the message has "
+                                        f"{list(sample.names)}", code=WRONG_JOINT_NAMES)
+                idx = np.array([index[n] for n in want])
+            self._pick = (sample.names, want, idx)
+        idx = self._pick[2]
+        return sample.position if idx is None else sample.position[idx]
+
+    def _predict(self, ts: list[float], rs: list[FloatArray]) -> list[tuple[float, FloatArray, FloatArray]]:
+        """The released samples through the current predictor (refusals go to ``errors``)."""
+        out: list[tuple[float, FloatArray, FloatArray]] = []
+        assert self.names is not None
+        for t, r in zip(ts, rs):
+            sample = _Sample(t, self.names, r)
+            self.last = sample
+            if self.predictor is None:
+                continue
+            want = self.predictor.model.joint_names
+            try:
+                o = self.predictor.update(t, want, self._select(sample, want))
+            except SudsError as exc:
+                self.errors.append(exc)
+                continue
+            if o is not None:
+                out.append((t, o[0], o[1]))
+        return out
 
 
 def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:

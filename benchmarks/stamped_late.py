@@ -1,0 +1,143 @@
+"""A shape stream stamped late, not read late: values on the device's clock, jitter in the stamps alone.
+
+A host that stamps each joint-state message as it arrives from a device sampling on its own regular
+clock (a serial encoder, a USB servo bus) gives the values of the device's ticks with stamps that
+carry the transport's varying delay.  The grid stage fitted each value at its stamp (right for a
+host that *reads* the joints at irregular times and stamps each reading, the contract's stamps and
+the lab recordings'), so there it moved every value by the delay.  `core/resample.values_on_grid`
+now tells the two apart from the data (Δr over an interval follows the stamps' Δt when read late,
+the grid step when stamped late) and takes a stamped-late stream's values at their grid points, in
+the batch grid (`on_shape_grid`) and the live one (`LiveGrid`, mode ``snap``).
+
+Here: lab recordings (pose 120 Hz from 3.7 ms later, 1 % of each stream lost, 60 cycles: 40 train /
+20 held out) whose shape stamps are then delayed by Gaussian jitter (clipped at 0.4 periods).  Every
+model is scored on the held-out cycles with their true (unjittered) stamps.  *before*: the grid as it
+was (values at their stamps; `SNAP_SIGMAS` = inf).  A second table counts how often the lab
+recordings themselves (read late) were taken for stamped late.  Writes docs/results/stamped_late.md.
+
+    python benchmarks/stamped_late.py [--systems purcell3 swimmer9] [--seeds 0 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from _common import machine, stamp, write
+
+import suds_ros.core.resample as resample
+from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+from suds_ros.core.ident.online import OnlineConfig, fit_streaming
+from suds_ros.core.ident.predictor import evaluate_model
+from suds_ros.core.ident.scoring import score_prediction
+from suds_ros.core.physics.lab import LabConditions, simulate_lab
+from suds_ros.core.physics.sim import SimConfig
+from suds_ros.core.physics.systems import make_system
+
+JITTERS = (0.0004, 0.001, 0.002, 0.003)  # stamp delay jitter, s
+SNAP = resample.SNAP_SIGMAS
+
+
+def stamped_late(system: object, seed: int, jitter: float) -> tuple[object, object]:
+    """(the recording with its shape stamps delayed, the same recording on its true stamps)."""
+    rec = simulate_lab(system, SimConfig(cycles=60, seed=seed), LabConditions(jitter=0.0))  # type: ignore[arg-type]
+    rng = np.random.default_rng(1000 + seed)
+    step = float(np.median(np.diff(rec.t)))
+    late = rec.t + np.clip(rng.normal(0.0, jitter, rec.t.size), -0.4 * step, 0.4 * step)
+    return replace(rec, t=late, truth={}), rec
+
+
+def fits(train: object, truth_test: object) -> dict[str, tuple[float, float, str]]:
+    """Γ body, Γ passive on the true stamps, and the grid's verdict, per method."""
+    out: dict[str, tuple[float, float, str]] = {}
+    for label, snap in (("before", float("inf")), ("now", SNAP)):
+        resample.SNAP_SIGMAS = snap
+        try:
+            snapped = resample.Grid.of(train).snapped  # type: ignore[arg-type]
+            s = SudsIdentifier(IdentifyConfig()).fit(train).scores(truth_test)  # type: ignore[arg-type]
+            out[f"batch {label}"] = (s.gamma_body, s.gamma_passive, "snap" if snapped else "grid")
+            est = fit_streaming(train, OnlineConfig())  # type: ignore[arg-type]
+            s = score_prediction(evaluate_model(est.model(), truth_test))  # type: ignore[arg-type]
+            out[f"streaming {label}"] = (s.gamma_body, s.gamma_passive, est.regrid.mode)  # type: ignore[union-attr]
+        finally:
+            resample.SNAP_SIGMAS = SNAP
+    est = fit_streaming(train, OnlineConfig(regrid=False))  # type: ignore[arg-type]
+    s = score_prediction(evaluate_model(est.model(), truth_test))  # type: ignore[arg-type]
+    out["streaming raw"] = (s.gamma_body, s.gamma_passive, "off")
+    return out
+
+
+COLUMNS = ("batch before", "batch now", "streaming raw", "streaming before", "streaming now")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--systems", nargs="+", default=["purcell3", "swimmer9"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    lines = ["| system | jitter ms | " + " | ".join(COLUMNS) + " | verdict (batch; live) |",
+             "|---|---|" + "---|" * (len(COLUMNS) + 1)]
+    false = ["| system | jitter ms | recordings | taken for stamped late (batch) | (live) |", "|---|---|---|---|---|"]
+    for name in args.systems:
+        system = make_system(name)
+        for jitter in JITTERS:
+            runs = []
+            wrong_batch = wrong_live = 0
+            for seed in args.seeds:
+                late, rec = stamped_late(system, seed, jitter)
+                train, _ = split_cycles(late, 40, 20)
+                _, truth_test = split_cycles(rec, 40, 20)
+                runs.append(fits(train, truth_test))
+                print(name, jitter, seed, {k: tuple(np.round(v[:2], 3)) + (v[2],) for k, v in runs[-1].items()},
+                      flush=True)
+                lab = simulate_lab(system, SimConfig(cycles=60, seed=seed),  # type: ignore[arg-type]
+                                   LabConditions(jitter=jitter))
+                lab_train, _ = split_cycles(lab, 40, 20)
+                wrong_batch += resample.Grid.of(lab_train).snapped
+                wrong_live += fit_streaming(lab_train, OnlineConfig()).regrid.mode == "snap"  # type: ignore[union-attr]
+            cells = []
+            for c in COLUMNS:
+                g = np.array([r[c][:2] for r in runs])
+                cells.append(f"{g[:, 0].mean():.3f} / {g[:, 1].mean():.3f}")
+            verdict = "; ".join(", ".join(sorted({r[c][2] for r in runs})) for c in ("batch now", "streaming now"))
+            lines.append(f"| {name} | {1e3 * jitter:g} | " + " | ".join(cells) + f" | {verdict} |")
+            false.append(f"| {name} | {1e3 * jitter:g} | {len(args.seeds)} | {wrong_batch} | {wrong_live} |")
+            print(lines[-1], false[-1], flush=True)
+    text = "\n".join([
+        "# A shape stream stamped late: values on the device's clock", "",
+        f"Measured {stamp()} on {machine()} by `python benchmarks/stamped_late.py` (seeds {args.seeds}, "
+        f"{time.perf_counter() - t0:.0f} s).", "",
+        "Lab recordings (shape 100 Hz with its values at the nominal ticks, pose 120 Hz from 3.7 ms later, 1 % "
+        "of each stream lost; 60 cycles, 40 train / 20 held out), then every shape stamp delayed by Gaussian "
+        "jitter of the given standard deviation (clipped at 0.4 periods).  Cells: Γ body / Γ passive on the "
+        "held-out cycles at their true stamps, means over the seeds.  *batch*: `suds identify`; *streaming*: "
+        "the estimator node's algorithm; *raw*: `regrid` off; *before*: the grid stage fitting each value at "
+        "its stamp (as until 2026-12-05); *now*: the stage as shipped, which judges from the data whether the "
+        "values belong to their stamps or to their grid points (`core/resample.values_on_grid`).  Verdict: "
+        "snap = taken at the grid points; grid = at the stamps.", "",
+        *lines, "",
+        "## Recordings read late (the contract's stamps), taken for stamped late", "",
+        "The same systems and seeds recorded the lab way (`core/physics/lab.py`: each value read at its "
+        "stamp, the stamps jittered as above), judged on their 40 training cycles.", "",
+        *false, "",
+        "How to read it: on a stream stamped late, fitting each value at its stamp moves it by the delay, "
+        "and the model learns from intervals that are wrong by the difference of two delays: worse than "
+        "the raw intervals once the jitter is a few per cent of the period.  Taken at its grid point each "
+        "value is what the device sampled, and the model comes back to what the undelayed stream gives "
+        "(the streaming estimator judges first on its 256-sample lock block and then every 128 samples, so "
+        "its first rows may still be fitted at their stamps).  From 40 cycles even 0.4 ms is recognised; "
+        "from the lock block alone (2.5 cycles) it takes 1–2 ms, and below that the two readings differ "
+        "little.  At 3 ms the live column falls behind the batch one: on swimmer9 seed 0 the lock block's "
+        "phase search (256 stamps with a standard deviation of 0.3 periods) peaks at a step 9 % long, a "
+        "spurious peak above the true one, and the live line stays on that count (the batch grid, fitted to "
+        "every stamp, is right): 3 ms at 100 Hz is the live grid's limit, as it is for streams read late.",
+        ""])
+    write("stamped_late.md", text)
+
+
+if __name__ == "__main__":
+    main()
