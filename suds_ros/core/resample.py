@@ -536,9 +536,9 @@ class LiveGrid:
        :data:`LIVE_BLOCK` at a time, stamped with its grid time.  Grid points without a sample
        (lost messages) are not released; the interval across them is the consumer's to judge.
 
-    On a stream stamped late, not read late (:func:`values_on_grid`, judged on the lock block:
-    mode ``"snap"``), each sample is fitted at its grid point instead of its stamp, so a knot's
-    value is its sample's.
+    On a stream stamped late, not read late (:func:`values_on_grid`, judged on the lock block and
+    then every :data:`SNAP_EVERY` samples from running sums: mode ``"snap"``, never back), each
+    sample is fitted at its grid point instead of its stamp, so a knot's value is its sample's.
 
     Released stamps increase strictly.  :meth:`drain` releases what is held at the end of a
     stream (the last knots pinned from one side, as at a recording's end).  A pause of more than

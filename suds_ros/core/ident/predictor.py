@@ -194,7 +194,7 @@ class GridPredictor:
 
     @property
     def mode(self) -> str:
-        """The grid stage's mode: ``off``, ``lock``, ``raw`` or ``grid`` (see :class:`LiveGrid`)."""
+        """The grid stage's mode: ``off``, ``lock``, ``raw``, ``grid`` or ``snap`` (see :class:`LiveGrid`)."""
         return "off" if self.grid is None else self.grid.mode
 
     def set_model(self, model: SudsModel) -> str:
