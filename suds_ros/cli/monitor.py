@@ -125,5 +125,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"the body channels' misfit is mostly ({100 * lag.share:.0f} %) what a pose stream "
               f"{1e3 * lag.seconds:+.2f} ms late on the shape stream leaves (score {lag.score:.3g}): check the "
               f"streams' stamps (`suds diagnose` tells a lag from other causes)")
+    if _stamped_late(rec):
+        print("the shape stamps look stamped late (each value on the device's clock, the jitter in the stamps "
+              "alone: a host stamping messages as they arrive): the monitor times its intervals on the stamps, so a "
+              "WARN here may be that rather than the robot; `suds identify` and `suds diagnose` read such a stream "
+              "on its grid (README, 'Stamped late')")
     print(f"worst: {record.to_dict()['worst']}")
     return 0
+
+
+def _stamped_late(rec: object) -> bool:
+    """True when the recording's shape stream looks stamped late (:func:`~suds_ros.core.resample.values_on_grid`)."""
+    from suds_ros.core.errors import SudsError
+    from suds_ros.core.resample import Grid
+
+    try:
+        return Grid.of(rec).snapped  # type: ignore[arg-type]
+    except SudsError:  # a grid that cannot be fitted says nothing either way
+        return False

@@ -119,6 +119,7 @@ class MonitorNode(Node):
         self.create_subscription(PoseStamped, POSE, self._on_pose, qos)
         self.create_timer(0.1, self._poll_worker)
         self._published = 0
+        self._said_stamped_late = False
         cfg = self.monitor.config
         self.get_logger().info(
             f"monitoring {self.system.name}: channels {', '.join(self.monitor.channels)}; "
@@ -149,6 +150,12 @@ class MonitorNode(Node):
         if self.monitor.updated != self._published:
             self._published = self.monitor.updated
             self._mismatch_pub.publish(self.mismatch_msg())
+            if self.monitor.stamped_late and not self._said_stamped_late:
+                self._said_stamped_late = True
+                self.get_logger().warning(
+                    "the shape stamps look stamped late (each value on the device's clock, the jitter in the "
+                    "stamps alone): the monitor times its intervals on the stamps, so a WARN may be that rather "
+                    "than the robot (README, 'Stamped late')")
         request = self.monitor.take_request()
         if request is not None and self.worker is not None:
             channels = ", ".join(request.channels)

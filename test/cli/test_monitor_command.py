@@ -113,3 +113,27 @@ def test_bad_input_gives_one_line_error(bags: dict[str, Path], tmp_path: Path, c
     assert main(argv) == 2
     line = error_line(capsys)
     assert message in line, line
+
+
+def test_text_says_when_the_shape_stamps_look_stamped_late(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A host stamping messages as they arrive (values on the device's clock, 2 ms of jitter in the stamps):
+    the text says so, and not for the same run recorded with its values read at jittered stamps."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.io.recording_bag import write_recording
+
+    system = make_system("purcell3")
+    rec = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.0))
+    rng = np.random.default_rng(6)
+    late = replace(rec, t=rec.t + np.clip(rng.normal(0.0, 0.002, rec.t.size), -0.004, 0.004), truth={})
+    read = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.002))
+    for name, r, says in (("late.mcap", late, True), ("read.mcap", read, False)):
+        write_recording(tmp_path / name, r)
+        assert main(["monitor", str(tmp_path / name)]) == 0
+        out = capsys.readouterr().out
+        assert ("look stamped late" in out) == says, out

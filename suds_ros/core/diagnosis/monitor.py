@@ -136,7 +136,7 @@ from suds_ros.core.physics.rft import ChainModel, flow_in_body
 from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
-from suds_ros.core.resample import fit_grid, knots_around
+from suds_ros.core.resample import fit_grid, knots_around, values_on_grid
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")  # diagnostic_msgs' own levels
@@ -930,6 +930,10 @@ class MismatchMonitor:
         self.updated = 0  # number of statistic updates
         self.paired = 0
         self.skipped = 0
+        # the shape stream looks stamped late (values on a device's clock, the jitter in the stamps alone:
+        # resample.values_on_grid, judged on the history at each update, never back); the monitor still
+        # times its intervals on the stamps, so its statistic may read such a stream as a mismatch
+        self.stamped_late = False
         self._armed = True
         self._request: DiagnosisRequest | None = None
 
@@ -1028,6 +1032,8 @@ class MismatchMonitor:
         t = np.array([h.t for h in self._hist])
         ref = t[0]
         k, a, b = fit_grid(t - ref, 1.0 / self.config.rate)
+        if not self.stamped_late:
+            self.stamped_late = values_on_grid(t - ref, np.array([h.r[0] for h in self._hist]), k, b)
         return ref, a + b * k
 
     def _predict_new_intervals(self) -> None:

@@ -593,3 +593,28 @@ def test_a_nominal_robot_under_heavy_stamp_jitter_stays_ok(name):
     mon = monitor_recording(rec, system)
     assert mon.worst == OK, [(c.channel, c.max_statistic, c.stale) for c in mon.channels]
     assert max(c.stale for c in mon.channels) == 0
+
+
+def test_the_monitor_says_when_the_shape_stamps_look_stamped_late() -> None:
+    """Values on the device's clock with 2 ms of jitter in the stamps alone: flagged (the node logs it);
+    the same run with its values read at jittered stamps: not."""
+    import heapq
+    from dataclasses import replace
+
+    from suds_ros.core.diagnosis.monitor import MismatchMonitor, recording_config
+
+    system = load_system("purcell3")
+    rec = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.0))
+    rng = np.random.default_rng(6)
+    late = replace(rec, t=rec.t + np.clip(rng.normal(0.0, 0.002, rec.t.size), -0.004, 0.004), truth={})
+    read = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.002))
+    for r, says in ((late, True), (read, False)):
+        mon = MismatchMonitor(system, recording_config(r))
+        merged = heapq.merge(((float(t), 0, k) for k, t in enumerate(r.pose_t)),
+                             ((float(t), 1, k) for k, t in enumerate(r.t)))
+        for _, kind, k in merged:
+            if kind:
+                mon.on_shape(r.t[k], r.joint_names, r.r[k])
+            else:
+                mon.on_pose(r.pose_t[k], *r.pose[k])
+        assert mon.updated > 0 and mon.stamped_late == says
