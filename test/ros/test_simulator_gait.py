@@ -105,7 +105,10 @@ def test_gait_command_topic_switches_and_reports_the_stamp(start_process, node_c
     onset, gait = gait_switch_from_msg(switches.messages()[0])
     assert same_gait(gait, new)
     assert (onset - T0) == pytest.approx(round(onset - T0), abs=1e-6)  # a cycle boundary
-    assert f"gait from suds/gait_command on from stamp {onset:.6f}" in sim.output()
+    # the log line and the switch message leave the node together but reach this test by two paths (the
+    # process's stdout and DDS): wait for the line, do not assume it came first
+    said = f"gait from suds/gait_command on from stamp {onset:.6f}"
+    wait_for(lambda: said in sim.output(), 60, lambda: f"the log line {said!r}\n{sim.output()}")
     assert stop(sim) == 0, sim.output()
 
 
