@@ -173,8 +173,8 @@ def snap_sums(t: FloatArray, r: FloatArray, k: FloatArray, b: float) -> FloatArr
     t, r, k = np.asarray(t, dtype=float), np.asarray(r, dtype=float), np.asarray(k, dtype=float)
     if r.ndim == 1:
         r = r[:, None]
-    i = np.arange(1, max(t.size - 2, 1))
-    i = i[(k[i + 2] - k[i - 1] == 3) & (k[i + 1] - k[i] == 1)] if t.size >= 4 else i[:0]
+    i = np.arange(1, t.size - 2)  # empty for fewer than four samples
+    i = i[(k[i + 2] - k[i - 1] == 3) & (k[i + 1] - k[i] == 1)]
     v = (r[i + 2] - r[i - 1]) / (t[i + 2] - t[i - 1])[:, None]
     x = v * (t[i + 1] - t[i] - b)[:, None]
     y = r[i + 1] - r[i] - v * b

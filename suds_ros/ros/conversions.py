@@ -37,7 +37,7 @@ from suds_ros.core.errors import (
     SudsConfigError,
     SudsDataError,
 )
-from suds_ros.core.ident.model import SudsModel
+from suds_ros.core.ident.model import SudsModel, joint_order
 from suds_ros.core.json_text import dumps
 from suds_ros.core.physics.gait import Gait, dump_gait, loads_gait
 from suds_ros.io.recording_bag import GAIT_TOPIC, MODEL_TOPIC, SYSTEM_TOPIC, WORLD_FRAME, parse_system_info
@@ -286,14 +286,9 @@ def select_joints(sample: JointSample, names: Sequence[str]) -> JointSample:
         ``WRONG_JOINT_NAMES`` when a joint of ``names`` is not in the message.
     """
     want = tuple(names)
-    if sample.names == want:
+    order = joint_order(sample.names, want)
+    if order is None:
         return sample
-    index = {n: i for i, n in enumerate(sample.names)}
-    missing = [n for n in want if n not in index]
-    if missing:
-        raise SudsDataError(f"`name`: joints {missing} are missing; the message has {list(sample.names)}",
-                            code=WRONG_JOINT_NAMES)
-    order = np.array([index[n] for n in want], dtype=int)
 
     def pick(a: FloatArray | None) -> FloatArray | None:
         return None if a is None or a.size == 0 else a[order]

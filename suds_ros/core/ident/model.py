@@ -167,6 +167,24 @@ def check_stamp(stream: str, t: float, last: float) -> None:
         raise SudsDataError(f"{kind} {stream} stamp {t:.6f} s (last {last:.6f} s)", code=code)
 
 
+def joint_order(have: tuple[str, ...], want: tuple[str, ...]) -> np.ndarray | None:
+    """Where each joint of ``want`` sits in ``have`` (a message's names): indices, or None when equal.
+
+    Raises
+    ------
+    SudsDataError
+        Code ``wrong_joint_names`` when a joint of ``want`` is not in ``have``.
+    """
+    if have == want:
+        return None
+    index = {n: i for i, n in enumerate(have)}
+    missing = [n for n in want if n not in index]
+    if missing:
+        raise SudsDataError(f"`name`: joints {missing} are missing; the message has {list(have)}",
+                            code=WRONG_JOINT_NAMES)
+    return np.array([index[n] for n in want], dtype=int)
+
+
 def check_shape_sample(t: float, names: tuple[str, ...], position: FloatArray,
                        joint_names: tuple[str, ...]) -> FloatArray:
     """The positions of a shape sample as floats (nj,), checked against the model's ``joint_names``.

@@ -9,15 +9,14 @@ node's logic); :func:`evaluate_model` runs a predictor over a recording for scor
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from suds_ros.core._typing import FloatArray
-from suds_ros.core.errors import NAN_OR_INF, WRONG_JOINT_COUNT, WRONG_JOINT_NAMES, SudsDataError, SudsError
+from suds_ros.core.errors import SudsDataError, SudsError
 from suds_ros.core.ident.intervals import make_intervals
-from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, model_template
+from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, joint_order, model_template
 from suds_ros.core.ident.scoring import Prediction, average_over_pose_intervals
 from suds_ros.core.phase.phase_tracker import PhaseTracker
 from suds_ros.core.ident.sysid import interval_state
@@ -219,12 +218,7 @@ class GridPredictor:
             duplicate or out-of-order stamp); the stage is unchanged.
         """
         t, names = float(t), tuple(names)
-        r = np.asarray(position, dtype=float).reshape(-1)
-        if r.size != len(names):
-            raise SudsDataError(f"`position`: expected {len(names)} values (one per joint name), got {r.size}",
-                                code=WRONG_JOINT_COUNT)
-        if not math.isfinite(t) or not np.all(np.isfinite(r)):
-            raise SudsDataError(f"shape sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
+        r = check_shape_sample(t, names, position, names)  # its own joints: count and finiteness
         check_stamp("shape", t, self.last_stamp)
         out: list[tuple[float, FloatArray, FloatArray]] = []
         if names != self.names:
@@ -243,18 +237,9 @@ class GridPredictor:
         return self._predict(*self.grid.drain())
 
     def _select(self, sample: _Sample, want: tuple[str, ...]) -> FloatArray:
-        """The positions of ``want`` in ``sample`` (by name; the index map is cached)."""
+        """The positions of ``want`` in ``sample`` (by name, :func:`joint_order`; cached)."""
         if self._pick is None or self._pick[:2] != (sample.names, want):
-            if sample.names == want:
-                idx = None
-            else:
-                index = {n: i for i, n in enumerate(sample.names)}
-                missing = [n for n in want if n not in index]
-                if missing:
-                    raise SudsDataError(f"`name`: joints {missing} are missing; the message has "
-                                        f"{list(sample.names)}", code=WRONG_JOINT_NAMES)
-                idx = np.array([index[n] for n in want])
-            self._pick = (sample.names, want, idx)
+            self._pick = (sample.names, want, joint_order(sample.names, want))
         idx = self._pick[2]
         return sample.position if idx is None else sample.position[idx]
 
