@@ -127,9 +127,10 @@ def run(args: argparse.Namespace) -> int:
               f"streams' stamps (`suds diagnose` tells a lag from other causes)")
     if _stamped_late(rec):
         print("the shape stamps look stamped late (each value on the device's clock, the jitter in the stamps "
-              "alone: a host stamping messages as they arrive): the monitor times its intervals on the stamps, so a "
-              "WARN here may be that rather than the robot; `suds identify` and `suds diagnose` read such a stream "
-              "on its grid (README, 'Stamped late')")
+              "alone: a host stamping messages as they arrive): the monitor takes each shape sample at its grid "
+              "point once its own grid stage has judged so (at the earliest after 256 samples); the shape stream's "
+              "mean delay cannot be told from its own stamps, so a misfit of the body channels may be that delay "
+              "against the pose stream (README, 'Stamped late')")
     print(f"worst: {record.to_dict()['worst']}")
     return 0
 

@@ -17,11 +17,15 @@ examples:
   suds simulate purcell3 -o opt.mcap --gait fast.yaml --ou-std 0  # a gait file, unperturbed
   suds simulate purcell3 -o lab.mcap --pose-rate 120 --pose-phase-ms 3.7 --jitter-ms 0.4 \
       --drop 0.01 --compression lz4                        # recorded the way a lab records
+  suds simulate swimmer9 -o serial.mcap --pose-rate 120 --jitter-ms 2 --stamped-late --latency-ms 3
+                                                           # encoders stamped by the host on arrival
 
-Lab options (--pose-rate, --pose-phase-ms, --jitter-ms, --drop, --sensor-offset-ms) record
-shape and pose as separate streams at their own stamps from the same physics, drive and
-seed as the aligned run; an option not given is ideal (pose at the shape rate and stamps,
-no jitter, nothing dropped).
+Lab options (--pose-rate, --pose-phase-ms, --jitter-ms, --drop, --sensor-offset-ms,
+--stamped-late, --latency-ms) record shape and pose as separate streams at their own stamps
+from the same physics, drive and seed as the aligned run; an option not given is ideal (pose
+at the shape rate and stamps, no jitter, nothing dropped, shape values read at their stamps).
+With --stamped-late the shape values are the device's, sampled at the nominal ticks, and only
+the stamps carry the jitter (and --latency-ms), as when a host stamps messages on arrival.
 
 The drive is r_a = r_ref(t) + η(t), η an Ornstein–Uhlenbeck process
 (dη = −κη dt + σ dW, σ = ou_std·√(2κ)), linearly interpolated between samples; r_ref is the
@@ -71,6 +75,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
                      help="fraction of messages lost on each stream (default 0)")
     lab.add_argument("--sensor-offset-ms", type=float, metavar="MS",
                      help="pose stamps late by this much, ms (any value; default 0)")
+    lab.add_argument("--stamped-late", action="store_const", const="arrival", dest="stamping",
+                     help="shape values sampled on the device's regular clock, the jitter in their stamps "
+                          "alone (a host stamping messages as they arrive); default: read at their stamps")
+    lab.add_argument("--latency-ms", type=float, metavar="MS",
+                     help="shape stamps late by this much, ms (≥ 0; with --stamped-late the transport's "
+                          "mean delay; default 0)")
     p.add_argument("--compression", choices=("zstd", "lz4", "none"), default="zstd",
                    help="chunk compression of the bag (default zstd)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
@@ -79,7 +89,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
 
 #: lab option (argparse dest) → the LabConditions field it sets and its unit factor
 LAB_OPTIONS = {"pose_rate": ("pose_hz", 1.0), "pose_phase_ms": ("pose_phase", 1e-3),
-               "jitter_ms": ("jitter", 1e-3), "drop": ("drop", 1.0)}
+               "jitter_ms": ("jitter", 1e-3), "drop": ("drop", 1.0), "latency_ms": ("latency", 1e-3)}
 
 
 def parse_effect(text: str) -> dict[str, object]:
@@ -119,14 +129,16 @@ def lab_conditions(args: argparse.Namespace) -> object | None:
     """
     from suds_ros.core.physics.lab import LabConditions
 
-    given = {dest: getattr(args, dest) for dest in (*LAB_OPTIONS, "sensor_offset_ms")
-             if getattr(args, dest) is not None}
+    given = {dest: getattr(args, dest) for dest in (*LAB_OPTIONS, "sensor_offset_ms", "stamping")
+             if getattr(args, dest, None) is not None}
     if not given:
         return None
     values: dict[str, object] = {"pose_hz": None, "pose_phase": 0.0, "jitter": 0.0, "drop": 0.0}
     for dest, (name, unit) in LAB_OPTIONS.items():
         if dest in given:
             values[name] = given[dest] * unit
+    if "stamping" in given:
+        values["stamping"] = given["stamping"]
     try:
         return LabConditions(**values)  # type: ignore[arg-type]
     except SudsConfigError as exc:

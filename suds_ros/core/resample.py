@@ -233,28 +233,59 @@ LOCK_TRIGGER = 0.25
 LOCK_BLOCK = 512
 #: :func:`_locked` looks for the period within this fraction of the one it is given
 LOCK_RANGE = 0.05
+#: :func:`phase_search`: a lock is clear when its peak beats the best away from it by this factor
+LOCK_CLEAR = 1.5
+#: :func:`_locked` searches on at most this many stamps (the search costs stamps² / 10 phasors)
+LOCK_BLOCK_MAX = 2048
+
+
+def phase_search(t: FloatArray, dt: float) -> tuple[float, float, float]:
+    """The step near ``dt`` (s) at which the phases of the stamps ``t`` agree best: (offset a, step b, clarity).
+
+    Steps within :data:`LOCK_RANGE` of ``dt``, fine enough that the phase moves a quarter turn
+    over the stamps, are scored by the resultant |Σ exp(2πi t/b)| (lost stamps do not matter);
+    the offset is the best step's mean phase.  ``clarity`` is the best resultant over the largest
+    one away from its peak (more than two main-lobe widths, where the sidelobes of a true peak
+    are below a seventh of it): with heavy jitter every stamp's phasor is short (an sd of 0.3 of
+    a step leaves a sixth of its length), and over a few hundred stamps a peak of the noise can
+    beat the true step (``docs/results/stamped_late.md``).  A best step within a lobe of the
+    range's edge has clarity 0: the true peak may lie beyond it.
+    """
+    rel = t - t[0]
+    span = max(float(rel[-1]) / dt, 1.0)
+    steps = dt * (1.0 + np.arange(-LOCK_RANGE, LOCK_RANGE, 1.0 / (4.0 * span)))
+    phasors = np.exp(2j * np.pi * rel[None, :] / steps[:, None]).sum(axis=1)
+    mag = np.abs(phasors)
+    best = int(np.argmax(mag))
+    b = float(steps[best])
+    a = float(t[0]) + b * float(np.angle(phasors[best])) / (2.0 * np.pi)
+    lobe = 8  # search points: the main lobe's first null lies 4 away
+    away = np.abs(np.arange(steps.size) - best) > lobe
+    if best < lobe or best >= steps.size - lobe:
+        clarity = 0.0
+    elif away.any():
+        clarity = float(mag[best] / max(float(mag[away].max()), 1e-300))
+    else:
+        clarity = float("inf")
+    return a, b, clarity
 
 
 def _locked(t: FloatArray, dt: float) -> FloatArray | None:
     """Each stamp's index on the grid locked to the phase of the stamps ``t``, near the period ``dt`` (s).
 
-    On the first :data:`LOCK_BLOCK` stamps the step is the one within :data:`LOCK_RANGE` of ``dt``
-    at which the stamps' phases agree best (the largest resultant |Σ exp(2πi t/b)|, on steps fine
-    enough that the phase moves a quarter turn over the block; lost stamps do not matter);
-    the offset is their mean phase.  Each stamp is rounded to the nearest point of that grid, the
-    line is fitted again until the indices settle, and the block doubles until it holds every
-    stamp.  None for fewer than 8 stamps.
+    The step and offset come from :func:`phase_search` on the first :data:`LOCK_BLOCK` stamps,
+    or on twice as many (up to :data:`LOCK_BLOCK_MAX`) while its peak is not clear
+    (:data:`LOCK_CLEAR`).  Each stamp is rounded to the nearest point of that grid, the line is
+    fitted again until the indices settle, and the block doubles until it holds every stamp.
+    None for fewer than 8 stamps.
     """
     if t.size < 8:
         return None
     m = min(t.size, LOCK_BLOCK)
-    span = max((t[m - 1] - t[0]) / dt, 1.0)
-    steps = dt * (1.0 + np.arange(-LOCK_RANGE, LOCK_RANGE, 1.0 / (4.0 * span)))
-    rel = t[:m] - t[0]
-    phasors = np.exp(2j * np.pi * rel[None, :] / steps[:, None]).sum(axis=1)
-    best = int(np.argmax(np.abs(phasors)))
-    b = float(steps[best])
-    a = t[0] + b * float(np.angle(phasors[best])) / (2.0 * np.pi)
+    a, b, clarity = phase_search(t[:m], dt)
+    while clarity < LOCK_CLEAR and m < min(t.size, LOCK_BLOCK_MAX):
+        m = min(2 * m, t.size, LOCK_BLOCK_MAX)
+        a, b, clarity = phase_search(t[:m], dt)
     k = np.zeros(0)
     while True:
         for _ in range(GRID_REFITS):  # round and fit again until the block's indices settle
@@ -497,6 +528,8 @@ def window_any(mask: BoolArray, span: int) -> BoolArray:
 
 #: :class:`LiveGrid`: stamps read before the stream is judged uniform (passed on as they are) or locked to a grid
 LIVE_LOCK = 256
+#: :class:`LiveGrid`: the lock block grows up to this many stamps while its phase lock is unclear
+LIVE_LOCK_MAX = 1024
 #: :class:`LiveGrid`: grid points a knot waits for beyond it before its value is final (the spline's reach)
 LIVE_DELAY = 4
 #: :class:`LiveGrid`: final knots released together (one least-squares solve each)
@@ -524,7 +557,8 @@ class LiveGrid:
     1. While every interval is a whole number of the shortest one (within :data:`LIVE_UNIFORM`
        of it), samples pass on unchanged and at once.  If that holds for the first
        :data:`LIVE_LOCK` stamps the stream is uniform, and so it stays.  From the first stamp
-       that breaks it, samples are held until there are :data:`LIVE_LOCK` of them.
+       that breaks it, samples are held until there are :data:`LIVE_LOCK` of them (or, when
+       their phase lock is not clear, :meth:`_decide`, twice as many, up to :data:`LIVE_LOCK_MAX`).
     2. Unless those stamps lie on their :func:`fit_grid` line after all (within
        :data:`LIVE_UNIFORM` of a step: a uniform stream whose stamps wander by microseconds), the
        indices of :func:`fit_grid` (counted, or locked to the stamps' phase) start a line
@@ -539,6 +573,10 @@ class LiveGrid:
     On a stream stamped late, not read late (:func:`values_on_grid`, judged on the lock block and
     then every :data:`SNAP_EVERY` samples from running sums: mode ``"snap"``, never back), each
     sample is fitted at its grid point instead of its stamp, so a knot's value is its sample's.
+
+    With ``raw_values`` (the mismatch monitor, which times a jittered stream's samples itself) the
+    ``"grid"`` mode releases the samples as they came, stamps and values, instead of the knots;
+    ``"snap"`` is the same either way (one sample per grid point: the knot is the sample).
 
     Released stamps increase strictly.  :meth:`drain` releases what is held at the end of a
     stream (the last knots pinned from one side, as at a recording's end).  A pause of more than
@@ -555,7 +593,8 @@ class LiveGrid:
         Newest stamp taken (s, as given), −inf before the first.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, raw_values: bool = False) -> None:
+        self.raw_values = raw_values
         self.mode = "lock"
         self.last_stamp = -np.inf
         self._t: list[float] = []  # held stamps, relative to _t0
@@ -573,6 +612,7 @@ class LiveGrid:
         self._out = -np.inf  # newest stamp released
         self._snap: FloatArray | None = None  # values_on_grid's sums so far (grid mode), snap_sums
         self._since = 0  # samples since values_on_grid was last asked
+        self._lock_at = LIVE_LOCK  # stamps the lock block waits for (doubled while the phase lock is unclear)
 
     @property
     def held(self) -> int:
@@ -596,7 +636,7 @@ class LiveGrid:
             if self._passed == len(self._t) - 1 and self._uniform():
                 self._passed += 1
                 ts, rs = [float(t)], [r]
-            if len(self._t) >= LIVE_LOCK:
+            if len(self._t) >= self._lock_at:
                 more = self._decide()
                 ts, rs = ts + more[0], rs + more[1]
             return ts, rs
@@ -633,7 +673,7 @@ class LiveGrid:
     def _restart(self) -> None:
         """Back to reading a lock block; the stamps released so far stay released (``_out``)."""
         out, last = self._out, self.last_stamp
-        self.__init__()  # type: ignore[misc]
+        self.__init__(self.raw_values)  # type: ignore[misc]
         self._out, self.last_stamp = out, last
 
     def drain(self) -> tuple[list[float], list[FloatArray]]:
@@ -641,7 +681,7 @@ class LiveGrid:
         ts: list[float] = []
         rs: list[FloatArray] = []
         if self.mode == "lock" and self._t:
-            ts, rs = self._decide()
+            ts, rs = self._decide(final=True)
         if self.mode in _ON_GRID:
             more = self._release(final=True)
             ts, rs = ts + more[0], rs + more[1]
@@ -655,13 +695,24 @@ class LiveGrid:
         p = float(d.min())
         return bool(p > 0 and np.all(np.abs(d - p * np.round(d / p)) <= LIVE_UNIFORM * p))
 
-    def _decide(self) -> tuple[list[float], list[FloatArray]]:
-        """At the end of the lock block: raw or grid mode; the held samples released as the mode says."""
+    def _decide(self, final: bool = False) -> tuple[list[float], list[FloatArray]]:
+        """At the end of the lock block: raw or grid mode; the held samples released as the mode says.
+
+        Stamps jittered by a quarter step or more are locked by their phase (:func:`fit_grid`);
+        while that lock is not clear (:func:`phase_search`) the block doubles, up to
+        :data:`LIVE_LOCK_MAX` stamps (not at the stream's end, ``final``).
+        """
         t = np.asarray(self._t)
         uniform = self._passed == t.size or t.size < 8  # (too few to fit a grid to: passed on too)
         if not uniform:
-            k, a, b = fit_grid(t, stream_period(t))
-            uniform = bool(np.max(np.abs(t - a - b * k)) <= LIVE_UNIFORM * b)
+            dt = stream_period(t)
+            k, a, b = fit_grid(t, dt)
+            off = float(np.max(np.abs(t - a - b * k)))
+            uniform = off <= LIVE_UNIFORM * b
+            if (not uniform and not final and t.size < LIVE_LOCK_MAX and off >= LOCK_TRIGGER * b
+                    and phase_search(t, dt)[2] < LOCK_CLEAR):
+                self._lock_at = min(2 * t.size, LIVE_LOCK_MAX)
+                return [], []
         if uniform:
             ts, rs = [self._t0 + x for x in self._t[self._passed:]], self._r[self._passed:]
             self.mode, self._t, self._r = "raw", [], []
@@ -696,17 +747,24 @@ class LiveGrid:
             return [], []
         b = self._ckt / self._ckk
         a = self._mt - b * self._mk
-        first = self._k[0]  # the held samples' grid points
-        at = a + b * np.asarray(self._k) if self.mode == "snap" else np.asarray(self._t)
-        values = knots_around(at, np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
         ts: list[float] = []
         rs: list[FloatArray] = []
-        for kk in sorted(set(ready)):
-            tk = self._t0 + a + b * kk
-            if tk > self._out:
-                ts.append(tk)
-                rs.append(values[int(kk - first)])
-                self._out = tk
+        if self.raw_values and self.mode == "grid":  # the samples as they came, in their grid points' turn
+            for kk, tt, rr in zip(self._k, self._t, self._r):
+                if self._next <= kk <= last and self._t0 + tt > self._out:
+                    ts.append(self._t0 + tt)
+                    rs.append(rr)
+                    self._out = self._t0 + tt
+        else:
+            first = self._k[0]  # the held samples' grid points
+            at = a + b * np.asarray(self._k) if self.mode == "snap" else np.asarray(self._t)
+            values = knots_around(at, np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
+            for kk in sorted(set(ready)):
+                tk = self._t0 + a + b * kk
+                if tk > self._out:
+                    ts.append(tk)
+                    rs.append(values[int(kk - first)])
+                    self._out = tk
         self._next = max(ready) + 1.0
         keep = next((i for i, kk in enumerate(self._k) if kk >= self._next - LIVE_DELAY), len(self._k))
         self._t, self._r, self._k = self._t[keep:], self._r[keep:], self._k[keep:]

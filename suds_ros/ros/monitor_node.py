@@ -154,8 +154,9 @@ class MonitorNode(Node):
                 self._said_stamped_late = True
                 self.get_logger().warning(
                     "the shape stamps look stamped late (each value on the device's clock, the jitter in the "
-                    "stamps alone): the monitor times its intervals on the stamps, so a WARN may be that rather "
-                    "than the robot (README, 'Stamped late')")
+                    "stamps alone): from now on each shape sample is taken at its grid point; the stream's mean "
+                    "delay cannot be told from its own stamps, so a misfit of the body channels may be that delay "
+                    "against the pose stream (README, 'Stamped late')")
         request = self.monitor.take_request()
         if request is not None and self.worker is not None:
             channels = ", ".join(request.channels)

@@ -139,8 +139,10 @@ def test_missing_metadata_gets_the_command_line_hint(tmp_path: Path, capsys) -> 
     assert "no live predictions recorded" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("lab", [[], ["--pose-rate", "120", "--jitter-ms", "0.4", "--drop", "0.01"]],
-                         ids=["aligned", "lab"])
+@pytest.mark.parametrize("lab", [[], ["--pose-rate", "120", "--jitter-ms", "0.4", "--drop", "0.01"],
+                                 ["--pose-rate", "120", "--jitter-ms", "2", "--drop", "0.01", "--stamped-late",
+                                  "--latency-ms", "3"]],
+                         ids=["aligned", "lab", "stamped-late"])
 def test_simulate_streams_the_bag_the_whole_run_gives(tmp_path: Path, lab: list[str]) -> None:
     """Written block by block (10 cycles each), the bag is that of the whole recording written at once."""
     from suds_ros.core.physics.lab import LabConditions, simulate_lab
@@ -151,8 +153,10 @@ def test_simulate_streams_the_bag_the_whole_run_gives(tmp_path: Path, lab: list[
     out, whole = tmp_path / "streamed.mcap", tmp_path / "whole.mcap"
     assert main(["simulate", "purcell3", "-o", str(out), "--cycles", "12", "--seed", "3", *lab]) == 0
     cfg, p3 = SimConfig(cycles=12, seed=3), make_system("purcell3")
-    rec = (simulate(p3, cfg) if not lab else
-           simulate_lab(p3, cfg, LabConditions(pose_hz=120.0, pose_phase=0.0, jitter=4e-4, drop=0.01)))
+    conditions = (LabConditions(pose_hz=120.0, pose_phase=0.0, jitter=4e-4, drop=0.01) if "--latency-ms" not in lab
+                  else LabConditions(pose_hz=120.0, pose_phase=0.0, jitter=2e-3, drop=0.01, stamping="arrival",
+                                     latency=3e-3))
+    rec = simulate(p3, cfg) if not lab else simulate_lab(p3, cfg, conditions)
     write_recording(whole, rec)
     assert out.read_bytes() == whole.read_bytes()
 

@@ -30,6 +30,15 @@ Lab streams
 * The drive bends at its set-point times, the points of the uniform grid fitted to the shape stamps
   (:func:`~suds_ros.core.resample.fit_grid`); with stamp jitter a bend falls inside an interval, and
   the replay bends there too (:func:`drive_kinks`).
+* Stamped late, not read late: a device sampling on its own clock whose messages the host stamps as
+  they arrive puts the jitter in the stamps alone (:func:`~suds_ros.core.resample.values_on_grid`).
+  Timed at its stamps such a stream misleads the replay (each interval as long as two delays make it,
+  a bend where there is none): a nominal swimmer9 went to ERROR on its passive joints at 2 ms.  So the
+  shape samples first pass the estimator's grid stage (:class:`~suds_ros.core.resample.LiveGrid`,
+  ``raw_values``): a uniform stream at once; a jittered one after its lock block (256 samples or more)
+  and then a few grid points late, unchanged while read late, and at their grid points from when the
+  stage judges the stream stamped late (:attr:`MismatchMonitor.stamped_late`).  The pose is read at
+  those times.  :meth:`MismatchMonitor.flush` passes on what the stage holds at a stream's end.
 * A pose stream of its own rate is read at a shape stamp by linear interpolation between the pose
   samples around it, plus the replay's own departure from that straight line (the body velocity
   jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
@@ -136,7 +145,7 @@ from suds_ros.core.physics.rft import ChainModel, flow_in_body
 from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
 from suds_ros.core.physics.system import SudsSystem
 from suds_ros.core.recording import Recording, samples_per_cycle
-from suds_ros.core.resample import fit_grid, knots_around, values_on_grid
+from suds_ros.core.resample import LIVE_LOCK_MAX, LiveGrid, fit_grid, knots_around
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = ("OK", "WARN", "ERROR", "STALE")  # diagnostic_msgs' own levels
@@ -917,7 +926,9 @@ class MismatchMonitor:
         self._read = 0  # samples whose pose is final (corrected with the replay)
         # samples waiting for the other stream (bounded: a stream that stops cannot fill memory)
         self._shapes: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
-        self._poses: deque[tuple[float, FloatArray, FloatArray]] = deque(maxlen=keep)
+        # (stamp, pose, synthetic noise, the typical pose interval up to it: the median of the last 64, s);
+        # room for the poses that arrive while the shape clock holds its lock block
+        self._poses: deque[tuple[float, FloatArray, FloatArray, float]] = deque(maxlen=keep + 16 * LIVE_LOCK_MAX)
         self._pose_steps: deque[float] = deque(maxlen=64)  # recent pose intervals, s
         self._rng_r, self._rng_pose = (np.random.default_rng(sq)
                                        for sq in np.random.SeedSequence(SYNTHETIC_SEED).spawn(2))
@@ -930,14 +941,18 @@ class MismatchMonitor:
         self.updated = 0  # number of statistic updates
         self.paired = 0
         self.skipped = 0
-        # the shape stream looks stamped late (values on a device's clock, the jitter in the stamps alone:
-        # resample.values_on_grid, judged on the history at each update, never back); the monitor still
-        # times its intervals on the stamps, so its statistic may read such a stream as a mismatch
-        self.stamped_late = False
+        # the shape samples' clock (see the module docstring, *Lab streams*): passed on at their stamps, or,
+        # once the stream is recognised as stamped late, at their grid points
+        self._clock = LiveGrid(raw_values=True)
         self._armed = True
         self._request: DiagnosisRequest | None = None
 
     # -------------------------------------------------------- input
+    @property
+    def stamped_late(self) -> bool:
+        """True once the shape stream is taken for stamped late (its samples then timed at their grid points)."""
+        return self._clock.mode == "snap"
+
     def on_shape(self, stamp: float, names: tuple[str, ...] | list[str], position: FloatArray) -> int:
         """Queue a shape sample; returns the number of samples paired now."""
         index = {n: i for i, n in enumerate(names)}
@@ -946,12 +961,21 @@ class MismatchMonitor:
             self.skipped += 1
             return 0
         r = pos[[index[n] for n in self.names]]
-        if not np.all(np.isfinite(r)) or (self._shapes and stamp <= self._shapes[-1][0]) or (
-                self._hist and stamp <= self._hist[-1].t):
+        if not np.all(np.isfinite(r)) or not float(stamp) > self._clock.last_stamp:
             self.skipped += 1
             return 0
-        self._shapes.append((float(stamp), r))
-        return self._pair()
+        return self._queue(*self._clock.add(float(stamp), r))
+
+    def flush(self) -> int:
+        """Pass on the shape samples the clock holds (the stream's end); returns the number paired now."""
+        return self._queue(*self._clock.drain())
+
+    def _queue(self, stamps: list[float], values: list[FloatArray]) -> int:
+        n = 0
+        for t, r in zip(stamps, values):
+            self._shapes.append((t, r))
+            n += self._pair()
+        return n
 
     def on_pose(self, stamp: float, x: float, y: float, yaw: float) -> int:
         """Queue a pose sample; returns the number of samples paired now."""
@@ -963,7 +987,8 @@ class MismatchMonitor:
             prev = self._poses[-1][1][2]
             p[2] = prev + (p[2] - prev + math.pi) % (2 * math.pi) - math.pi
             self._pose_steps.append(float(stamp) - self._poses[-1][0])
-        self._poses.append((float(stamp), p, SYNTHETIC_NOISE * self._rng_pose.standard_normal(3)))
+        typical = float(np.median(self._pose_steps)) if self._pose_steps else math.inf
+        self._poses.append((float(stamp), p, SYNTHETIC_NOISE * self._rng_pose.standard_normal(3), typical))
         return self._pair()
 
     def _pair(self) -> int:
@@ -972,17 +997,17 @@ class MismatchMonitor:
             t, r = self._shapes.popleft()
             while len(self._poses) > 1 and self._poses[1][0] <= t:
                 self._poses.popleft()
-            t0, p0, n0 = self._poses[0]
+            t0, p0, n0, _ = self._poses[0]
             if t0 > t:  # before the first pose: cannot be paired
                 self.skipped += 1
                 continue
             if t0 == t or len(self._poses) == 1:
                 pose, noise, bracket, ok = p0, n0, (t, t), True
             else:
-                t1, p1, n1 = self._poses[1]
+                t1, p1, n1, typical = self._poses[1]
                 a = (t - t0) / (t1 - t0)
                 pose, noise, bracket = p0 + (p1 - p0) * a, n0 + (n1 - n0) * a, (t0, t1)
-                ok = not self._pose_steps or t1 - t0 <= self.config.gap * float(np.median(self._pose_steps))
+                ok = t1 - t0 <= self.config.gap * typical  # (typical as of t1: the same however late the shape)
             self._add(t, r, pose, noise, bracket, float(p0[2]), ok)
             n += 1
         return n
@@ -1032,8 +1057,6 @@ class MismatchMonitor:
         t = np.array([h.t for h in self._hist])
         ref = t[0]
         k, a, b = fit_grid(t - ref, 1.0 / self.config.rate)
-        if not self.stamped_late:
-            self.stamped_late = values_on_grid(t - ref, np.array([h.r[0] for h in self._hist]), k, b)
         return ref, a + b * k
 
     def _predict_new_intervals(self) -> None:
@@ -1451,6 +1474,7 @@ def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig 
             mon.on_shape(rec.t[k], names, rec.r[k])
         else:
             mon.on_pose(rec.pose_t[k], *rec.pose[k])
+    mon.flush()
     if mon.record.first_report is None:
         need = cfg.first_report_samples
         raise SudsDataError(

@@ -153,7 +153,8 @@ class GridPredictor:
     measured rows.  On a uniform stream (every simulator stream, an aligned bag) the stage
     passes each sample at once and unchanged: each prediction is made, and stamped, at the
     sample that closes its interval.  On a jittered one it costs latency: the first
-    ``LIVE_LOCK`` samples are held to lock the grid, then samples come out
+    ``LIVE_LOCK`` samples (up to ``LIVE_LOCK_MAX`` while a heavily jittered lock is unclear)
+    are held to lock the grid, then samples come out
     ``LIVE_DELAY`` to ``LIVE_DELAY + LIVE_BLOCK`` grid points late
     (:mod:`~suds_ros.core.resample`); :meth:`drain` releases what is held when the stream
     stops.

@@ -65,6 +65,16 @@ class LabConditions:
         message of each stream are kept).
     oversample : int
         Integration grid points per shape sampling period.
+    stamping : str
+        How the shape stream's stamps relate to its values.  ``"read"``: each value is read
+        at its stamp (the recording contract's meaning, and a host that reads the joints at
+        irregular times).  ``"arrival"``: each value is sampled at its nominal grid point (a
+        device on its own regular clock) and the stamp is that tick plus the jitter: a host
+        stamping messages as they arrive (a serial encoder, a USB servo bus), which
+        :func:`~suds_ros.core.resample.values_on_grid` recognises.
+    latency : float
+        Added to every shape stamp, s (≥ 0): with ``"arrival"`` the transport's mean delay,
+        which the shape stream alone cannot reveal (only against the pose stream).
     """
 
     pose_hz: float | None = 120.0
@@ -72,6 +82,8 @@ class LabConditions:
     jitter: float = 0.0004
     drop: float = 0.01
     oversample: int = 4
+    stamping: str = "read"
+    latency: float = 0.0
 
     def __post_init__(self) -> None:
         if self.pose_hz is not None and not self.pose_hz > 0:
@@ -84,6 +96,14 @@ class LabConditions:
             raise SudsConfigError(f"`drop`: expected a probability in [0, 0.5), got {self.drop!r}")
         if self.oversample < 1:
             raise SudsConfigError(f"`oversample`: expected ≥ 1, got {self.oversample!r}")
+        if self.stamping not in STAMPINGS:
+            raise SudsConfigError(f"`stamping`: expected one of {list(STAMPINGS)}, got {self.stamping!r}")
+        if not 0 <= self.latency < 1.0:
+            raise SudsConfigError(f"`latency`: expected 0 ≤ latency < 1 s, got {self.latency!r}")
+
+
+#: :attr:`LabConditions.stamping` values
+STAMPINGS = ("read", "arrival")
 
 
 #: stamps (and drop decisions) drawn per call
@@ -249,8 +269,14 @@ def _lab_blocks(system: SudsSystem, still: SudsSystem, config: SimConfig, lab: L
     shape_grid = (0.0, dt, span - 0.5 * dt, lab.jitter)
     pose_grid = (lab.pose_phase, pose_period, span - 0.5 * pose_period, lab.jitter)
 
+    arrival = lab.stamping == "arrival"
+    ahead = 0.4 * dt if arrival else 0.0  # a stamp's tick lies within this of it (the jitter's clip)
+
+    def tick(t: FloatArray) -> FloatArray:  # the time a shape value belongs to
+        return dt * np.round(t / dt) if arrival else t
+
     def shape_inside(t: FloatArray) -> np.ndarray:
-        return (t >= 0) & (t <= span)
+        return (tick(t) >= 0) & (tick(t) <= span)
 
     def pose_inside(t: FloatArray) -> np.ndarray:
         late = t - delay  # the pose stamped s is the true pose at s − delay
@@ -279,12 +305,12 @@ def _lab_blocks(system: SudsSystem, still: SudsSystem, config: SimConfig, lab: L
         tf = (config.t0 + dt_f * np.arange(g0 + lo - nw_f, g1 - nw_f)) - config.t0
         window.extend(tf, np.concatenate([R[lo:], P[lo:]], axis=1))
         last = None if g1 - nw_f == n_f else float(window.t[-1])
-        shapes.fill(np.inf if last is None else last, 0.0)
+        shapes.fill(np.inf if last is None else last, -ahead)
         poses.fill(np.inf if last is None else last, delay)
-        ts, tp = shapes.take(last, 0.0), poses.take(last, delay)
-        at_shape = window.interp(ts)
+        ts, tp = shapes.take(last, -ahead), poses.take(last, delay)
+        at_shape = window.interp(tick(ts))
         pose_true = window.interp(tp - delay, slice(nj, None))
-        window.drop_before(min(shapes.next_needed(0.0), poses.next_needed(delay)))
+        window.drop_before(min(shapes.next_needed(ahead), poses.next_needed(delay)))
         r_true = at_shape[:, :nj]
         r_meas = r_true + sd * noise_r.standard_normal(r_true.shape)
         pose_noise = sd * noise_pose.standard_normal(pose_true.shape)
@@ -292,5 +318,5 @@ def _lab_blocks(system: SudsSystem, still: SudsSystem, config: SimConfig, lab: L
             pose_noise[:, 1:] = 0.0
         pose_meas = pose_true + pose_noise
         pose_meas[:, 2] = unwrap(pose_meas[:, 2])
-        truth = {"r": r_true, "pose": at_shape[:, nj:], "phase": 2 * np.pi * config.gait_hz * ts}
-        yield SimBlock(t=config.t0 + ts, r=r_meas, pose_t=config.t0 + tp, pose=pose_meas, truth=truth)
+        truth = {"r": r_true, "pose": at_shape[:, nj:], "phase": 2 * np.pi * config.gait_hz * tick(ts)}
+        yield SimBlock(t=config.t0 + ts + lab.latency, r=r_meas, pose_t=config.t0 + tp, pose=pose_meas, truth=truth)

@@ -68,7 +68,31 @@ def test_jittered_stamps_read_the_run_without_an_interpolation_error() -> None:
     assert np.abs(coarse.r - fine.r).max() < 1e-4 and np.abs(coarse.pose - fine.pose).max() < 1e-4
 
 
+def test_stamped_on_arrival_values_are_ticks_stamps_carry_jitter(purcell3) -> None:  # type: ignore[no-untyped-def]
+    """A device sampling on its own clock, stamped by the host as messages arrive: each value is the one the
+    jitter-free recording holds at its tick (the same draws), each stamp that tick + latency + jitter, and
+    the grid stage reads it as stamped late; read at the same stamps instead, it does not."""
+    from suds_ros.core.resample import Grid
+
+    cfg = SimConfig(cycles=12, seed=3)
+    ticks = simulate_lab(purcell3, cfg, LabConditions(jitter=0.0))
+    late = simulate_lab(purcell3, cfg, LabConditions(jitter=0.002, stamping="arrival", latency=0.003))
+    read = simulate_lab(purcell3, cfg, LabConditions(jitter=0.002))
+    np.testing.assert_array_equal(late.r, ticks.r)
+    np.testing.assert_array_equal(late.truth["r"], ticks.truth["r"])
+    np.testing.assert_array_equal(late.pose_t, read.pose_t)  # the pose stream read at its (jittered) stamps
+    np.testing.assert_array_equal(late.pose, read.pose)
+    dev = late.t - ticks.t - 0.003
+    assert 1.5e-3 < dev.std() < 2.5e-3 and np.abs(dev).max() <= 0.4 * cfg.dt + 1e-6 and abs(dev.mean()) < 3e-4
+    np.testing.assert_allclose(read.t - cfg.t0, late.t - cfg.t0 - 0.003, atol=1e-6)  # the same jitter draws
+    assert Grid.of(late).snapped and not Grid.of(read).snapped
+
+
 def test_bad_conditions_are_refused() -> None:
+    with pytest.raises(SudsConfigError, match="`stamping`"):
+        LabConditions(stamping="late")
+    with pytest.raises(SudsConfigError, match="`latency`"):
+        LabConditions(latency=-0.001)
     with pytest.raises(SudsConfigError, match="`drop`"):
         LabConditions(drop=0.7)
     with pytest.raises(SudsConfigError, match="`pose_hz`"):
