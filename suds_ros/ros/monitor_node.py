@@ -22,7 +22,9 @@ Nothing is published on ``suds/mismatch`` until ``floor_cycles`` cycles have bee
 floor needs them); from that first report on the statistic is right whatever the robot did
 before: the nominal model's own discretisation error and noise gain come from replays of the
 nominal physics, nothing from the robot's first cycles.  ``suds monitor BAG`` runs the same core
-offline over a recording.
+offline over a recording.  A shape stream with stamp jitter is held by the monitor's grid stage
+(its first 256 samples or more, then its newest few); after ``idle_flush`` s without a shape
+message what it holds is passed on.
 
 System
 ------
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,6 +74,9 @@ class MonitorNodeConfig:
     depth: int = setting(1000, "subscription queue depth of shape and pose", ge=1, le=10_000_000)
     best_effort: bool = setting(False, "subscribe best effort (matches sensor-data publishers, e.g. motion "
                                        "capture) instead of reliable")
+    idle_flush: float = setting(2.0, "s without a shape message after which the shape samples the monitor's "
+                                     "grid stage holds (a jittered stream's newest few) are passed on",
+                                gt=0.0, le=3600.0)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -118,6 +124,8 @@ class MonitorNode(Node):
         self.create_subscription(JointState, SHAPE, self._on_shape, qos)
         self.create_subscription(PoseStamped, POSE, self._on_pose, qos)
         self.create_timer(0.1, self._poll_worker)
+        self.create_timer(min(0.5, params.idle_flush / 2), self._on_idle_check)
+        self._last_arrival: float | None = None  # wall (monotonic) s of the newest shape message
         self._published = 0
         self._said_stamped_late = False
         cfg = self.monitor.config
@@ -134,7 +142,16 @@ class MonitorNode(Node):
         except SudsError:
             self.monitor.skipped += 1
             return
+        self._last_arrival = time.monotonic()
         self.monitor.on_shape(s.stamp, s.names, s.position)
+        self._after_input()
+
+    def _on_idle_check(self) -> None:
+        """Pass on what the grid stage holds once no shape message has come for ``idle_flush`` s."""
+        if (self._last_arrival is None or not self.monitor.held
+                or time.monotonic() - self._last_arrival <= self.params.idle_flush):
+            return
+        self.monitor.flush()
         self._after_input()
 
     def _on_pose(self, msg: Any) -> None:

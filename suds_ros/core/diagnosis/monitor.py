@@ -966,6 +966,11 @@ class MismatchMonitor:
             return 0
         return self._queue(*self._clock.add(float(stamp), r))
 
+    @property
+    def held(self) -> int:
+        """Shape samples the grid stage holds (a jittered stream's lock block, then its newest few)."""
+        return self._clock.held
+
     def flush(self) -> int:
         """Pass on the shape samples the clock holds (the stream's end); returns the number paired now."""
         return self._queue(*self._clock.drain())
