@@ -171,17 +171,17 @@ def main() -> None:
         "The same systems and seeds recorded the lab way (`core/physics/lab.py`: each value read at its "
         "stamp, the stamps jittered as above), judged on their 40 training cycles.", "",
         *false, "",
-        "How to read it: on a stream stamped late, fitting each value at its stamp moves it by the delay, "
-        "and the model learns from intervals that are wrong by the difference of two delays: worse than "
-        "the raw intervals once the jitter is a few per cent of the period.  Taken at its grid point each "
-        "value is what the device sampled, and the model comes back to what the undelayed stream gives "
-        "(the streaming estimator judges first on its 256-sample lock block and then every 128 samples, so "
-        "its first rows may still be fitted at their stamps).  From 40 cycles even 0.4 ms is recognised; "
-        "from the lock block alone (2.5 cycles) it takes 1–2 ms, and below that the two readings differ "
-        "little.  At 3 ms (a standard deviation of 0.3 periods) a lock block of 256 stamps is too short for "
-        "the phase search: on some seeds a peak of its noise beat the true step (a step 9 % long on the "
-        "stamps of the first version of this table), and the live line kept that count.  Since 2026-12-06 "
-        "the block doubles, up to 1024 stamps, while its peak is not clear (`core/resample.phase_search`, "
+        "How to read it: on a stream stamped late, fitting each value at its stamp moves it by the delay, and"
+        " the model learns from intervals that are wrong by the difference of two delays: worse than the raw "
+        "intervals once the jitter is a few per cent of the period.  Taken at its grid point each value is "
+        "what the device sampled, and the model comes back to what the undelayed stream gives (the streaming "
+        "estimator judges first on its 256-sample lock block and then every 128 samples, so its first rows "
+        "may still be fitted at their stamps).  From 40 cycles 0.4 ms is recognised in three runs of four "
+        "(the two readings then differ by 0.004 in Γ or less); from the lock block alone (2.5 cycles) it "
+        "takes 1–2 ms.  At 3 ms (a standard deviation of 0.3 periods) a lock block of 256 stamps is too short"
+        " for the phase search: on some seeds a peak of its noise beat the true step (a step 9 % long on the "
+        "stamps of the first version of this table), and the live line kept that count.  Since 2026-12-06 the"
+        " block doubles, up to 1024 stamps, while its peak is not clear (`core/resample.phase_search`, "
         "`LOCK_CLEAR`).",
         "",
         "## The live monitor on the same kind of stream",
@@ -199,8 +199,9 @@ def main() -> None:
         "are timed at their ticks they are clean whatever the delay.  The body channels compare it with the "
         "pose stream, and there a shape stream's mean delay is a real lag between the streams that its own "
         "stamps cannot reveal (the grid's offset is known to its stamps' jitter over the square root of their "
-        "number, tens of µs): a 2 ms latency is reported as such, and even without latency swimmer9's body "
-        "channels, which see lags of tens of µs, can reach WARN from that offset alone.",
+        "number, tens of µs): a 2 ms latency is reported as such.  Without latency that offset alone can "
+        "still reach swimmer9's body channels, which see lags of tens of µs: not on these seeds, but a "
+        "scratch run (seed 11, 1 ms) read F 6.5, WARN.",
         ""])
     write("stamped_late.md", text)
 
