@@ -648,20 +648,18 @@ def test_the_grid_stage_holds_a_jittered_stream_until_flushed() -> None:
     flush() passes on what is held, as the node does after idle_flush without a message."""
     from suds_ros.core.diagnosis.monitor import MismatchMonitor, recording_config
 
+    def fed(jitter: float) -> tuple[MismatchMonitor, int]:  # every pose first, then every shape sample
+        rec = simulate_lab(system, SimConfig(cycles=4, seed=2), LabConditions(jitter=jitter))
+        mon = MismatchMonitor(system, recording_config(rec))
+        for t, p in zip(rec.pose_t, rec.pose):
+            mon.on_pose(t, *p)
+        for t, r in zip(rec.t, rec.r):
+            mon.on_shape(t, rec.joint_names, r)
+        return mon, rec.t.size
+
     system = load_system("purcell3")
-    rec = simulate_lab(system, SimConfig(cycles=4, seed=2), LabConditions(jitter=0.002))
-    mon = MismatchMonitor(system, recording_config(rec))
-    for t, p in zip(rec.pose_t, rec.pose):
-        mon.on_pose(t, *p)
-    for t, r in zip(rec.t, rec.r):
-        mon.on_shape(t, rec.joint_names, r)
-    assert 0 < mon.held <= 4 + 16 + 1 and mon.paired == rec.t.size - mon.held
+    mon, n = fed(0.002)
+    assert 0 < mon.held <= 4 + 16 + 1 and mon.paired == n - mon.held
     assert mon.flush() > 0 and mon.held == 0
-    assert mon.paired >= rec.t.size - 2  # (none but those after the last pose sample)
-    uniform = simulate_lab(system, SimConfig(cycles=4, seed=2), LabConditions(jitter=0.0))
-    mon = MismatchMonitor(system, recording_config(uniform))
-    for t, p in zip(uniform.pose_t, uniform.pose):
-        mon.on_pose(t, *p)
-    for t, r in zip(uniform.t, uniform.r):
-        mon.on_shape(t, uniform.joint_names, r)
-    assert mon.held == 0  # a uniform stream passes at once
+    assert mon.paired >= n - 2  # (none but those after the last pose sample)
+    assert fed(0.0)[0].held == 0  # a uniform stream passes at once
