@@ -187,3 +187,35 @@ def test_monitor_node_says_stale_when_lost_messages_leave_nothing_to_test(ros_co
     finally:
         node.close()
         node.destroy_node()
+
+
+def test_monitor_node_passes_on_what_its_grid_stage_holds_when_the_shape_stream_goes_quiet(ros_context):
+    """A jittered shape stream (2 ms) waits in the monitor's grid stage; once no shape message has come for
+    ``idle_flush`` the node passes the held samples on, and its status reaches the last one."""
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.ros.conversions import diagnostics_from_msg, joint_state_to_msg, pose_to_msg
+    from suds_ros.ros.monitor_node import MonitorNode
+
+    params = [Parameter("diagnose", value=False), Parameter("idle_flush", value=0.5)]
+    node = MonitorNode(context=ros_context, parameter_overrides=params)
+    try:
+        rec = simulate_lab(node.system, SimConfig(cycles=5, seed=3), LabConditions(jitter=0.002))
+        for t, p in zip(rec.pose_t, rec.pose):
+            node._on_pose(pose_to_msg(t, *p))
+        for t, r in zip(rec.t, rec.r):
+            node._on_shape(joint_state_to_msg(t, rec.joint_names, r))
+        held, paired = node.monitor.held, node.monitor.paired
+        assert held > 0 and node.monitor.updated > 0
+        node._on_idle_check()  # not quiet for idle_flush yet: nothing happens
+        assert node.monitor.held == held
+        node._last_arrival -= 1.0  # as if the last shape message came a second ago
+        node._on_idle_check()
+        assert node.monitor.held == 0 and node.monitor.paired > paired
+        reports = diagnostics_from_msg(node.mismatch_msg())
+        assert reports[0].stamp >= rec.t[-1] - 10 * rec.dt
+    finally:
+        node.close()
+        node.destroy_node()
