@@ -1457,20 +1457,11 @@ def recording_config(rec: Recording, gait_hz: float | None = None, **overrides: 
     return MonitorConfig(gait_hz=f, rate=spc * f, **overrides)
 
 
-def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig | None = None) -> MonitorRecord:
-    """Replay a recording through a :class:`MismatchMonitor`, as the live node would see it.
+def feed_recording(mon: MismatchMonitor, rec: Recording) -> None:
+    """Feed ``rec``'s two streams to ``mon`` as the node would receive them, then :meth:`~MismatchMonitor.flush`.
 
-    The shape and pose streams are merged in stamp order (a pose before a shape sample of the
-    same stamp) and fed through :meth:`MismatchMonitor.on_shape` / :meth:`MismatchMonitor.on_pose`.
-    ``config``: :func:`recording_config` when None.
-
-    Raises
-    ------
-    SudsDataError
-        (code ``too_little_data``) when the recording ends before the monitor's first report.
+    The streams are merged in stamp order (a pose before a shape sample of the same stamp).
     """
-    cfg = recording_config(rec) if config is None else config
-    mon = MismatchMonitor(system, cfg)
     names = rec.joint_names
     shapes = ((float(t), 1, k) for k, t in enumerate(rec.t))
     poses = ((float(t), 0, k) for k, t in enumerate(rec.pose_t))
@@ -1480,6 +1471,23 @@ def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig 
         else:
             mon.on_pose(rec.pose_t[k], *rec.pose[k])
     mon.flush()
+
+
+def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig | None = None) -> MonitorRecord:
+    """Replay a recording through a :class:`MismatchMonitor`, as the live node would see it.
+
+    The shape and pose streams are fed through :meth:`MismatchMonitor.on_shape` /
+    :meth:`MismatchMonitor.on_pose` by :func:`feed_recording`.  ``config``: :func:`recording_config`
+    when None.
+
+    Raises
+    ------
+    SudsDataError
+        (code ``too_little_data``) when the recording ends before the monitor's first report.
+    """
+    cfg = recording_config(rec) if config is None else config
+    mon = MismatchMonitor(system, cfg)
+    feed_recording(mon, rec)
     if mon.record.first_report is None:
         need = cfg.first_report_samples
         raise SudsDataError(

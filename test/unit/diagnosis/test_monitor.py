@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import heapq
 import json
 import math
 from pathlib import Path
@@ -599,22 +598,14 @@ def test_a_nominal_robot_under_heavy_stamp_jitter_stays_ok(name):
 def test_the_monitor_says_when_the_shape_stamps_look_stamped_late() -> None:
     """Values on the device's clock with 2 ms of jitter in the stamps alone: flagged (the node logs it);
     the same run with its values read at jittered stamps: not."""
-    import heapq
-
-    from suds_ros.core.diagnosis.monitor import MismatchMonitor, recording_config
+    from suds_ros.core.diagnosis.monitor import MismatchMonitor, feed_recording, recording_config
 
     system = load_system("purcell3")
     late = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.002, stamping="arrival"))
     read = simulate_lab(system, SimConfig(cycles=8, seed=6), LabConditions(jitter=0.002))
     for r, says in ((late, True), (read, False)):
         mon = MismatchMonitor(system, recording_config(r))
-        merged = heapq.merge(((float(t), 0, k) for k, t in enumerate(r.pose_t)),
-                             ((float(t), 1, k) for k, t in enumerate(r.t)))
-        for _, kind, k in merged:
-            if kind:
-                mon.on_shape(r.t[k], r.joint_names, r.r[k])
-            else:
-                mon.on_pose(r.pose_t[k], *r.pose[k])
+        feed_recording(mon, r)
         assert mon.updated > 0 and mon.stamped_late == says
 
 
@@ -623,19 +614,13 @@ def test_a_stamped_late_stream_is_timed_on_its_grid_and_its_delay_is_measured() 
     jitter.  Timed at their stamps (until 2026-12-06) the samples put its passive joints at ERROR (F 8.1) and
     the pose stream's lag at −3.0 ms; timed at their grid points the passive joints stay OK, and the body
     channels' misfit is the stream's delay against the pose stream, measured as such (a lag of −2 ms)."""
-    from suds_ros.core.diagnosis.monitor import MismatchMonitor, recording_config
+    from suds_ros.core.diagnosis.monitor import MismatchMonitor, feed_recording, recording_config
 
     system = load_system("swimmer9")
     rec = simulate_lab(system, SimConfig(cycles=12, seed=11),
                        LabConditions(jitter=0.002, stamping="arrival", latency=0.002))
     mon = MismatchMonitor(system, recording_config(rec))
-    for _, kind, k in heapq.merge(((float(t), 0, k) for k, t in enumerate(rec.pose_t)),
-                                  ((float(t), 1, k) for k, t in enumerate(rec.t))):
-        if kind:
-            mon.on_shape(rec.t[k], rec.joint_names, rec.r[k])
-        else:
-            mon.on_pose(rec.pose_t[k], *rec.pose[k])
-    mon.flush()
+    feed_recording(mon, rec)
     assert mon.stamped_late and mon.paired >= rec.t.size - 2  # (none but those after the last pose sample)
     passive = [c for c in mon.record.channels if c.channel.startswith("joint")]
     assert max(c.max_statistic for c in passive) < 4.0, [(c.channel, c.max_statistic) for c in passive]
