@@ -140,6 +140,7 @@ from suds_ros.core._typing import BoolArray, ComplexArray, FloatArray, IntArray
 from suds_ros.core.config import check_settings, setting
 from suds_ros.core.diagnosis.report import BODY, DiagnoseConfig
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.ident.model import joint_order
 from suds_ros.core.physics.integrate import integrate_batch
 from suds_ros.core.physics.rft import ChainModel, flow_in_body
 from suds_ros.core.physics.sim import _still, auto_substeps, passive_rate
@@ -955,12 +956,16 @@ class MismatchMonitor:
 
     def on_shape(self, stamp: float, names: tuple[str, ...] | list[str], position: FloatArray) -> int:
         """Queue a shape sample; returns the number of samples paired now."""
-        index = {n: i for i, n in enumerate(names)}
-        pos = np.asarray(position, dtype=float)
-        if any(n not in index for n in self.names) or pos.size != len(names):
+        try:
+            order = joint_order(tuple(names), self.names)
+        except SudsDataError:  # a joint of the system missing: skipped, as any bad sample
             self.skipped += 1
             return 0
-        r = pos[[index[n] for n in self.names]]
+        pos = np.asarray(position, dtype=float)
+        if pos.size != len(names):
+            self.skipped += 1
+            return 0
+        r = pos.copy() if order is None else pos[order]  # (a copy either way: the caller's array may change)
         if not np.all(np.isfinite(r)) or not float(stamp) > self._clock.last_stamp:
             self.skipped += 1
             return 0
