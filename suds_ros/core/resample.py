@@ -745,8 +745,6 @@ class LiveGrid:
         ready = [k for k in self._k if self._next <= k <= last]
         if not ready or (not final and len(set(ready)) < LIVE_BLOCK):
             return [], []
-        b = self._ckt / self._ckk
-        a = self._mt - b * self._mk
         ts: list[float] = []
         rs: list[FloatArray] = []
         if self.raw_values and self.mode == "grid":  # the samples as they came, in their grid points' turn
@@ -756,6 +754,8 @@ class LiveGrid:
                     rs.append(rr)
                     self._out = self._t0 + tt
         else:
+            b = self._ckt / self._ckk
+            a = self._mt - b * self._mk
             first = self._k[0]  # the held samples' grid points
             at = a + b * np.asarray(self._k) if self.mode == "snap" else np.asarray(self._t)
             values = knots_around(at, np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
