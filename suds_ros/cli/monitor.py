@@ -125,22 +125,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"the body channels' misfit is mostly ({100 * lag.share:.0f} %) what a pose stream "
               f"{1e3 * lag.seconds:+.2f} ms late on the shape stream leaves (score {lag.score:.3g}): check the "
               f"streams' stamps (`suds diagnose` tells a lag from other causes)")
-    if _stamped_late(rec):
-        print("the shape stamps look stamped late (each value on the device's clock, the jitter in the stamps "
-              "alone: a host stamping messages as they arrive): the monitor takes each shape sample at its grid "
-              "point once its own grid stage has judged so (at the earliest after 256 samples); the shape stream's "
-              "mean delay cannot be told from its own stamps, so a misfit of the body channels may be that delay "
-              "against the pose stream (README, 'Stamped late')")
+    if record.stamped_late is not None:
+        left = (f"; {record.unconfirmed} samples before that were left out while its count of a heavily jittered "
+                f"stream was unconfirmed" if record.unconfirmed else "")
+        print(f"the shape stamps look stamped late (each value on the device's clock, the jitter in the stamps "
+              f"alone: a host stamping messages as they arrive): the monitor's grid stage took each shape sample "
+              f"at its grid point from {when(record.stamped_late)} on{left}; the statistics allow for that time "
+              f"base's own uncertainty, but the shape stream's mean delay cannot be told from its stamps, so a "
+              f"misfit of the body channels may be that delay against the pose stream (README, 'Stamped late')")
     print(f"worst: {record.to_dict()['worst']}")
     return 0
-
-
-def _stamped_late(rec: object) -> bool:
-    """True when the recording's shape stream looks stamped late (:func:`~suds_ros.core.resample.values_on_grid`)."""
-    from suds_ros.core.errors import SudsError
-    from suds_ros.core.resample import Grid
-
-    try:
-        return Grid.of(rec).snapped  # type: ignore[arg-type]
-    except SudsError:  # a grid that cannot be fitted says nothing either way
-        return False

@@ -39,6 +39,22 @@ Lab streams
   and then a few grid points late, unchanged while read late, and at their grid points from when the
   stage judges the stream stamped late (:attr:`MismatchMonitor.stamped_late`).  The pose is read at
   those times.  :meth:`MismatchMonitor.flush` passes on what the stage holds at a stream's end.
+  Such a time base is itself an estimate, and the statistics allow for it:
+
+  - each sample so timed is its own set-point (the drive bends at it); a straight line refitted to
+    those times, whose line moved as stamps came in, put bends some µs off the samples and split
+    the intervals there (swimmer9's passive joints read it as a misfit, F 5–7 at 1 ms of jitter);
+  - the stage releases them on a slewed clock (no interval off by the line's moves, which reached
+    90 µs at block boundaries);
+  - samples released while the stage's count came from a phase lock that no recount has yet
+    confirmed (:attr:`~suds_ros.core.resample.LiveGrid.confirmed`; heavy jitter) are left out
+    (:attr:`MonitorRecord.unconfirmed`): a lock one count off slips a step every few hundred
+    samples, and a nominal swimmer9 read F 6–7 on its body channels at 3 ms;
+  - the line's place is known to its standard error (:attr:`~suds_ros.core.resample.LiveGrid.offset_se`,
+    ≈ 2σ/√n, 70 µs at 1 ms of jitter over the last 8 of 12 cycles), and swimmer9's body channels see a lag of
+    20 µs: the phase-coherent statistic first takes out what a time base off by up to
+    ``TIME_BASE_SIGMAS`` of those errors can leave (:func:`time_base_misfit`: a lag and a stretch
+    of the clock, within bounds).  A real lag beyond that still scores, smaller by the allowance.
 * A pose stream of its own rate is read at a shape stamp by linear interpolation between the pose
   samples around it, plus the replay's own departure from that straight line (the body velocity
   jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
@@ -197,6 +213,9 @@ SCORE_PER_DECADE = 4.0
 #: a pose lag is named (``suds monitor``) only when its fit explains at least this share of the body channels'
 #: weighted misfit at the gait harmonics (:func:`lag_statistic`; friction or damping lean the same way, partly)
 LAG_SHARE = 0.5
+#: on a shape stream timed at its grid points (stamped late), the time base may sit this many of its standard
+#: errors (:attr:`~suds_ros.core.resample.LiveGrid.offset_se`) off the device's ticks before its misfit counts
+TIME_BASE_SIGMAS = 4.0
 
 
 @dataclass(frozen=True)
@@ -348,7 +367,9 @@ class MonitorRecord:
 
     ``first_report`` / ``last_report``: stamps (s) of the first and last statistics update, None
     before the first.  ``updates``: how many there were.  ``lag``: the :func:`lag_statistic` at its
-    largest score so far (None before the first).
+    largest score so far (None before the first).  ``stamped_late``: the stamp of the first shape
+    sample the monitor timed at its grid point (its grid stage judged the stream stamped late; None:
+    never), ``unconfirmed``: stamped-late samples left out while the stage's count was unconfirmed.
     """
 
     channels: tuple[ChannelRecord, ...]
@@ -356,6 +377,8 @@ class MonitorRecord:
     last_report: float | None = None
     updates: int = 0
     lag: Lag | None = None
+    stamped_late: float | None = None
+    unconfirmed: int = 0
 
     @property
     def worst(self) -> int:
@@ -800,6 +823,48 @@ def _lag(sp: _Spectrum, body: slice) -> Lag:
     return Lag(float(_tail_score(fisher.logsf(T, 1, 2 * sp.noise_bins))), -proj / weight, share)
 
 
+def time_base_misfit(sp: _Spectrum, body: slice, bound: float) -> _Spectrum:
+    """``sp`` with the residual that a time base off by at most ``bound`` (s) can make taken out of its harmonics.
+
+    A shape stream timed at its fitted grid points (stamped late) sits off the device's ticks by
+    a slowly wandering τ(t), |τ| ≤ ``bound`` (a few standard errors of the grid's line).  Over the
+    spectrum's span L its mean is a lag, −τ̄ ξ̇ in the body channels (the pose stream is read at
+    the shifted times), and its trend a stretch of the clock by ε, |ε| ≤ 3·bound/L (the steepest
+    least-squares slope of a function bounded by ``bound``).  A stretched interval changes the
+    measured passive velocities and the geometric part B·ṙ_a of the prediction alike, but not the
+    drift C (the physics with the actuators at rest): −ε·C_p in the passive channels.  The pose's
+    velocity keeps its time, so in the body channels the stretch shows in the prediction's
+    geometric part alone: +ε·(ξ − C).  The first series of ``sp`` is the residual, the second the
+    predicted body velocity (the ``body`` columns), the third those shapes for ε = 1, per channel.  The two
+    amplitudes are fitted by noise-weighted least squares within their bounds (scipy's
+    ``lsq_linear``) and subtracted at the harmonics; what exceeds the bounds stays.  A robot's own
+    misfit of the same shape within the bounds is not told apart from the clock's: that is the
+    limit of a stamped-late time base.
+    """
+    from scipy.optimize import lsq_linear
+
+    c = sp.coef[0][sp.harm]  # (H, channels)
+    if not (bound > 0 and np.all(sp.local > 0)):
+        return sp
+    lag = np.zeros_like(c)
+    lag[:, body] = 2j * np.pi * sp.j[sp.harm, None] / sp.span * sp.coef[1][sp.harm]
+    stretch = sp.coef[2][sp.harm]
+    w = 1.0 / np.sqrt(sp.local)
+    cols = [np.concatenate([(x * w).real.ravel(), (x * w).imag.ravel()]) for x in (lag, stretch)]
+    A = np.stack(cols, axis=1)
+    y = np.concatenate([(c * w).real.ravel(), (c * w).imag.ravel()])
+    limits = np.array([bound, 3.0 * bound / sp.span])
+    use = np.any(A != 0, axis=0)
+    if not use.any():
+        return sp
+    fit = lsq_linear(A[:, use], y, bounds=(-limits[use], limits[use])).x
+    amp = np.zeros(2)
+    amp[use] = fit
+    coef0 = sp.coef[0].copy()
+    coef0[sp.harm] = c - amp[0] * lag - amp[1] * stretch
+    return sp._replace(coef=(coef0,) + sp.coef[1:])
+
+
 # ------------------------------------------------------------------ the monitor
 def noise_groups(system: SudsSystem) -> tuple[tuple[str, FloatArray, float], ...]:
     """The signal groups whose noise levels the floor fits: (name, joint mask (nj,), pose weight).
@@ -857,7 +922,9 @@ class _Sample(NamedTuple):
     the synthetic noise on group g's signals.  ``pose`` is interpolated between the pose samples
     at ``bracket`` = (τa, τb) (equal: a pose at this very stamp), ``yaw_a`` the yaw at τa;
     ``pose_ok`` (one element, set when the pose is read) False when that bracket spans a lost
-    pose message or a lost shape sample, or lies before the first replay.
+    pose message or a lost shape sample, or lies before the first replay.  ``clock_se``: 0 for a
+    sample at its own stamp; for one timed at its grid point by the shape clock (a stream stamped
+    late) the standard error of that time base when it was released, s (> 0).
     """
 
     t: float
@@ -866,6 +933,7 @@ class _Sample(NamedTuple):
     bracket: tuple[float, float]
     yaw_a: float
     pose_ok: BoolArray
+    clock_se: float = 0.0
 
 
 class _Interval(NamedTuple):
@@ -923,10 +991,13 @@ class MismatchMonitor:
         # on the interval ending at each sample
         self._rates: deque[FloatArray] = deque(maxlen=keep)
         self._replays: deque[_Interval | None] = deque(maxlen=keep)
+        # the data's drift on each interval: the physics' (ξ, ṙ_p) at its middle shape with the actuators at rest
+        self._drifts: deque[FloatArray] = deque(maxlen=keep)
         self._rated = 0  # samples (counted from the first) whose interval is predicted
         self._read = 0  # samples whose pose is final (corrected with the replay)
         # samples waiting for the other stream (bounded: a stream that stops cannot fill memory)
-        self._shapes: deque[tuple[float, FloatArray]] = deque(maxlen=keep)
+        # (stamp, joints, the clock's standard error when timed at its grid point, else 0)
+        self._shapes: deque[tuple[float, FloatArray, float]] = deque(maxlen=keep)
         # (stamp, pose, synthetic noise, the typical pose interval up to it: the median of the last 64, s);
         # room for the poses that arrive while the shape clock holds its lock block
         self._poses: deque[tuple[float, FloatArray, FloatArray, float]] = deque(maxlen=keep + 16 * LIVE_LOCK_MAX)
@@ -942,6 +1013,8 @@ class MismatchMonitor:
         self.updated = 0  # number of statistic updates
         self.paired = 0
         self.skipped = 0
+        self.unconfirmed = 0  # stamped-late samples left out while the clock's count was unconfirmed
+        self._snapped_from: float | None = None  # the first sample timed at its grid point
         # the shape samples' clock (see the module docstring, *Lab streams*): passed on at their stamps, or,
         # once the stream is recognised as stamped late, at their grid points
         self._clock = LiveGrid(raw_values=True)
@@ -982,10 +1055,28 @@ class MismatchMonitor:
 
     def _queue(self, stamps: list[float], values: list[FloatArray]) -> int:
         n = 0
+        se = self._clock.offset_se if self.stamped_late else 0.0
+        if se > 0 and not self._clock.confirmed:
+            # its count came from a phase lock no recount has agreed with yet: a time base that may be slipping
+            # (milliseconds off) would be read as a misfit of the robot, so these samples are not compared, and
+            # the samples before them (on another time base) are not continued from
+            self.unconfirmed += len(stamps)
+            self._forget()
+            return 0
+        if se > 0 and stamps and self._snapped_from is None:
+            self._snapped_from = float(stamps[0])
         for t, r in zip(stamps, values):
-            self._shapes.append((t, r))
+            self._shapes.append((t, r, se))
             n += self._pair()
         return n
+
+    def _forget(self) -> None:
+        """Start the sample history afresh (the statistics come again once enough samples are at hand)."""
+        for d in (self._hist, self._rates, self._replays, self._drifts, self._shapes):
+            d.clear()
+        self._rated = self._read = self.paired
+        self._since_update = 0
+        self._floor = None
 
     def on_pose(self, stamp: float, x: float, y: float, yaw: float) -> int:
         """Queue a pose sample; returns the number of samples paired now."""
@@ -1004,7 +1095,7 @@ class MismatchMonitor:
     def _pair(self) -> int:
         n = 0
         while self._shapes and self._poses and self._poses[-1][0] >= self._shapes[0][0]:
-            t, r = self._shapes.popleft()
+            t, r, se = self._shapes.popleft()
             while len(self._poses) > 1 and self._poses[1][0] <= t:
                 self._poses.popleft()
             t0, p0, n0, _ = self._poses[0]
@@ -1018,7 +1109,7 @@ class MismatchMonitor:
                 a = (t - t0) / (t1 - t0)
                 pose, noise, bracket = p0 + (p1 - p0) * a, n0 + (n1 - n0) * a, (t0, t1)
                 ok = t1 - t0 <= self.config.gap * typical  # (typical as of t1: the same however late the shape)
-            self._add(t, r, pose, noise, bracket, float(p0[2]), ok)
+            self._add(t, r, pose, noise, bracket, float(p0[2]), ok, se)
             n += 1
         return n
 
@@ -1030,12 +1121,13 @@ class MismatchMonitor:
                   (stamp, stamp), float(pose[2]), True)
 
     def _add(self, t: float, r: FloatArray, pose: FloatArray, pose_noise: FloatArray, bracket: tuple[float, float],
-             yaw_a: float, pose_ok: bool) -> None:
+             yaw_a: float, pose_ok: bool, clock_se: float = 0.0) -> None:
         r_noise = SYNTHETIC_NOISE * self._rng_r.standard_normal(r.size)
         rs = np.concatenate([r[None], r + self._joint_masks * r_noise])
         poses = np.concatenate([pose[None], pose + self._pose_masks * pose_noise])
-        self._hist.append(_Sample(t, rs, poses, bracket, yaw_a, np.array([pose_ok])))
+        self._hist.append(_Sample(t, rs, poses, bracket, yaw_a, np.array([pose_ok]), clock_se))
         self._rates.append(np.full((rs.shape[0], 3 + len(self.system.passive)), np.nan))
+        self._drifts.append(np.full(3 + len(self.system.passive), np.nan))
         self._replays.append(None)
         self.paired += 1
         self._since_update += 1
@@ -1063,11 +1155,17 @@ class MismatchMonitor:
                 np.array([h.pose[0] for h in last]).reshape(len(last), 3))
 
     def _grid(self) -> tuple[float, FloatArray]:
-        """The set-point grid point next to every sample in the history: (reference time, points − it)."""
+        """The set-point grid point next to every sample in the history: (reference time, points − it).
+
+        A sample timed at its grid point by the shape clock (``clock_se`` > 0) is its own: refitting
+        a straight line to such times would put a bend some µs off the sample (the clock's line moves
+        as stamps come in) and split the interval there.
+        """
         t = np.array([h.t for h in self._hist])
         ref = t[0]
         k, a, b = fit_grid(t - ref, 1.0 / self.config.rate)
-        return ref, a + b * k
+        own = np.array([h.clock_se > 0 for h in self._hist])
+        return ref, np.where(own, t - ref, a + b * k)
 
     def _predict_new_intervals(self) -> None:
         """Predict the intervals that ended since the last update, but the newest (its end needs the next sample).
@@ -1114,11 +1212,17 @@ class MismatchMonitor:
                                                  R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel(), both,
                                                  np.tile(outputs, (V, 1)) if inside.any() else None, lam)
         rates = np.concatenate([xi, rp], axis=1).reshape(V, k, -1)  # (V, k, 3 + np)
+        mid = 0.5 * (R[0, 1:-2] + R[0, 2:-1])
+        d_xi, d_rp = self.physics.still.velocities(mid, np.zeros((k, act.size)))
+        if self.physics.flow != (0.0, 0.0):
+            d_xi = d_xi + flow_in_body(self.physics.flow, mid_yaw[0])
+        drifts = np.concatenate([d_xi, d_rp], axis=1)
         still = xi - (0.0 if self.physics.flow == (0.0, 0.0) else flow_in_body(self.physics.flow, mid_yaw.ravel()))
         motion = se2.exp_step(np.zeros((V * k, 3)), still * np.tile(dt, V)[:, None]).reshape(V, k, 3)
         at = at.reshape(V, k, at.shape[1], 3)
         for j in range(k):
             self._rates[first + j] = rates[:, j]
+            self._drifts[first + j] = drifts[j]
             self._replays[first + j] = _Interval(motion[:, j], np.where(inside[j], cand[j] + ref, np.nan), at[:, j],
                                                  bool(stiff.reshape(V, k)[:, j].any()), bool(lost[j]))
         self._rated = self.paired - 1
@@ -1284,22 +1388,34 @@ class MismatchMonitor:
         """The phase-coherent scores over the last ``coherent_cycles`` cycles at hand, per channel.
 
         Each channel's :func:`coherent_statistic`; on the body channels at least the
-        :func:`lag_statistic` of them together (kept, with its lag, in :attr:`lag`).
+        :func:`lag_statistic` of them together (kept, with its lag, in :attr:`lag`).  On a time base
+        of grid points (:attr:`stamped_late`) the misfit its own uncertainty can make is taken out
+        first, within bounds (:func:`time_base_misfit`).
         """
         cfg = self.config
-        t, R, P, split, shape_ok, pose_ok = self._series(ready, cfg.coherent_cycles * self._spc + 1, False)
+        m = cfg.coherent_cycles * self._spc + 1
+        t, R, P, split, shape_ok, pose_ok = self._series(ready, m, False)
         e1 = equation_residuals(self.system, t, R, P, 1, split)[0]
         nb = len(self.body_channels)
-        # one spectrum for both: the residuals of every channel, the predicted body velocity
+        xi = split[0][0][:, :nb]
+        drift = np.array(list(self._drifts)[ready - t.size + 1:ready])
+        scale = np.concatenate([-drift[:, 3:], xi - drift[:, :nb]], axis=1)  # what a clock stretched by +1 leaves
+        # one spectrum for all: the residuals of every channel, the predicted body velocity, the clock's misfits
         sp = _cycle_spectrum(t, shape_ok & pose_ok[:-1] & pose_ok[1:], 1.0 / cfg.gait_hz, cfg.coherent_cycles,
-                             cfg.harmonics, e1, split[0][0][:, :nb])
+                             cfg.harmonics, e1, xi, scale)
         if sp is None:
             self.lag = NO_LAG
             return np.full(e1.shape[1], np.nan)
         sp = sp._replace(local=np.maximum(sp.local, self._least_local(t, sp)))
-        score = _ratio_score(_ratio(sp), sp.noise_bins, cfg.harmonics)
         body = slice(e1.shape[1] - nb, None)
-        self.lag = _lag(sp, body)
+        lag = _lag(sp, body)
+        se = float(np.mean([h.clock_se for h in list(self._hist)[:ready][-t.size:]]))
+        if se > 0:
+            sp = time_base_misfit(sp, body, TIME_BASE_SIGMAS * se)
+            excess = _lag(sp, body)
+            lag = lag._replace(score=excess.score)
+        score = _ratio_score(_ratio(sp), sp.noise_bins, cfg.harmonics)
+        self.lag = lag
         score[body] = np.fmax(score[body], self.lag.score)
         return score
 
@@ -1339,7 +1455,8 @@ class MismatchMonitor:
         if np.isfinite(self.lag.score) and (lag is None or self.lag.score >= lag.score):
             lag = self.lag
         self.record = MonitorRecord(tuple(c.seen(s, stamp) for c, s in zip(rec.channels, out)),
-                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated, lag)
+                                    stamp if rec.first_report is None else rec.first_report, stamp, self.updated, lag,
+                                    self._snapped_from, self.unconfirmed)
         if all(s.level == OK for s in out):
             self._armed = True
         self._maybe_request(stamp)
@@ -1495,8 +1612,11 @@ def monitor_recording(rec: Recording, system: SudsSystem, config: MonitorConfig 
     feed_recording(mon, rec)
     if mon.record.first_report is None:
         need = cfg.first_report_samples
+        late = (f"; {mon.unconfirmed} shape samples were left out while the count of the stream's grid stage "
+                f"was unconfirmed (stamped late with heavy jitter), and the monitor started afresh after them with "
+                f"{len(mon._hist)}" if mon.unconfirmed else "")
         raise SudsDataError(
             f"recording gave {mon.paired} paired samples ({mon.paired / cfg.samples_per_cycle:.2f} gait cycles "
-            f"at {cfg.gait_hz:g} Hz); the monitor reports after {need} ({cfg.floor_cycles:g} cycles)",
+            f"at {cfg.gait_hz:g} Hz){late}; the monitor reports after {need} ({cfg.floor_cycles:g} cycles)",
             code=TOO_LITTLE_DATA)
     return mon.record

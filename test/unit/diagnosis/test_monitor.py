@@ -157,6 +157,34 @@ def _gait_velocity(t):
     return xi, dxi
 
 
+def test_time_base_misfit_takes_out_a_lag_and_a_stretch_within_their_bounds():
+    """A stamped-late time base may be off by up to a bound: a 6 ms lag within it and a stretch of the clock within
+    3·bound/span are taken out (scores back to the noise's); beyond the bounds the excess still scores."""
+    from suds_ros.core.diagnosis.monitor import _cycle_spectrum, _lag, _ratio, _ratio_score, time_base_misfit
+
+    t, e1 = _differenced_noise(np.random.default_rng(3), 8, channels=3)
+    xi, dxi = _gait_velocity(t)
+    valid = np.ones(e1.shape[0], bool)
+    body = slice(0, 3)
+
+    def scores(e: np.ndarray, bound: float) -> tuple[float, float]:
+        sp = _cycle_spectrum(t, valid, 1.0, 8, 2, e, xi, xi)  # (a stretch leaves ε·ξ here: no drift)
+        assert sp is not None
+        out = time_base_misfit(sp, body, bound)
+        return _lag(out, body).score, float(np.max(_ratio_score(_ratio(out), out.noise_bins, 2)))
+
+    assert scores(e1, 0.008) == (0.0, 0.0)
+    late = e1 - 0.006 * dxi
+    assert _lag(_cycle_spectrum(t, valid, 1.0, 8, 2, late, xi, xi), body).score > 2 * MonitorConfig().error
+    assert scores(late, 0.008) == (0.0, 0.0)
+    lag, _ = scores(e1 - 0.012 * dxi, 0.003)
+    assert lag > MonitorConfig().error
+    stretched = 0.01 * e1 + 1e-3 * xi  # (a hundredth of the noise: a stretch of 1e-3 stands out of it)
+    assert np.max(coherent_statistic(t, stretched, valid, 1.0, 8, 2)) > MonitorConfig().error
+    assert scores(stretched, 0.008)[1] == 0.0  # allowed: 3 × 8 ms / 8 s = 3e-3
+    assert scores(stretched, 0.001)[1] > MonitorConfig().error  # allowed: 3.75e-4
+
+
 def test_lag_statistic_under_noise_has_its_law_and_finds_a_lag_the_channels_alone_miss():
     """Under noise: lags read off noise are normal about 0, the score stays 0; a lagging pose is measured and scored."""
     rng = np.random.default_rng(2)
@@ -626,6 +654,25 @@ def test_a_stamped_late_stream_is_timed_on_its_grid_and_its_delay_is_measured() 
     assert max(c.max_statistic for c in passive) < 4.0, [(c.channel, c.max_statistic) for c in passive]
     lag = mon.record.lag
     assert lag is not None and lag.seconds == pytest.approx(-0.002, abs=4e-4) and lag.share > 0.5, lag
+
+
+@pytest.mark.parametrize("system_id, jitter, seed", [("swimmer9", 0.001, 13), ("swimmer9", 0.003, 11)])
+def test_a_nominal_robot_stamped_late_stays_ok(system_id: str, jitter: float, seed: int) -> None:
+    """Nominal runs stamped on arrival with no transport delay.  Before 2026-12-06 (late): swimmer9 at 1 ms read
+    F 9.2 on its body channels (the time base 130 µs off, inside its own standard error) and F up to 6.9 on
+    passive joints on other seeds (bends put some µs off the samples); at 3 ms 5.9 (a lock one count off,
+    slipping).  Now every channel stays OK; at 3 ms the samples before the count is confirmed are left out."""
+    from suds_ros.core.diagnosis.monitor import MismatchMonitor, feed_recording, recording_config
+
+    system = load_system(system_id)
+    rec = simulate_lab(system, SimConfig(cycles=12, seed=seed), LabConditions(jitter=jitter, stamping="arrival"))
+    mon = MismatchMonitor(system, recording_config(rec))
+    feed_recording(mon, rec)
+    record = mon.record
+    assert record.stamped_late is not None and record.updates > 0
+    assert (record.unconfirmed > 0) == (jitter > 0.002)
+    worst = max(c.max_statistic for c in record.channels)
+    assert worst < MonitorConfig().warn, [(c.channel, round(c.max_statistic, 2)) for c in record.channels]
 
 
 def test_the_grid_stage_holds_a_jittered_stream_until_flushed() -> None:
