@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 try:  # pytest imports test/ros modules top-level (rootdir-relative) or as a package
@@ -101,8 +102,14 @@ def test_joint_states_and_mocap_remapped_into_the_pipeline(start_process, probe,
     assert len(unmatched) <= 0.01 * len(late), (len(unmatched), len(late), unmatched[:5], pred.output())
     published = {stamp(m) for m in inbox["/joint_states"].messages()}
     on_published = sum(s in published for s in predicted)
-    if jitter_ms:  # grid times: none is a published stamp
-        assert on_published == 0, on_published
+    if jitter_ms:
+        # grid times: a whole number of steps apart (a slewed clock: within µs), unlike the jittered stamps; a
+        # double near 1.7e9 s resolves 0.24 µs, so a grid time can equal a published stamp by chance (one of
+        # ~2000 did once): a handful at most
+        gaps = np.diff(np.sort(np.array(predicted, dtype=np.int64)))
+        off = np.abs(gaps - np.round(gaps / 1e7).astype(np.int64) * 10**7)
+        assert np.mean(off <= 5000) > 0.99, np.sort(off)[-10:]
+        assert on_published <= 0.005 * len(predicted), on_published
         # the stand-in robot stamps late (values at its regular ticks, stamps jittered): told from the data
         assert values.get("shape_grid") == "snap", values
     else:
