@@ -780,8 +780,9 @@ class LiveGrid:
             k, a, b = fit_grid(t, dt)
             off = float(np.max(np.abs(t - a - b * k)))
             uniform = off <= LIVE_UNIFORM * b
-            if (not uniform and not final and t.size < LIVE_LOCK_MAX and off >= LOCK_TRIGGER * b
-                    and phase_search(t, dt)[2] < LOCK_CLEAR):
+            # the phase lock's clarity, where a quarter-step departure calls for one (inf: counted by intervals)
+            clarity = phase_search(t, dt)[2] if not uniform and off >= LOCK_TRIGGER * b else math.inf
+            if not uniform and not final and t.size < LIVE_LOCK_MAX and clarity < LOCK_CLEAR:
                 self._lock_at = min(2 * t.size, LIVE_LOCK_MAX)
                 return [], []
         if uniform:
@@ -790,7 +791,7 @@ class LiveGrid:
             return ts, rs
         self._snap = snap_sums(t, np.asarray(self._r, dtype=float), k, b)
         # counted interval by interval (no phase lock to doubt), or locked on a peak that clearly stands out
-        self._sure = off < LOCK_TRIGGER * b or phase_search(t, dt)[2] >= LOCK_SURE
+        self._sure = clarity >= LOCK_SURE
         self.mode = "snap" if snap_verdict(self._snap) else "grid"
         self._k = k.tolist()
         self._refit(t, k)
