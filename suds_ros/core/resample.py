@@ -678,6 +678,18 @@ class LiveGrid:
         sigma2 = self._res2 / self._w
         return float(math.sqrt(sigma2 * (1.0 + (self._k[-1] - self._mk) ** 2 * self._w / self._ckk) / n))
 
+    def grid_point(self, t: float) -> float:
+        """The grid time nearest the stamp ``t`` on the line as it stands (s, as given; NaN off the grid).
+
+        For a sample just released in mode ``grid`` (read late) this is its set-point time: the
+        mismatch monitor bends its replayed drive there.
+        """
+        if self.mode not in _ON_GRID or not self._ckk > 0:
+            return float("nan")
+        b = self._ckt / self._ckk
+        a = self._mt - b * self._mk
+        return float(self._t0 + a + b * round((float(t) - self._t0 - a) / b))
+
     @property
     def held(self) -> int:
         """Samples taken and not yet released."""

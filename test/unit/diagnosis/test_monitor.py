@@ -13,6 +13,7 @@ import pytest
 from suds_ros.core.diagnosis.monitor import (
     ERROR,
     OK,
+    REPLAY_AHEAD,
     STALE,
     WARN,
     ChannelRecord,
@@ -477,8 +478,9 @@ def test_pose_between_pose_samples_follows_the_replay(purcell3):
         else:
             mon.on_pose(rec.pose_t[k], *rec.pose[k])
     t, _, pose = mon.samples()
-    # the newest samples wait for the next update and the replay of the next pose's interval
-    assert 0 < rec.t.size - t.size <= mon.config.update_every + 3
+    # the newest samples wait for the next update and the replay of the next pose's interval (which waits for
+    # REPLAY_AHEAD samples after it)
+    assert 0 < rec.t.size - t.size <= mon.config.update_every + 2 + REPLAY_AHEAD
     truth = rec.truth["pose"][np.searchsorted(rec.t, t)]
     assert np.array_equal(rec.t[np.searchsorted(rec.t, t)], t)
     straight = np.stack([np.interp(t, rec.pose_t, rec.pose[:, c]) for c in range(3)], axis=1)
@@ -489,7 +491,7 @@ def test_pose_between_pose_samples_follows_the_replay(purcell3):
 
 
 # (with 2 and 3 ms of jitter the rule before 2026-12-05, the sample moved along the chord to its
-# neighbour, put the bends back to only 0.14–0.66 of the chord's error: benchmarks/monitor_jitter.py)
+# neighbour, put the bends back to only 0.14–0.66 of the chord's error: benchmarks/monitor_jitter.py as of 16d9a4a)
 @pytest.mark.parametrize("jitter", [0.0004, 0.002, 0.003])
 def test_drive_kinks_put_the_bends_on_the_grid(jitter):
     """Jittered samples of a piecewise-linear drive: the bends are found at the grid points."""
@@ -621,6 +623,40 @@ def test_a_nominal_robot_under_heavy_stamp_jitter_stays_ok(name):
     mon = monitor_recording(rec, system)
     assert mon.worst == OK, [(c.channel, c.max_statistic, c.stale) for c in mon.channels]
     assert max(c.stale for c in mon.channels) == 0
+
+
+@pytest.mark.parametrize("system_id, jitter, seed", [("swimmer9", 0.002, 3), ("purcell3", 0.003, 0)])
+def test_a_nominal_robot_read_late_with_heavy_jitter_stays_ok(system_id: str, jitter: float, seed: int) -> None:
+    """Nominal runs read at jittered stamps.  Until 2026-12-06 (early) swimmer9 at 2 ms went to ERROR (F 13.4: one
+    interval replayed with a knot at the fit's edge) and purcell3 at 3 ms too (F 23.5: a grid refitted to the first
+    2 s of stamps a count off); now the set-points come from the shape clock's count, the knot fit has samples on
+    both sides and the grid's own error is allowed for."""
+    system = load_system(system_id)
+    rec = simulate_lab(system, SimConfig(cycles=12, seed=seed), LabConditions(jitter=jitter))
+    record = monitor_recording(rec, system)
+    assert record.stamped_late is None and record.updates > 0
+    worst = max(c.max_statistic for c in record.channels)
+    assert worst < MonitorConfig().warn, [(c.channel, round(c.max_statistic, 2)) for c in record.channels]
+
+
+def test_the_set_point_grid_error_is_allowed_for_and_no_more(monkeypatch: pytest.MonkeyPatch) -> None:
+    """swimmer9 read late at 2 ms, seed 4: without the allowance for the grid's own error its passive joints WARN
+    (F 6.0; 6 of 11 seeds); with it they are OK, and a viscous damping at 3× its detection limit still goes to
+    ERROR."""
+    import suds_ros.core.diagnosis.monitor as monitor_mod
+
+    system = load_system("swimmer9")
+    lab = LabConditions(jitter=0.002)
+    rec = simulate_lab(system, SimConfig(cycles=12, seed=4), lab)
+    ok = monitor_recording(rec, system)
+    assert max(c.max_statistic for c in ok.channels) < MonitorConfig().warn
+    faulty = RFTChain(apply_effects(system.model, [{"name": "joint_viscous_damping", "joint": "joint_7",
+                                                    "d": 0.03}])[0])
+    bad = monitor_recording(simulate_lab(faulty, SimConfig(cycles=12, seed=4), lab), system)
+    assert bad.worst == ERROR
+    monkeypatch.setattr(monitor_mod.MismatchMonitor, "_time_base", lambda self, *a: a[4])
+    off = monitor_recording(rec, system)
+    assert max(c.max_statistic for c in off.channels) > MonitorConfig().warn
 
 
 def test_the_monitor_says_when_the_shape_stamps_look_stamped_late() -> None:
