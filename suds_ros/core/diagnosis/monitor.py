@@ -1412,9 +1412,10 @@ class MismatchMonitor:
         clock's line, known to its standard error (≈ 2σ/√n at the newest sample, 120 µs at 2 ms of
         jitter over 1000 samples; each sample keeps the one it was released with), and a passive
         joint that follows its drive within a sample turns such an offset into a misfit: without
-        this a nominal swimmer9 read late at 2 ms went to WARN on 6 of 11 seeds (F up to 6.0), all
-        OK on the true set-point times.  The residual's sensitivity to the offset comes
-        from the data replayed on the grid moved by :data:`GRID_SHIFT`; one offset is fitted to
+        this 5 of 12 nominal swimmer9 runs read late at 2 ms are called wrong (F up to 11.1;
+        ``docs/results/monitor_jitter.md``), all OK on the true set-point times.  The residual's
+        sensitivity to the offset comes from the data replayed on the grid moved by
+        :data:`GRID_SHIFT`; one offset is fitted to
         every channel over the clean windows of the last ``span`` (each channel weighted by its own
         mean square there) and bounded by ``TIME_BASE_SIGMAS`` standard errors, and its misfit
         taken out.  Samples timed at their grid points (stamped late) have their own allowance
