@@ -686,9 +686,13 @@ class LiveGrid:
         """
         if self.mode not in _ON_GRID or not self._ckk > 0:
             return float("nan")
-        b = self._ckt / self._ckk
-        a = self._mt - b * self._mk
+        a, b = self._line_now()
         return float(self._t0 + a + b * round((float(t) - self._t0 - a) / b))
+
+    def _line_now(self) -> tuple[float, float]:
+        """The running line t ≈ a + b·k as it stands (t relative to the first stamp): (a, b)."""
+        b = self._ckt / self._ckk
+        return self._mt - b * self._mk, b
 
     @property
     def held(self) -> int:
@@ -869,8 +873,7 @@ class LiveGrid:
                     rs.append(rr)
                     self._out = self._t0 + tt
         else:
-            b = self._ckt / self._ckk
-            a = self._mt - b * self._mk
+            a, b = self._line_now()
             first = self._k[0]  # the held samples' grid points
             at = a + b * np.asarray(self._k) if self.mode == "snap" else np.asarray(self._t)
             values = knots_around(at, np.asarray(self._r, dtype=float), first, self._k[-1], a, b)
