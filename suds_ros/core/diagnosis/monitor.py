@@ -77,7 +77,11 @@ Lab streams
     ≈ 2σ/√n, 70 µs at 1 ms of jitter over the last 8 of 12 cycles), and swimmer9's body channels see a lag of
     20 µs: the phase-coherent statistic first takes out what a time base off by up to
     ``TIME_BASE_SIGMAS`` of those errors can leave (:func:`time_base_misfit`: a lag and a stretch
-    of the clock, within bounds).  A real lag beyond that still scores, smaller by the allowance.
+    of the clock, within bounds), and the windowed statistic one offset of the shape stream against
+    the pose stream within the same bound (:meth:`MismatchMonitor._time_base`): the line's error
+    wanders with the stamps, and one nominal swimmer9 at 2 ms had its time base 560 µs off (3.4
+    standard errors) for a second, body F 4.2 without that.  A real lag beyond that still scores,
+    smaller by the allowance.
 * A pose stream of its own rate is read at a shape stamp by linear interpolation between the pose
   samples around it, plus the replay's own departure from that straight line (the body velocity
   jumps at every bend of the drive, so the line cuts corners; :meth:`MismatchMonitor._read_poses`).
@@ -1406,40 +1410,58 @@ class MismatchMonitor:
 
     def _time_base(self, ready: int, t: FloatArray, r: FloatArray, pose: FloatArray, E: FloatArray,
                    win_ok: BoolArray, span: int | None) -> FloatArray:
-        """The data's window residuals ``E`` (windows, channels) less what the set-point grid's own error explains.
+        """The data's window residuals ``E`` (windows, channels) less what the shape stream's time base can explain.
 
-        With stamps read late and jittered, the drive's set-point times are the points of the shape
-        clock's line, known to its standard error (≈ 2σ/√n at the newest sample, 120 µs at 2 ms of
-        jitter over 1000 samples; each sample keeps the one it was released with), and a passive
-        joint that follows its drive within a sample turns such an offset into a misfit: without
-        this 5 of 12 nominal swimmer9 runs read late at 2 ms are called wrong (F up to 11.1;
-        ``docs/results/monitor_jitter.md``), all OK on the true set-point times.  The residual's
-        sensitivity to the offset comes from the data replayed on the grid moved by
-        :data:`GRID_SHIFT`; one offset is fitted to
-        every channel over the clean windows of the last ``span`` (each channel weighted by its own
-        mean square there) and bounded by ``TIME_BASE_SIGMAS`` standard errors, and its misfit
-        taken out.  Samples timed at their grid points (stamped late) have their own allowance
-        (:func:`time_base_misfit`) and are left as they are.
+        Two time bases are estimates, each with its own standard error per sample:
+
+        * read late with jitter, the drive's set-point times are the points of the shape clock's
+          line, known to ``grid_se`` (≈ 2σ/√n at the newest sample, 120 µs at 2 ms of jitter over
+          1000 samples; each sample keeps the one it was released with), and a passive joint that
+          follows its drive within a sample turns such an offset into a misfit: without this 5 of 12
+          nominal swimmer9 runs read late at 2 ms are called wrong (F up to 11.1;
+          ``docs/results/monitor_jitter.md``), all OK on the true set-point times.  The residual's
+          sensitivity comes from the data replayed on the grid moved by :data:`GRID_SHIFT`;
+        * stamped late, the samples themselves are timed at those points (``clock_se``), so the
+          whole shape stream may sit off the pose stream: the body channels then compare each
+          window with the pose a little earlier or later.  The extrapolated line's error wanders
+          with the stamps (one nominal swimmer9 at 2 ms: 560 µs at 5 s, 3.4 of its standard
+          errors, as far as a least-squares line through every stamp so far; body F 4.2, WARN).
+          The sensitivity: the poses moved by :data:`GRID_SHIFT` along their own rate.
+
+        Per time base present, one offset is fitted to every channel over the clean windows of
+        the last ``span`` (each channel weighted by its own mean square there), bounded by
+        ``TIME_BASE_SIGMAS`` of the window's mean standard error, and its misfit taken out.  The
+        phase-coherent statistic's allowance for a stamped-late time base is :func:`time_base_misfit`.
         """
         m = t.size
-        se = float(np.mean([h.grid_se for h in list(self._hist)[ready - m:ready]]))
-        if not se > 0.0:
-            return E
-        moved = np.array(list(self._shifted)[ready - m + 1:ready])
+        kept = list(self._hist)[ready - m:ready]
         use = win_ok.copy()
         if span is not None:
             use[:-span] = False
-        if not use.any() or not np.all(np.isfinite(moved)):
+        if not use.any():
             return E
         w = self.config.diff_window
-        A = (equation_residuals(self.system, t, r, pose, w, (moved[:, :3], moved[:, 3:])) - E) / GRID_SHIFT
-        weight = 1.0 / np.maximum(np.mean(E[use] ** 2, axis=0), 1e-300)
-        den = float(np.sum(A[use] ** 2 * weight))
-        if not den > 0.0:
+        directions = []
+        se = float(np.mean([h.grid_se for h in kept]))
+        if se > 0.0:  # read late: the set-points GRID_SHIFT later
+            moved = np.array(list(self._shifted)[ready - m + 1:ready])
+            if np.all(np.isfinite(moved)):
+                directions.append((se, (moved[:, :3], moved[:, 3:]), pose))
+        se = float(np.mean([h.clock_se for h in kept]))
+        if se > 0.0:  # stamped late: the shape samples GRID_SHIFT later against the poses
+            earlier = pose - GRID_SHIFT * np.gradient(pose, t, axis=0)
+            rates = np.array(list(self._rates)[ready - m + 1:ready])[:, 0]
+            directions.append((se, (rates[:, :3], rates[:, 3:]), earlier))
+        if not directions:
             return E
-        bound = TIME_BASE_SIGMAS * se
-        shift = float(np.clip(-np.sum(A[use] * E[use] * weight) / den, -bound, bound))
-        return E + shift * A
+        weight = 1.0 / np.maximum(np.mean(E[use] ** 2, axis=0), 1e-300)
+        for se, split, at in directions:
+            A = (equation_residuals(self.system, t, r, at, w, split) - E) / GRID_SHIFT
+            den = float(np.sum(A[use] ** 2 * weight))
+            if den > 0.0:
+                bound = TIME_BASE_SIGMAS * se
+                E = E + float(np.clip(-np.sum(A[use] * E[use] * weight) / den, -bound, bound)) * A
+        return E
 
     def _scored(self, ready: int, E: FloatArray, win_ok: BoolArray, span: int) -> tuple[FloatArray, int]:
         """The windows the statistic is taken over, and how many it needs.

@@ -673,6 +673,28 @@ def test_the_monitor_says_when_the_shape_stamps_look_stamped_late() -> None:
         assert mon.updated > 0 and mon.stamped_late == says
 
 
+def test_a_stamped_late_time_base_off_by_its_own_error_is_allowed_for_and_no_more(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """swimmer9 stamped late at 2 ms, seed 3: the time base the grid stage gives its samples sits up to 560 µs
+    off the device's ticks around 5 s (as far off as a least-squares line through every stamp so far: 3.4 of its
+    standard errors), and without the windowed statistic's allowance for it the body channels WARN (xi_theta F
+    4.2); with it they are OK, while a current of 0.1 m/s still puts a body channel at ERROR."""
+    import suds_ros.core.diagnosis.monitor as monitor_mod
+
+    system = load_system("swimmer9")
+    lab = LabConditions(jitter=0.002, stamping="arrival")
+    rec = simulate_lab(system, SimConfig(cycles=12, seed=3), lab)
+    ok = monitor_recording(rec, system)
+    assert ok.stamped_late is not None
+    assert max(c.max_statistic for c in ok.channels) < MonitorConfig().warn
+    flow = RFTChain(apply_effects(system.model, [{"name": "background_flow", "vx": 0.1, "vy": 0.0}])[0])
+    bad = monitor_recording(simulate_lab(flow, SimConfig(cycles=12, seed=3), lab), system)
+    assert any(c.worst == ERROR for c in bad.channels if c.channel.startswith("xi"))
+    monkeypatch.setattr(monitor_mod.MismatchMonitor, "_time_base", lambda self, *a: a[4])
+    off = monitor_recording(rec, system)
+    assert max(c.max_statistic for c in off.channels if c.channel.startswith("xi")) > MonitorConfig().warn
+
+
 def test_a_stamped_late_stream_is_timed_on_its_grid_and_its_delay_is_measured() -> None:
     """A nominal swimmer9 whose host stamps its encoder messages on arrival, 2 ms late on average with 2 ms of
     jitter.  Timed at their stamps (until 2026-12-06) the samples put its passive joints at ERROR (F 8.1) and
