@@ -620,6 +620,10 @@ class LiveGrid:
         ``"snap"`` (on the grid; the values belong to their grid points).
     last_stamp : float
         Newest stamp taken (s, as given), −inf before the first.
+    counts : int
+        How often the count was taken afresh since the first: a recount that changed it, or a fresh
+        lock after a pause.  Samples released under one value of it share one count, so a consumer
+        that held them until :attr:`confirmed` knows whether that confirmation is theirs.
     """
 
     def __init__(self, raw_values: bool = False) -> None:
@@ -651,6 +655,7 @@ class LiveGrid:
         self._recent_k: deque[float] = deque(maxlen=LIVE_LOCK_MAX)
         self._since_count = 0
         self._sure = False  # the count is trusted: read without a phase lock, or a recount agreed with it
+        self.counts = 0  # counts taken since the first: a recount that changed it, or a fresh lock after a pause
 
     @property
     def confirmed(self) -> bool:
@@ -759,9 +764,9 @@ class LiveGrid:
 
     def _restart(self) -> None:
         """Back to reading a lock block; the stamps released so far stay released (``_out``)."""
-        out, last = self._out, self.last_stamp
+        out, last, counts = self._out, self.last_stamp, self.counts
         self.__init__(self.raw_values)  # type: ignore[misc]
-        self._out, self.last_stamp = out, last
+        self._out, self.last_stamp, self.counts = out, last, counts + 1
 
     def drain(self) -> tuple[list[float], list[FloatArray]]:
         """Release every sample held (the end of the stream, or a pause)."""
@@ -844,6 +849,7 @@ class LiveGrid:
         self._refit(t, fresh)
         self._clock_k = float("nan")  # the line may move by milliseconds: one interval jumps, none drifts
         self._sure = False
+        self.counts += 1
 
     def _update(self, k: float, t: float) -> None:
         """One point (k, t) into the exponentially weighted line."""

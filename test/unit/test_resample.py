@@ -159,6 +159,7 @@ def test_live_grid_locks_afresh_after_a_pause_on_another_clock_phase() -> None:
     ts, rs, _, g = _live((t + shift)[keep], r[keep])
     assert 500 > LIVE_PAUSE  # 5 s at 100 Hz: a pause
     assert g.mode == "grid" and np.all(np.diff(ts) > 0.5 * 0.01)
+    assert g.counts >= 1  # a fresh count: samples held for the old one's confirmation are not on it
     before, after = ts[ts < 15.5], ts[ts > 20.0]
     on_old = np.abs((before - grid[0] + 0.005) % 0.01 - 0.005)
     on_new = np.abs((after - grid[0] - 0.0045 + 0.005) % 0.01 - 0.005)
@@ -304,10 +305,11 @@ def _live_late(jitter: float, seed: int, n: int = 1500):  # type: ignore[no-unty
 def test_live_grid_recounts_a_lock_that_is_a_count_off() -> None:
     """3 ms of stamp jitter (clipped at 0.4 step): a lock block can count wrong (one seed of 40 locked on
     1024 stamps with a step 3 % short) and the running line then keeps that count, samples piling onto
-    one grid point; recounted every 256 samples, every seed ends on consecutive ticks, within 1 ms."""
+    one grid point; recounted every 256 samples, every seed ends on consecutive ticks, within 1 ms.  A
+    recount that replaced the count says so (``counts``), for whoever held samples timed on the old one."""
     import suds_ros.core.resample as resample
 
-    def ends(recount: int) -> list[tuple[bool, float]]:
+    def ends(recount: int) -> list[tuple[bool, float, int]]:
         keep = resample.LIVE_RECOUNT
         resample.LIVE_RECOUNT = recount
         try:
@@ -316,15 +318,18 @@ def test_live_grid_recounts_a_lock_that_is_a_count_off() -> None:
                 grid, ts, _, g, _ = _live_late(0.003, seed)
                 assert g.mode == "snap"
                 idx = np.round((ts[-200:] - grid[0]) / 0.01).astype(int)
-                out.append((bool(np.all(np.diff(idx) == 1)), float(np.abs(ts[-200:] - grid[idx]).max())))
+                out.append((bool(np.all(np.diff(idx) == 1)), float(np.abs(ts[-200:] - grid[idx]).max()), g.counts))
             return out
         finally:
             resample.LIVE_RECOUNT = keep
 
     now = ends(resample.LIVE_RECOUNT)
-    assert all(ok for ok, _ in now) and max(e for _, e in now) < 1e-3
+    assert all(ok for ok, _, _ in now) and max(e for _, e, _ in now) < 1e-3
     before = ends(10**9)
-    assert not all(ok for ok, _ in before) and max(e for _, e in before) > 3e-3
+    assert not all(ok for ok, _, _ in before) and max(e for _, e, _ in before) > 3e-3
+    # the seeds that ended a count off without recounts took a new count with them, and only those may have
+    assert all(c == 0 for _, _, c in before)
+    assert all(c >= 1 for (ok, _, _), (_, _, c) in zip(before, now) if not ok)
 
 
 @pytest.mark.parametrize("jitter", [0.001, 0.002, 0.003])

@@ -217,6 +217,9 @@ MAX_STEPS = 64
 #: only, and with stamp jitter it is the fit's ridge, not the data, that places it
 REPLAY_AHEAD = 6
 REPLAY_BEHIND = 6
+#: most shape samples held while the shape clock's count awaits a recount's confirmation (the lock block, up
+#: to LIVE_LOCK_MAX, and the samples to the first recount after it); older ones are left out
+HELD_MAX = 2 * LIVE_LOCK_MAX
 #: s: the data is also replayed with its set-point grid moved this much later, for the statistic's
 #: sensitivity to where the grid fitted to jittered stamps lies (:meth:`MismatchMonitor._time_base`)
 GRID_SHIFT = 5e-5
@@ -1056,7 +1059,10 @@ class MismatchMonitor:
         self.updated = 0  # number of statistic updates
         self.paired = 0
         self.skipped = 0
-        self.unconfirmed = 0  # jittered samples left out while the clock's count was unconfirmed
+        self.unconfirmed = 0  # jittered samples not compared (held or left out) while the clock's count was unconfirmed
+        # those held, as _queue times them, and the clock's count they were timed on (LiveGrid.counts)
+        self._held: list[tuple[float, FloatArray, float, float, float]] = []
+        self._held_counts = 0
         self._snapped_from: float | None = None  # the first sample timed at its grid point
         # the shape samples' clock (see the module docstring, *Lab streams*): passed on at their stamps, or,
         # once the stream is recognised as stamped late, at their grid points
@@ -1097,21 +1103,37 @@ class MismatchMonitor:
         return self._queue(*self._clock.drain())
 
     def _queue(self, stamps: list[float], values: list[FloatArray]) -> int:
-        n = 0
         se = self._clock.offset_se if self.stamped_late else 0.0
         read = self._clock.mode == "grid"  # read late with jitter: the set-points on the clock's line
+        grid_se = self._clock.offset_se if read else 0.0
+        fresh = [(t, r, se, self._clock.grid_point(t) if read else t, grid_se) for t, r in zip(stamps, values)]
+        if self._held and self._held_counts != self._clock.counts:
+            # the count they were timed on was replaced (a recount, or a fresh lock after a pause): left out
+            self._held = []
         if (se > 0 or read) and not self._clock.confirmed:
             # its count came from a phase lock no recount has agreed with yet: a time base that may be slipping
-            # (milliseconds off) would be read as a misfit of the robot, so these samples are not compared, and
-            # the samples before them (on another time base) are not continued from
-            self.unconfirmed += len(stamps)
-            self._forget()
+            # (milliseconds off) would be read as a misfit of the robot.  Samples timed at their grid points
+            # (stamped late) are held until a recount agrees (then compared as they were timed: the offset
+            # against the pose stream is within the statistics' allowance) or replaces the count (then left
+            # out); read late, the set-points of that time are left out (the line of the lock block and the
+            # jumps between its first release blocks put bends where the allowance does not reach: a nominal
+            # swimmer9 at 3 ms read F 5.1).  The samples before them (on another time base) are not continued from
+            self.unconfirmed += len(fresh)
+            if not self._held:
+                self._forget()
+            if not read:
+                self._held.extend(fresh)
+                self._held_counts = self._clock.counts
+                del self._held[:max(0, len(self._held) - HELD_MAX)]
             return 0
-        if se > 0 and stamps and self._snapped_from is None:
-            self._snapped_from = float(stamps[0])
-        grid_se = self._clock.offset_se if read else 0.0
-        for t, r in zip(stamps, values):
-            self._shapes.append((t, r, se, self._clock.grid_point(t) if read else t, grid_se))
+        if self._held:  # confirmed: the count they were timed on holds
+            self.unconfirmed -= len(self._held)
+            fresh, self._held = self._held + fresh, []
+        n = 0
+        for sample in fresh:
+            if sample[2] > 0 and self._snapped_from is None:
+                self._snapped_from = float(sample[0])
+            self._shapes.append(sample)
             n += self._pair()
         return n
 
