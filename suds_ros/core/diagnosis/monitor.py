@@ -1271,10 +1271,11 @@ class MismatchMonitor:
         # data and twins in one knot fit: their columns side by side (versions × actuated)
         period = 1.0 / self.config.rate
         kinks = drive_kinks(t, R[:, :, act].transpose(1, 0, 2).reshape(t.size, -1), g, period)
-        moved = drive_kinks(t, R[0][:, act], g + GRID_SHIFT, period)  # the data, its set-points later
+        # the data with its set-points later, where they are the shape clock's (read late: _time_base)
+        shift = any(h.grid_se > 0 for h in last)
+        moved = drive_kinks(t, R[0][:, act], g + GRID_SHIFT, period) if shift else None
         # the k intervals replayed now, with one sample on each side (the context only served the knots)
         kinks = Kinks(*(x[behind:behind + k] for x in kinks))
-        moved = Kinks(*(x[behind:behind + k] for x in moved))
         t, g, R, yaw, brackets = (x[behind:behind + k + 3] for x in (t, g, R.transpose(1, 0, 2), yaw.T, brackets))
         R, yaw = R.transpose(1, 0, 2), yaw.T
         t0, t1 = t[1:-2], t[2:-1]
@@ -1285,16 +1286,20 @@ class MismatchMonitor:
         dt = t1 - t0
         lost = lost_samples(t, g, self.config.gap / self.config.rate)[1:-1]
         mid_yaw = 0.5 * (yaw[:, 1:-2] + yaw[:, 2:-1])
-        # the data and its twins, then the data on the moved grid: V + 1 replays of each interval
+        # the data and its twins, then (read late) the data on the moved grid: V (+ 1) replays of each interval
         both = Kinks(np.tile(kinks.ta, V), _by_version(kinks.ka, V), np.tile(kinks.tb, V), _by_version(kinks.kb, V))
-        both = Kinks(*(np.concatenate([x, y]) for x, y in zip(both, moved)))
-        lam = np.tile(self.physics.stiffness(R[0, 1:-2], R[0, 2:-1]), V + 1)  # the twins: as the data
-        r0 = np.concatenate([R[:, 1:-2].reshape(V * k, -1), R[0, 1:-2]])
-        r1 = np.concatenate([R[:, 2:-1].reshape(V * k, -1), R[0, 2:-1]])
-        yaws = np.concatenate([mid_yaw.ravel(), mid_yaw[0]])
-        xi, rp, at, stiff = self.physics.between(np.tile(dt, V + 1), r0, r1, yaws, both,
-                                                 np.tile(outputs, (V + 1, 1)) if inside.any() else None, lam)
-        shifted = np.concatenate([xi[V * k:], rp[V * k:]], axis=1)  # (k, 3 + np)
+        r0, r1, yaws = R[:, 1:-2].reshape(V * k, -1), R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel()
+        n = V + 1 if moved is not None else V
+        if moved is not None:
+            moved = Kinks(*(x[behind:behind + k] for x in moved))
+            both = Kinks(*(np.concatenate([x, y]) for x, y in zip(both, moved)))
+            r0, r1, yaws = np.concatenate([r0, R[0, 1:-2]]), np.concatenate([r1, R[0, 2:-1]]), \
+                np.concatenate([yaws, mid_yaw[0]])
+        lam = np.tile(self.physics.stiffness(R[0, 1:-2], R[0, 2:-1]), n)  # the twins: as the data
+        xi, rp, at, stiff = self.physics.between(np.tile(dt, n), r0, r1, yaws, both,
+                                                 np.tile(outputs, (n, 1)) if inside.any() else None, lam)
+        shifted = (np.concatenate([xi[V * k:], rp[V * k:]], axis=1) if moved is not None
+                   else np.full((k, 3 + rp.shape[1]), np.nan))  # (k, 3 + np)
         xi, rp, at, stiff = xi[:V * k], rp[:V * k], at[:V * k], stiff[:V * k]
         rates = np.concatenate([xi, rp], axis=1).reshape(V, k, -1)  # (V, k, 3 + np)
         mid = 0.5 * (R[0, 1:-2] + R[0, 2:-1])
