@@ -39,8 +39,10 @@ Lab streams
     counts the stamps once and keeps its count, and each sample keeps the grid point it had when
     the clock released it (:meth:`~suds_ros.core.resample.LiveGrid.grid_point`).  A line refitted
     to the history at every update now and then took another count with 3 ms of jitter and put
-    every bend up to 9 ms off; and samples released while that count is unconfirmed are left out,
-    as below;
+    every bend up to 9 ms off; and samples released while that count is unconfirmed are held, as
+    below, and then given their grid points on the line as it stands once a recount confirms it
+    (through them: the lock block's own line and the first blocks' jumps put bends off by up to
+    700 µs at 3 ms, F 5.1 on a nominal swimmer9);
   - the angle at a bend, the least-squares linear spline of the samples with its knots on the grid
     (:func:`drive_kinks`): a knot at the fit's edge is held by the ridge more than by the data, so
     the fit takes ``REPLAY_BEHIND`` samples before each batch of intervals and each interval is
@@ -70,9 +72,11 @@ Lab streams
   - the stage releases them on a slewed clock (no interval off by the line's moves, which reached
     90 µs at block boundaries);
   - samples released while the stage's count came from a phase lock that no recount has yet
-    confirmed (:attr:`~suds_ros.core.resample.LiveGrid.confirmed`; heavy jitter) are left out
-    (:attr:`MonitorRecord.unconfirmed`): a lock one count off slips a step every few hundred
-    samples, and a nominal swimmer9 read F 6–7 on its body channels at 3 ms;
+    confirmed (:attr:`~suds_ros.core.resample.LiveGrid.confirmed`; heavy jitter) are held until a
+    recount agrees and left out (:attr:`MonitorRecord.unconfirmed`) if one replaces the count
+    (:attr:`~suds_ros.core.resample.LiveGrid.counts`): a lock one count off slips a step every few
+    hundred samples, and a nominal swimmer9 read F 6–7 on its body channels at 3 ms.  Until
+    2026-12-06 (late) they were all left out, and at 3 ms the first report came 10.6 s in, not 3 s;
   - the line's place is known to its standard error (:attr:`~suds_ros.core.resample.LiveGrid.offset_se`,
     ≈ 2σ/√n, 70 µs at 1 ms of jitter over the last 8 of 12 cycles), and swimmer9's body channels see a lag of
     20 µs: the phase-coherent statistic first takes out what a time base off by up to
@@ -1112,22 +1116,24 @@ class MismatchMonitor:
             self._held = []
         if (se > 0 or read) and not self._clock.confirmed:
             # its count came from a phase lock no recount has agreed with yet: a time base that may be slipping
-            # (milliseconds off) would be read as a misfit of the robot.  Samples timed at their grid points
-            # (stamped late) are held until a recount agrees (then compared as they were timed: the offset
-            # against the pose stream is within the statistics' allowance) or replaces the count (then left
-            # out); read late, the set-points of that time are left out (the line of the lock block and the
-            # jumps between its first release blocks put bends where the allowance does not reach: a nominal
-            # swimmer9 at 3 ms read F 5.1).  The samples before them (on another time base) are not continued from
+            # (milliseconds off) would be read as a misfit of the robot.  So the samples are held until a
+            # recount agrees, then compared (left out if one replaces the count).  Read late, their set-points
+            # are then taken from the line as it stands, through them: the lock block's own line and the
+            # jumps between the first release blocks put bends the statistics' allowance does not reach (a
+            # nominal swimmer9 at 3 ms read F 5.1 on the set-points as released).  Stamped late, they keep
+            # the times they were released at (the offset against the poses is within the allowance).  The
+            # samples before them (on another time base) are not continued from
             self.unconfirmed += len(fresh)
             if not self._held:
                 self._forget()
-            if not read:
-                self._held.extend(fresh)
-                self._held_counts = self._clock.counts
-                del self._held[:max(0, len(self._held) - HELD_MAX)]
+            self._held.extend(fresh)
+            self._held_counts = self._clock.counts
+            del self._held[:max(0, len(self._held) - HELD_MAX)]
             return 0
         if self._held:  # confirmed: the count they were timed on holds
             self.unconfirmed -= len(self._held)
+            if read:  # their set-points from the line as it stands now, through them (inside its data)
+                self._held = [(t, r, s, self._clock.grid_point(t), grid_se) for t, r, s, _, _ in self._held]
             fresh, self._held = self._held + fresh, []
         n = 0
         for sample in fresh:
