@@ -7,7 +7,9 @@ joints turn any error in that drive into a misfit.  Three things changed on 2026
 * where the grid lies: until then a line refitted to the monitor's history at every update (with
   3 ms of jitter it now and then took another count: every bend up to 9 ms off); now each sample's
   grid point on the shape clock's line when it is released (`core/resample.LiveGrid.grid_point`),
-  the clock counting the stamps once, and samples left out while its count is unconfirmed;
+  the clock counting the stamps once, and samples held while its count is unconfirmed (left out
+  until a later change the same day), then given their grid points on the line as it stands once a
+  recount confirms it (left out if the recount replaces the count);
 * the angle at a bend (the least-squares linear spline with knots on the grid): each interval was
   replayed once one sample after its end was at hand, and the knot fit's edge knots were held by
   its ridge; now ``REPLAY_AHEAD`` samples after and ``REPLAY_BEHIND`` before;
@@ -180,15 +182,16 @@ def main() -> None:
         "1 s warm-up; monitored against the nominal physics with the default settings (WARN F > 4, ERROR F > 8).  "
         "*before*: the monitor as of 16d9a4a, emulated in the same process (set-points on a line refitted to the "
         "history at every update, each interval replayed once one sample after it was at hand, no allowance for "
-        "the grid's own error); *now*: as shipped (the set-points from the shape clock's count, samples left out "
-        "while that count is unconfirmed, the knot fit with `REPLAY_AHEAD` = "
+        "the grid's own error); *now*: as shipped (the set-points from the shape clock's count, samples held "
+        "while that count is unconfirmed and then given their set-points on the line as it stands once a recount "
+        "confirms it, left out if one replaces the count; the knot fit with `REPLAY_AHEAD` = "
         f"{monitor_mod.REPLAY_AHEAD} samples after and `REPLAY_BEHIND` = {monitor_mod.REPLAY_BEHIND} before, "
         "one offset of the grid within its standard errors taken out).", "",
         f"## Nominal robots, seeds 0–{args.seeds - 1}", "",
         "A run not OK is a nominal robot called wrong.  *no report*: the run ended before the monitor's first "
-        "report (with 3 ms of jitter the shape clock's count may stay unconfirmed for most of 12 cycles, and "
-        "the samples till then are left out; `suds monitor` then says so).  Largest F over the runs with a "
-        "report.", "",
+        "report (with 3 ms of jitter the shape clock's count may stay unconfirmed for all of 12 cycles: a lock "
+        "block of up to 1024 stamps, then a recount 256 samples later; `suds monitor` then says so).  *samples "
+        "left out*: timed on a count a recount then replaced.  Largest F over the runs with a report.", "",
         *sweep, "",
         "## Which change does what (swimmer9, 2 ms, the same seeds)", "",
         "*no offset fitted*: as shipped but without the allowance for the grid's own error; *one sample ahead*: "
