@@ -233,9 +233,11 @@ def main() -> None:
         "### Nominal runs, no latency, more seeds (the monitor as shipped)",
         "",
         "A false alarm here is a nominal robot called wrong.  *samples left out*: shape samples the monitor "
-        "did not compare while its grid stage's count came from a phase lock that no recount had confirmed "
-        "(heavy jitter), over the runs with a report; *runs without a report*: too few samples left in 12 "
-        "cycles for the first report (`suds monitor` then says so; the other columns leave them out).",
+        "never compared, over the runs with a report: timed on a count of its grid stage that came from a "
+        "phase lock (heavy jitter) and that a recount then replaced (samples timed on a count a recount "
+        "confirms are held till then and compared); *runs without a report*: no recount confirmed the count "
+        "in 12 cycles (a lock block of up to 1024 stamps, then 256 more; `suds monitor` then says so; the "
+        "other columns leave them out).",
         "",
         *sweep, "",
         "How to read it: the passive-joint channels compare the shape stream with itself, so once its "
@@ -246,7 +248,10 @@ def main() -> None:
         "stamps (`LiveGrid.offset_se`, 70 µs at 1 ms and about 200 µs at 3 ms over the last 8 of 12 cycles), "
         "and swimmer9's body channels see lags of 20 µs.  So the phase-coherent statistic first takes out "
         "the lag and clock stretch such a time base can leave, within 4 of those standard errors "
-        "(`core/diagnosis/monitor.time_base_misfit`), and scores what exceeds them: a real delay shows by "
+        "(`core/diagnosis/monitor.time_base_misfit`), and the windowed one an offset of the shape stream "
+        "against the poses within as many (`MismatchMonitor._time_base`; the line's error wanders with the "
+        "stamps: one nominal swimmer9 at 2 ms had it 560 µs off for a second, 3.4 standard errors, body F "
+        "4.2 before), and each scores what exceeds them: a real delay shows by "
         "its excess, weaker where the jitter is heavy (the 2 ms latency rows at 3 ms against those at 1 ms). "
         " Before that (the monitor of 2026-12-06 early, the same runs, seeds 0–14), nominal swimmer9 runs "
         "at 1 ms went to WARN or ERROR on 5 of 15 seeds (body F up to 9.2 from a time base 130 µs off; "
