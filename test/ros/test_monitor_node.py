@@ -219,3 +219,37 @@ def test_monitor_node_passes_on_what_its_grid_stage_holds_when_the_shape_stream_
     finally:
         node.close()
         node.destroy_node()
+
+
+def test_monitor_node_compares_the_samples_it_held_for_a_heavily_jittered_count(ros_context):
+    """Stamped late with 3 ms of jitter: the grid stage's count waits ~7.7 s for a recount to confirm it; the
+    node's monitor holds the samples meanwhile and then compares them all at once, so its record starts at the
+    first report a steady stream would have (~3 s in), and the nominal robot stays OK."""
+    from rclpy.parameter import Parameter
+
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig
+    from suds_ros.ros.conversions import diagnostics_from_msg, joint_state_to_msg, pose_to_msg
+    from suds_ros.ros.monitor_node import MonitorNode
+
+    node = MonitorNode(context=ros_context, parameter_overrides=[Parameter("diagnose", value=False)])
+    try:
+        rec = simulate_lab(node.system, SimConfig(cycles=12, seed=0), LabConditions(jitter=0.003, stamping="arrival"))
+        stream = sorted([(t, 0, i) for i, t in enumerate(rec.t)] + [(t, 1, i) for i, t in enumerate(rec.pose_t)])
+        updates_at_6s = None
+        for t, kind, i in stream:  # in stamp order, as they would arrive
+            if kind:
+                node._on_pose(pose_to_msg(t, *rec.pose[i]))
+            else:
+                node._on_shape(joint_state_to_msg(t, rec.joint_names, rec.r[i]))
+            if updates_at_6s is None and t - rec.t[0] > 6.0:
+                updates_at_6s = node.monitor.updated
+        assert updates_at_6s == 0  # nothing compared while the count was unconfirmed
+        record = node.monitor.record
+        assert record.stamped_late is not None and record.unconfirmed == 0
+        assert record.first_report - rec.t[0] < 4.0
+        reports = diagnostics_from_msg(node.mismatch_msg())
+        assert reports and all(r.level == 0 for r in reports), [(r.name, r.message) for r in reports]
+    finally:
+        node.close()
+        node.destroy_node()
