@@ -1295,8 +1295,9 @@ class MismatchMonitor:
         # the data and its twins, then (read late) the data on the moved grid: V (+ 1) replays of each interval
         both = Kinks(np.tile(kinks.ta, V), _by_version(kinks.ka, V), np.tile(kinks.tb, V), _by_version(kinks.kb, V))
         r0, r1, yaws = R[:, 1:-2].reshape(V * k, -1), R[:, 2:-1].reshape(V * k, -1), mid_yaw.ravel()
-        n = V + 1 if moved is not None else V
+        n = V
         if moved is not None:
+            n = V + 1
             moved = Kinks(*(x[behind:behind + k] for x in moved))
             both = Kinks(*(np.concatenate([x, y]) for x, y in zip(both, moved)))
             r0, r1, yaws = np.concatenate([r0, R[0, 1:-2]]), np.concatenate([r1, R[0, 2:-1]]), \
@@ -1427,7 +1428,7 @@ class MismatchMonitor:
         win_ok = (np.lib.stride_tricks.sliding_window_view(shape_ok, w).all(axis=1)
                   & pose_ok[:-w] & pose_ok[w:])
         E = equation_residuals(self.system, t, R, P, w, split)  # (versions, m − w, channels)
-        data = self._time_base(ready, t, R[0], P[0], E[0], win_ok, span)
+        data = self._time_base(ready, t, R[0], P[0], E[0], win_ok, span, (split[0][0], split[1][0]))
         if not floor:
             return t, np.concatenate([data[None], E[1:]]), win_ok, np.zeros(0), None
         valid = shape_ok & pose_ok[:-1] & pose_ok[1:]
@@ -1442,7 +1443,7 @@ class MismatchMonitor:
         return t, np.concatenate([data[None], E[1:]]), win_ok, fitted_gain(power, P_g, W_g) * power, least
 
     def _time_base(self, ready: int, t: FloatArray, r: FloatArray, pose: FloatArray, E: FloatArray,
-                   win_ok: BoolArray, span: int | None) -> FloatArray:
+                   win_ok: BoolArray, span: int | None, rates: tuple[FloatArray, FloatArray]) -> FloatArray:
         """The data's window residuals ``E`` (windows, channels) less what the shape stream's time base can explain.
 
         Two time bases are estimates, each with its own standard error per sample:
@@ -1465,6 +1466,7 @@ class MismatchMonitor:
         the last ``span`` (each channel weighted by its own mean square there), bounded by
         ``TIME_BASE_SIGMAS`` of the window's mean standard error, and its misfit taken out.  The
         phase-coherent statistic's allowance for a stamped-late time base is :func:`time_base_misfit`.
+        ``rates``: the data's predicted (ξ, ṙ_p) per interval, as :meth:`_series` gave them.
         """
         m = t.size
         kept = list(self._hist)[ready - m:ready]
@@ -1482,9 +1484,7 @@ class MismatchMonitor:
                 directions.append((se, (moved[:, :3], moved[:, 3:]), pose))
         se = float(np.mean([h.clock_se for h in kept]))
         if se > 0.0:  # stamped late: the shape samples GRID_SHIFT later against the poses
-            earlier = pose - GRID_SHIFT * np.gradient(pose, t, axis=0)
-            rates = np.array(list(self._rates)[ready - m + 1:ready])[:, 0]
-            directions.append((se, (rates[:, :3], rates[:, 3:]), earlier))
+            directions.append((se, rates, pose - GRID_SHIFT * np.gradient(pose, t, axis=0)))
         if not directions:
             return E
         weight = 1.0 / np.maximum(np.mean(E[use] ** 2, axis=0), 1e-300)
