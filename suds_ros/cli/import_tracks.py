@@ -24,6 +24,7 @@ from suds_ros.core.json_text import dumps
 EPILOG = """\
 examples:
   suds import worm.wcon -o worm.mcap --links 10                  # WCON: units and times in the file
+  suds import plate.wcon.zip -o worm.mcap --links 10 --animal 7  # one worm of a multi-worm archive
   suds import midline.csv -o fish.mcap --links 6 --units px --px-size 2.5e-4
   suds import tracks.csv -o eel.mcap --links 4 --units mm --fps 50 --passive joint_3,joint_4
   suds import fish_dlc.h5 --format dlc -o fish.mcap --links 4 --units px --px-size 1e-4 --fps 100
@@ -78,6 +79,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--px-size", type=float, metavar="M", help="metres per pixel (with --units px)")
     p.add_argument("--fps", type=float, metavar="F",
                    help="frames per second, for files with frame numbers instead of times")
+    p.add_argument("--animal", metavar="ID",
+                   help="the animal to import from a file of several: a WCON id, or a DeepLabCut / SLEAP / "
+                        "LightningPose individual (a file of several without it is refused, with their names)")
     p.add_argument("--passive", metavar="J,...",
                    help="passive joints: names (joint_3) or numbers (3), comma-separated; the rest are actuated")
     p.add_argument("--fractions", metavar="a,b,...",
@@ -288,7 +292,7 @@ def run(args: argparse.Namespace) -> int:
     passive = _passive(args.passive, names)
     name = _system_name(args, out)
 
-    tracks = read_tracks(src, args.format)
+    tracks = read_tracks(src, args.format, args.animal)
     scale = _metres_per_unit(args, tracks.units, tracks.format)
     t = _times(args, tracks, src)
     if tracks.n_points < n + 1:
@@ -346,8 +350,10 @@ def run(args: argparse.Namespace) -> int:
         "metres_per_unit": scale, "link_lengths_m": [float(v) for v in lengths],
         "gait_hz": gait_hz, "t_first": float(tk[0]), "t_last": float(tk[-1]),
         "system": name, "actuated": actuated, "passive": passive,
-        "recording": str(out), "model": str(model_out),
+        "recording": str(out), "model": str(model_out), "notes": list(tracks.notes),
     }
+    if args.animal is not None:
+        summary["animal"] = args.animal
     if segment is not None:
         summary["segment"] = segment
     if args.json:
@@ -359,8 +365,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _describe(s: dict[str, Any]) -> str:
     """What ``suds import`` prints."""
-    lines = [f"{s['input']}: {s['format']}, {s['frames']} frames, {s['points']} points per frame "
-             f"(enough for up to {s['max_links']} links)",
+    lines = [f"{s['input']}: {s['format']}" + (f", animal {s['animal']}" if "animal" in s else "")
+             + f", {s['frames']} frames, {s['points']} points per frame (enough for up to {s['max_links']} links)",
+             *(f"note: {n}" for n in s["notes"]),
              f"kept {s['kept']} frames ({s['t_first']:.6g} … {s['t_last']:.6g} s); "
              f"lost {s['lost']['frames']} (dropped, not filled in)"]
     for run in s["lost"]["runs"][:10]:

@@ -11,9 +11,12 @@ times or frame numbers; the file's length unit when it states one):
 ``wcon``
     The Worm tracker Commons Object Notation (openworm/tracker-commons), read with
     :mod:`json` as its specification says: ``units`` (``t``, ``x``, ``y``) and
-    ``data``, one record or a list of records with ``id``, ``t``, ``x``, ``y`` and
-    optionally ``ox``, ``oy`` offsets.  One animal (one ``id``) per file; records of
-    that id are joined in file order; ``null`` or empty coordinates are lost.
+    ``data``, one record or a list of records with ``id``, ``t``, ``x``, ``y``; also
+    ``ox``, ``oy`` origins (or ``cx``, ``cy``), each in its own unit, and ``head`` ("R":
+    the head is the last point).  A ``.zip`` archive (``.wcon.zip``) and an experiment
+    split into chunks (``files``) are read whole.  One animal: the only ``id``, or the
+    one ``--animal`` names; its records are joined in time order; ``null`` or empty
+    coordinates are lost.
 ``dlc``
     DeepLabCut's ``.h5`` or ``.csv`` (header rows scorer / bodyparts / coords
     x, y, likelihood).  Read through the ``movement`` package when it is installed; a
@@ -37,6 +40,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,6 +55,9 @@ FORMATS = ("csv", "wcon", "dlc", "sleap", "lightningpose")
 BAD_TRACK_FILE = "bad_track_file"
 MISSING_DEPENDENCY = "missing_dependency"
 NON_MONOTONIC_TIME = "non_monotonic_time"
+
+#: animals listed (the most often seen first) when a file of several is given without ``--animal``
+LIST_ANIMALS = 10
 
 _MOVEMENT_HINT = ("pip install movement (or install suds_ros with the `tracking` extra: "
                   "pip install 'suds_ros[tracking]')")
@@ -77,6 +84,9 @@ class Tracks:
     counts : (n,) int or None
         Points the file gives for each frame when it varies (WCON); shorter frames are padded
         with their last point.
+    notes : tuple of str
+        What the reader did that the user should know (a WCON head order reversed, frames
+        without a time dropped, chunks joined ...).
     """
 
     points: np.ndarray
@@ -86,6 +96,7 @@ class Tracks:
     format: str
     point_names: tuple[str, ...]
     counts: np.ndarray | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def n_frames(self) -> int:
@@ -112,7 +123,7 @@ def detect_format(path: str | Path) -> str:
     """
     p = Path(path)
     ext = p.suffix.lower()
-    if ext in (".wcon", ".json"):
+    if ext in (".wcon", ".json") or ext == ".zip":  # tracker-commons archives: .wcon.zip
         return "wcon"
     if ext == ".slp":
         return "sleap"
@@ -127,7 +138,7 @@ def detect_format(path: str | Path) -> str:
                           f"pass --format ({', '.join(FORMATS)})")
 
 
-def read_tracks(path: str | Path, fmt: str | None = None) -> Tracks:
+def read_tracks(path: str | Path, fmt: str | None = None, animal: str | None = None) -> Tracks:
     """Read a tracker file.
 
     Parameters
@@ -136,14 +147,19 @@ def read_tracks(path: str | Path, fmt: str | None = None) -> Tracks:
         The file.
     fmt : str, optional
         One of :data:`FORMATS`; default from the file name (:func:`detect_format`).
+    animal : str, optional
+        The animal to read from a file of several (a WCON ``id``, an ``individuals`` name of
+        DeepLabCut, SLEAP or LightningPose); a file of several without it is an error that
+        lists them.
 
     Raises
     ------
     SudsConfigError
-        Unknown format, or ``movement`` missing for a file that needs it (code
-        ``missing_dependency``).
+        Unknown format, ``movement`` missing for a file that needs it (code
+        ``missing_dependency``), or an ``animal`` the file does not hold.
     SudsDataError
-        (code ``bad_track_file``) A file that does not follow its format.
+        (code ``bad_track_file``) A file that does not follow its format, or holds several
+        animals and ``animal`` is not given.
     """
     p = Path(path)
     fmt = fmt or detect_format(p)
@@ -151,12 +167,17 @@ def read_tracks(path: str | Path, fmt: str | None = None) -> Tracks:
         raise SudsConfigError(f"--format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
     try:
         if fmt == "csv":
+            if animal is not None:
+                raise SudsConfigError(f"--animal {animal!r}: a midline csv holds one animal, without a name")
             return read_midline_csv(p)
         if fmt == "wcon":
-            return read_wcon(p)
+            return read_wcon(p, animal)
         if fmt in ("dlc", "lightningpose") and p.suffix.lower() == ".csv" and not movement_available():
+            if animal is not None:
+                raise SudsConfigError(f"--animal {animal!r}: choosing an animal of a DeepLabCut csv needs the "
+                                      f"`movement` package: {_MOVEMENT_HINT}", code=MISSING_DEPENDENCY)
             return read_dlc_csv(p, fmt)
-        return read_with_movement(p, fmt)
+        return read_with_movement(p, fmt, animal)
     except UnicodeDecodeError:
         raise _fail(p, f"not a {fmt} file (not text)") from None
 
@@ -323,63 +344,277 @@ def _numbers(value: Any) -> np.ndarray:
     return np.array([math.nan if v is None else float(v) for v in value], dtype=float)
 
 
-def read_wcon(path: Path) -> Tracks:
-    """A WCON file with :mod:`json` (tracker-commons specification); times and lengths in SI later."""
+def _links(where: str, value: Any) -> list[str]:
+    """``files.prev`` / ``files.next``: null, empty, one string or a list of strings (nulls skipped)."""
+    if value is None:
+        return []
+    items = value if isinstance(value, list) else [value]
+    if not all(v is None or isinstance(v, str) for v in items):
+        raise ValueError(f"{where}: expected a string, a list of strings or null, got {value!r}")
+    return [v for v in items if v]
+
+
+def chunk_names(name: str, files: Any) -> list[str]:
+    """The file names of a chunked WCON experiment in temporal order, from one chunk's ``files``.
+
+    tracker-commons: the last occurrence of ``files.this`` in ``name`` is replaced by each of
+    ``prev`` (reverse temporal order) and ``next`` (temporal order).
+
+    Raises
+    ------
+    ValueError
+        ``files`` does not follow that form (the message names the key).
+    """
+    if not isinstance(files, dict):
+        raise ValueError(f"files: expected an object with this, prev, next, got {files!r}")
+    this = files.get("this")
+    if not isinstance(this, str) or not this:
+        raise ValueError(f"files.this: expected the variable part of the file name, got {this!r}")
+    at = name.rfind(this)
+    if at < 0:
+        raise ValueError(f"files.this: {this!r} is not part of the file name {name!r}")
+    other = [name[:at] + s + name[at + len(this):] for s in
+             list(reversed(_links("files.prev", files.get("prev")))) + [this]
+             + _links("files.next", files.get("next"))]
+    if len(set(other)) != len(other):
+        raise ValueError(f"files: a chunk is named twice ({', '.join(other)})")
+    return other
+
+
+def _load_json(where: str, raw: bytes) -> Any:
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise SudsDataError(f"{where}: not WCON (not UTF-8 text)", code=BAD_TRACK_FILE) from None
     except json.JSONDecodeError as exc:
-        raise _fail(path, f"not WCON: invalid JSON (line {exc.lineno}: {exc.msg})") from None
-    if not isinstance(doc, dict) or "units" not in doc or "data" not in doc:
-        raise _fail(path, "not WCON: expected a JSON object with `units` and `data`")
-    units = doc["units"]
-    if not isinstance(units, dict):
-        raise _fail(path, f"units: expected an object, got {units!r}")
-    t_scale = _unit(path, units, "t", "T")
-    scale = _unit(path, units, "x", "L")
-    if not math.isclose(_unit(path, units, "y", "L"), scale, rel_tol=1e-12):
-        raise _fail(path, f"units: x in {units['x']!r} but y in {units['y']!r}; expected one length unit")
-    records = doc["data"] if isinstance(doc["data"], list) else [doc["data"]]
-    ids = []
-    for k, rec in enumerate(records):
-        if not isinstance(rec, dict) or not {"id", "t", "x", "y"} <= set(rec):
-            raise _fail(path, f"data[{k}]: expected a record with id, t, x, y")
-        if rec["id"] not in ids:
-            ids.append(rec["id"])
-    if len(ids) != 1:
-        raise _fail(path, f"data: {len(ids)} animals (ids {', '.join(map(str, ids))}); "
-                          "suds import takes a file of one animal")
-    times: list[float] = []
-    frames: list[np.ndarray] = []
-    for k, rec in enumerate(records):
-        t = rec["t"] if isinstance(rec["t"], list) else [rec["t"]]
-        n = len(t)
-        xs, ys = (_series(path, f"data[{k}].{c}", rec[c], n) for c in ("x", "y"))
-        offs = [_series(path, f"data[{k}].{c}", rec.get(c, 0.0), n) if isinstance(rec.get(c, 0.0), list)
-                else [rec.get(c, 0.0)] * n for c in ("ox", "oy")]
-        for i in range(n):
-            x, y = _numbers(xs[i]), _numbers(ys[i])
-            if x.size != y.size:
-                raise _fail(path, f"data[{k}] time {i}: x has {x.size} values, y {y.size}")
-            ox, oy = (math.nan if o[i] is None else float(o[i]) for o in offs)
-            frames.append(np.column_stack([x + ox, y + oy]))
-            times.append(math.nan if t[i] is None else float(t[i]))
-    counts = np.array([f.shape[0] for f in frames], dtype=np.int64)
-    p = int(counts.max()) if counts.size else 0
+        raise SudsDataError(f"{where}: not WCON: invalid JSON (line {exc.lineno}: {exc.msg})",
+                            code=BAD_TRACK_FILE) from None
+
+
+def wcon_documents(path: Path) -> list[tuple[str, Any]]:
+    """The WCON objects of ``path`` in temporal order, each with the name errors give it.
+
+    ``path`` is a WCON file or a zip archive of them (tracker-commons: ``.wcon.zip``; an archive
+    of one file is that file; of several, the chunk without a ``prev`` starts).  A file with a
+    ``files`` entry is one chunk of an experiment: every chunk it names is read, from the same
+    directory or archive.
+    """
+    members: dict[str, bytes] | None = None  # an archive's files
+    if path.suffix.lower() == ".zip" and not zipfile.is_zipfile(path):
+        raise _fail(path, "damaged zip archive: no zip directory at its end (truncated?)")
+    if zipfile.is_zipfile(path):
+        try:
+            with zipfile.ZipFile(path) as z:
+                members = {i.filename: z.read(i) for i in z.infolist()
+                           if not i.is_dir() and not i.filename.startswith("__MACOSX/")
+                           and not Path(i.filename).name.startswith("._")}
+        except (zipfile.BadZipFile, OSError, RuntimeError) as exc:  # damaged, or encrypted
+            raise _fail(path, f"damaged zip archive: {exc}") from None
+        if not members:
+            raise _fail(path, "zip archive without a file in it: expected a WCON file")
+
+    def label(name: str) -> str:
+        return f"{path}!{name}" if members is not None else str(path.parent / name)
+
+    def load(name: str) -> Any:
+        if members is not None:
+            raw = members.get(name)
+        else:
+            f = path.parent / name
+            raw = f.read_bytes() if f.is_file() else None
+        if raw is None:
+            where = "in the archive" if members is not None else f"in {path.parent}"
+            raise _fail(path, f"files: the chunk {name!r} it names is not there ({where})"
+                        if name != path.name else "no such file")
+        return _load_json(label(name), raw)
+
+    docs: dict[str, Any] = {}
+    if members is None:
+        first = path.name
+    elif len(members) == 1:
+        first = next(iter(members))
+    else:
+        docs = {name: load(name) for name in members}
+        firsts = [name for name, d in docs.items() if isinstance(d, dict) and isinstance(d.get("files"), dict)
+                  and not _links("files.prev", d["files"].get("prev"))]
+        if len(firsts) != 1:
+            raise _fail(path, f"zip archive of {len(members)} files ({', '.join(sorted(members))}) "
+                              f"{'with no' if not firsts else 'with ' + str(len(firsts))} first chunk "
+                              "(a `files` entry without `prev`): expected one WCON file or the chunks of one "
+                              "experiment")
+        first = firsts[0]
+    doc = docs[first] if first in docs else load(first)
+    if not (isinstance(doc, dict) and "files" in doc):
+        return [(label(first), doc)]
+    try:
+        names = chunk_names(first, doc["files"])
+    except ValueError as exc:
+        raise _fail(path, str(exc)) from None
+    return [(label(name), doc if name == first else docs[name] if name in docs else load(name)) for name in names]
+
+
+def _per_time(where: str, value: Any, n: int) -> list[Any]:
+    """A value given once for a record or once per time (``head``, ``ox`` …): n entries."""
+    if isinstance(value, list):
+        if len(value) != n:
+            raise SudsDataError(f"{where}: expected one value or {n} (one per time), got {len(value)}",
+                                code=BAD_TRACK_FILE)
+        return value
+    return [value] * n
+
+
+def _origin(where: str, rec: dict[str, Any], n: int, factor: dict[str, float], x: list[np.ndarray],
+            y: list[np.ndarray]) -> tuple[list[float], list[float], str | None]:
+    """Per time, the origin the record's x, y are relative to (in x's unit), and how it was read.
+
+    ``ox``/``oy`` when given; else ``cx``/``cy`` (tracker-commons: the centroid is then the origin)
+    — unless the points already sit around the centroid, as absolute points do: then (0, 0).
+    """
+    for a, b in (("ox", "oy"), ("cx", "cy")):
+        if a in rec or b in rec:
+            if not (a in rec and b in rec):
+                raise SudsDataError(f"{where}: `{a}` and `{b}` go in pairs; got only "
+                                    f"`{a if a in rec else b}`", code=BAD_TRACK_FILE)
+            o = [[math.nan if v is None else float(v) * factor[k] for v in _per_time(f"{where}.{k}", rec[k], n)]
+                 for k in (a, b)]
+            if a == "ox":
+                return o[0], o[1], None
+            mean = np.array([[np.nanmean(xi), np.nanmean(yi)] if np.any(np.isfinite(xi)) else [math.nan] * 2
+                             for xi, yi in zip(x, y)])
+            c = np.array(o).T
+            off, rel = np.linalg.norm(mean - c, axis=1), np.linalg.norm(mean, axis=1)
+            ok = np.isfinite(off) & np.isfinite(rel)
+            if ok.any() and np.median(off[ok]) < np.median(rel[ok]):
+                return [0.0] * n, [0.0] * n, "absolute"  # the points are around (cx, cy) already
+            return o[0], o[1], "relative"
+    return [0.0] * n, [0.0] * n, None
+
+
+def read_wcon(path: Path, animal: str | None = None) -> Tracks:
+    """A WCON file, archive or chunked experiment (tracker-commons specification), one animal.
+
+    Records of the animal (``animal``: its ``id``; needed when the file holds several) are joined
+    and put in time order.  ``head`` "R" reverses a frame's points (the head is the last point),
+    "?" keeps them as given (noted); ``ox``/``oy`` (or ``cx``/``cy``) origins are added, each in
+    its own unit.  A time given as ``null`` cannot be placed: its frame is dropped (noted).
+    """
+    docs = wcon_documents(path)
+    frames: list[tuple[float, np.ndarray, float, str]] = []  # (t in s, points, their unit in m, record label)
+    seen: dict[str, list[float]] = {}
+    notes: list[str] = []
+    unknown_head = reversed_head = no_time = 0
+    cx_read: set[str] = set()
+    scales = set()
+    for label, doc in docs:
+        def fail(what: str) -> SudsDataError:
+            return SudsDataError(f"{label}: {what}", code=BAD_TRACK_FILE)
+        if not isinstance(doc, dict) or "units" not in doc or "data" not in doc:
+            raise fail("not WCON: expected a JSON object with `units` and `data`")
+        units = doc["units"]
+        if not isinstance(units, dict):
+            raise fail(f"units: expected an object, got {units!r}")
+        t_scale = _unit(Path(label), units, "t", "T")
+        scale = _unit(Path(label), units, "x", "L")
+        if not math.isclose(_unit(Path(label), units, "y", "L"), scale, rel_tol=1e-12):
+            raise fail(f"units: x in {units['x']!r} but y in {units['y']!r}; expected one length unit")
+        scales.add(scale)
+        factor = {k: (_unit(Path(label), units, k, "L") / scale if k in units else 1.0)
+                  for k in ("ox", "oy", "cx", "cy")}
+        records = doc["data"] if isinstance(doc["data"], list) else [doc["data"]]
+        for k, rec in enumerate(records):
+            where = f"data[{k}]"
+            if not isinstance(rec, dict) or not {"id", "t", "x", "y"} <= set(rec):
+                raise fail(f"{where}: expected a record with id, t, x, y")
+            if isinstance(rec["id"], (list, dict)) or rec["id"] is None:
+                raise fail(f"{where}.id: expected one number or string, got {rec['id']!r}")
+            name = str(rec["id"])
+            t = rec["t"] if isinstance(rec["t"], list) else [rec["t"]]
+            seen.setdefault(name, []).extend(float(v) * t_scale for v in t if isinstance(v, (int, float)))
+            if animal is not None and name != animal:
+                continue
+            n = len(t)
+            xs, ys = (_series(Path(label), f"{where}.{c}", rec[c], n) for c in ("x", "y"))
+            try:
+                x = [_numbers(v) for v in xs]
+                y = [_numbers(v) for v in ys]
+            except (TypeError, ValueError):
+                raise fail(f"{where}: x and y: expected numbers or null") from None
+            for i in range(n):
+                if x[i].size != y[i].size:
+                    raise fail(f"{where} time {i}: x has {x[i].size} values, y {y[i].size}")
+            heads = _per_time(f"{label}: {where}.head", rec.get("head", "L"), n)
+            try:
+                ox, oy, how = _origin(f"{label}: {where}", rec, n, factor, x, y)
+            except SudsDataError:
+                raise
+            except (TypeError, ValueError):
+                raise fail(f"{where}: ox, oy, cx, cy: expected numbers or null") from None
+            if how is not None:
+                cx_read.add(how)
+            for i in range(n):
+                if heads[i] not in ("L", "R", "?"):
+                    raise fail(f"{where}.head: expected \"L\", \"R\" or \"?\", got {heads[i]!r}")
+                if t[i] is None:
+                    no_time += 1
+                    continue
+                if not isinstance(t[i], (int, float)) or isinstance(t[i], bool) or not math.isfinite(t[i]):
+                    raise fail(f"{where}.t: expected numbers or null, got {t[i]!r}")
+                pts = np.column_stack([x[i] + ox[i], y[i] + oy[i]])
+                if heads[i] == "R":
+                    pts = pts[::-1]
+                    reversed_head += 1
+                unknown_head += heads[i] == "?"
+                frames.append((float(t[i]) * t_scale, pts, scale, f"{label}: {where}"))
+    if animal is not None and animal not in seen:
+        raise SudsConfigError(f"--animal {animal!r}: no such id in {path}; its ids: "
+                              f"{', '.join(seen) or 'none'}")
+    if animal is None and len(seen) > 1:
+        most = sorted(seen, key=lambda a: -len(seen[a]))[:LIST_ANIMALS]  # a multi-worm plate has hundreds
+        listed = ", ".join(f"{a} ({len(seen[a])} times" + (f", {min(seen[a]):.10g}–{max(seen[a]):.10g} s)"
+                                                           if seen[a] else ")") for a in most)
+        more = f", and {len(seen) - len(most)} more" if len(seen) > len(most) else ""
+        raise _fail(path, f"data: {len(seen)} animals (ids {listed}{more}); suds import takes one: pass --animal ID")
+    if not frames:
+        raise _fail(path, "data: no frame with a time" if no_time else "data: no x, y points at any time: no midline")
+    frames.sort(key=lambda f: f[0])  # records may come in any order (tracker-commons); stable
+    for a, b in zip(frames, frames[1:]):
+        if a[0] == b[0]:
+            raise _fail(path, f"data: two frames of the animal at t = {a[0]:.9g} s ({a[3]} and {b[3]}): "
+                              "expected one frame per time")
+    counts = np.array([f[1].shape[0] for f in frames], dtype=np.int64)
+    p = int(counts.max())
     if p == 0:
         raise _fail(path, "data: no x, y points at any time: no midline")
+    one = len(scales) == 1  # points in the file's unit; several chunks in several units: metres
     pts = np.full((len(frames), p, 2), math.nan)
-    for i, f in enumerate(frames):
+    for i, (_, f, s, _) in enumerate(frames):
+        f = f if one else f * s
         if f.shape[0]:
             pts[i, :f.shape[0]] = f
             pts[i, f.shape[0]:] = f[-1]  # shorter midline: its tail repeated (no length added)
         # a time with no points stays NaN: lost
-    t_s = np.asarray(times) * t_scale
-    unit = next((u for u, v in (("m", 1.0), ("mm", 1e-3), ("um", 1e-6)) if math.isclose(v, scale, rel_tol=1e-12)),
-                None)
-    if unit is None:  # another length unit (inches, 12*in, ...): the points in metres
-        pts, unit = pts * scale, "m"
+    t_s = np.array([f[0] for f in frames])
+    unit = "m"
+    if one:
+        only = scales.pop()
+        unit = next((u for u, v in (("m", 1.0), ("mm", 1e-3), ("um", 1e-6)) if math.isclose(v, only, rel_tol=1e-12)),
+                    "")
+        if not unit:  # another length unit (inches, 12*in, ...): the points in metres
+            pts, unit = pts * only, "m"
+    if reversed_head:
+        notes.append(f"head \"R\" (the head is the last point) in {reversed_head} frames: their points reversed")
+    if unknown_head:
+        notes.append(f"head \"?\" (not known) in {unknown_head} frames: the first point is taken as the head")
+    if no_time:
+        notes.append(f"{no_time} frames with a null time dropped (cannot be placed)")
+    if "relative" in cx_read:
+        notes.append("cx, cy without ox, oy: the points taken relative to the centroid (tracker-commons)")
+    if "absolute" in cx_read:
+        notes.append("cx, cy without ox, oy: the points already lie around the centroid, so taken as absolute")
+    if len(docs) > 1:
+        notes.append(f"{len(docs)} chunks joined: {', '.join(label for label, _ in docs)}")
     varied = counts if np.any(counts[counts > 0] != p) else None
-    return Tracks(pts, t_s, None, unit, "wcon", tuple(f"p{k}" for k in range(p)), varied)
+    return Tracks(pts, t_s, None, unit, "wcon", tuple(f"p{k}" for k in range(p)), varied, tuple(notes))
 
 
 # ------------------------------------------------------------------ DeepLabCut csv
@@ -432,15 +667,18 @@ def movement_available() -> bool:
     return importlib.util.find_spec("movement") is not None
 
 
-def read_with_movement(path: Path, fmt: str) -> Tracks:
-    """A DeepLabCut, SLEAP or LightningPose file through ``movement.io.load_poses`` (one animal).
+def read_with_movement(path: Path, fmt: str, animal: str | None = None) -> Tracks:
+    """A DeepLabCut, SLEAP or LightningPose file through ``movement.io.load_poses`` (one animal: ``animal``).
 
     Raises
     ------
     SudsConfigError
         (code ``missing_dependency``) ``movement`` is not installed.
+    SudsConfigError
+        (code ``missing_dependency``) ``movement`` is not installed; or no individual is ``animal``.
     SudsDataError
-        (code ``bad_track_file``) ``movement`` cannot read the file, or it holds several animals.
+        (code ``bad_track_file``) ``movement`` cannot read the file, or it holds several animals
+        and ``animal`` is not given.
     """
     if not movement_available():
         kind = {"dlc": "DeepLabCut", "sleap": "SLEAP", "lightningpose": "LightningPose"}[fmt]
@@ -456,10 +694,18 @@ def read_with_movement(path: Path, fmt: str) -> Tracks:
         raise _fail(path, f"movement cannot read it as {fmt}: {type(exc).__name__}: {exc}") from None
     pos = ds["position"]
     individuals = [str(v) for v in pos.coords["individuals"].values]
-    if len(individuals) != 1:
-        raise _fail(path, f"{len(individuals)} animals ({', '.join(individuals)}); suds import takes "
-                          "a file of one animal")
-    arr = pos.transpose("time", "individuals", "keypoints", "space").values[:, 0]
+    arr = pos.transpose("time", "individuals", "keypoints", "space").values
+    if animal is not None:
+        if animal not in individuals:
+            raise SudsConfigError(f"--animal {animal!r}: no such individual in {path}; its individuals: "
+                                  f"{', '.join(individuals)}")
+        arr = arr[:, individuals.index(animal)]
+    elif len(individuals) != 1:
+        tracked = np.any(np.isfinite(arr[..., :2]), axis=(2, 3)).sum(axis=0)  # frames with a point, per animal
+        listed = ", ".join(f"{a} ({int(c)} frames)" for a, c in zip(individuals, tracked))
+        raise _fail(path, f"{len(individuals)} animals ({listed}); suds import takes one: pass --animal NAME")
+    else:
+        arr = arr[:, 0]
     names = tuple(str(v) for v in pos.coords["keypoints"].values)
     time = np.asarray(pos.coords["time"].values, dtype=float)
     frame = np.round(time).astype(np.int64)  # no fps given: movement's time is the frame number

@@ -136,6 +136,64 @@ def test_wcon_round_trip_exact(run, tmp_path) -> None:  # type: ignore[no-untype
     check_import(rec, out, ~mask)
 
 
+def test_wcon_archive_of_a_multi_worm_tracker_chunked_tail_first_round_trip_exact(  # type: ignore[no-untyped-def]
+        run, tmp_path, capsys) -> None:
+    """A real tracker's export: zipped chunks, two worms, tail-first points, centroid origins, shuffled records.
+
+    The worm of interest is split over two chunks (``files``) in one ``.wcon.zip``; its points are
+    stored tail first (``head`` "R") relative to its centroid (``cx``, ``cy`` in µm, x and y in mm);
+    its records come newest first; a second worm shares the plate; two times are ``null``.  With
+    ``--animal`` it imports as exactly as the plain file; without, the error names both worms.
+    """
+    import zipfile
+
+    rec, q = run
+    q = q.copy()
+    mask = lost_mask(rec.n_samples)
+    q[mask] = np.nan
+    mm = q * 1e3
+    centroid = np.zeros((rec.t.size, 2))
+    centroid[~mask] = np.mean(mm[~mask], axis=1)
+    rel = (mm - centroid[:, None])[:, ::-1]  # tail first
+    n = rec.t.size
+    parts = [slice(0, n // 3), slice(n // 3, 2 * n // 3), slice(2 * n // 3, n)]
+
+    def worm_record(s: slice) -> dict:
+        lost = np.isnan(rel[s]).any(axis=(1, 2))
+        return {"id": 7, "t": rec.t[s].tolist(), "head": "R", "ventral": "CW",
+                "x": [None if lost[i] else rel[s][i, :, 0].tolist() for i in range(lost.size)],
+                "y": [None if lost[i] else rel[s][i, :, 1].tolist() for i in range(lost.size)],
+                "cx": (centroid[s, 0] * 1e3).tolist(), "cy": (centroid[s, 1] * 1e3).tolist(),
+                "@OMG": {"feature_values": [1.0]}}
+    other = {"id": 8, "t": [0.0, 0.1], "x": [[1, 2, 3], [1, 2, 3]], "y": [[0, 0, 0], [0, 1, 0]]}
+    ghost = {"id": 7, "t": [None, None], "x": [[0, 1], [0, 1]], "y": [[0, 0], [0, 0]]}
+    units = {"t": "s", "x": "mm", "y": "mm", "cx": "um", "cy": "um"}
+    chunks = {
+        "plate_0.wcon": {"files": {"this": "_0", "prev": None, "next": ["_1"]}, "units": units,
+                         "data": [worm_record(parts[1]), other, worm_record(parts[0])]},
+        "plate_1.wcon": {"files": {"this": "_1", "prev": ["_0"], "next": []}, "units": units,
+                         "data": [ghost, worm_record(parts[2])]},
+    }
+    src = tmp_path / "plate.wcon.zip"
+    with zipfile.ZipFile(src, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        for name in ("plate_1.wcon", "plate_0.wcon"):
+            z.writestr(name, json.dumps(chunks[name]))
+    out = tmp_path / "worm8.mcap"
+    assert main(["import", str(src), "-o", str(out), "--links", "8", "--body-link", "4"]) == 2
+    err = error_line(capsys)
+    assert "2 animals (ids 7 (" in err and "8 (2 times, 0–0.1 s)" in err and "pass --animal ID" in err
+    assert main(["import", str(src), "-o", str(out), "--links", "8", "--body-link", "4", "--animal", "9"]) == 2
+    assert "--animal '9': no such id" in error_line(capsys)
+    assert main(["import", str(src), "-o", str(out), "--links", "8", "--body-link", "4", "--animal", "7",
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    check_import(rec, out, ~mask)
+    notes = " | ".join(summary["notes"])
+    assert f'head "R" (the head is the last point) in {n} frames' in notes
+    assert "2 frames with a null time dropped" in notes and "relative to the centroid" in notes
+    assert "2 chunks joined" in notes and summary["animal"] == "7"
+
+
 def test_dense_midline_with_fractions_frame_numbers_and_pixels(  # type: ignore[no-untyped-def]
         run, tmp_path, capsys) -> None:
     rec, q = run
@@ -291,3 +349,42 @@ def test_movement_formats_round_trip(run, tmp_path, fmt, name) -> None:  # type:
     np.testing.assert_allclose(got.r, rec.r[:n][keep], atol=tol, rtol=0)
     np.testing.assert_allclose(got.pose[:, :2], rec.pose[:n][keep, :2] - origin, atol=tol, rtol=0)
     np.testing.assert_allclose(wrap(got.pose[:, 2] - rec.pose[:n][keep, 2]), 0.0, atol=tol)
+
+
+@needs_movement
+@pytest.mark.parametrize("fmt, name", [("dlc", "plate.h5"), ("sleap", "plate.h5")])
+def test_movement_file_of_two_animals_imports_the_one_named(  # type: ignore[no-untyped-def]
+        run, tmp_path, capsys, fmt, name) -> None:
+    """Two animals tracked in one file: refused with their names and tracked frames; ``--animal`` picks one."""
+    from movement.io import load_poses, save_poses
+
+    rec, q = run
+    n = 600
+    origin = q[0, 0]
+    q = q[:n] - origin
+    mask = lost_mask(n)
+    q = np.where(mask[:, None, None], np.nan, q)
+    other = np.full_like(q, np.nan)
+    other[100:200] = q[:100] + 0.05  # a second animal, tracked in 100 frames only
+    pos = np.stack([(x / 1e-3).transpose(0, 2, 1) for x in (other, q)], axis=-1)  # (time, space, kpts, ind)
+    conf = np.where(np.isnan(pos[:, 0]), 0.0, 0.9)
+    ds = load_poses.from_numpy(position_array=pos, confidence_array=conf, individual_names=["stray", "worm"],
+                               keypoint_names=[f"p{k}" for k in range(q.shape[1])])
+    path = tmp_path / name
+    (save_poses.to_dlc_file(ds, path, split_individuals=False) if fmt == "dlc"
+     else save_poses.to_sleap_analysis_file(ds, path))
+    out = tmp_path / "worm8.mcap"
+    base = ["import", str(path), "--format", fmt, "-o", str(out), "--links", "8", "--body-link", "4",
+            "--units", "px", "--px-size", "1e-3", "--fps", "100"]
+    assert main(base) == 2
+    err = error_line(capsys)
+    tracked = [int(np.sum(~mask[:100])), int(np.sum(~mask))]  # frames with a point: 95 and 594
+    assert f"2 animals (stray ({tracked[0]} frames), worm ({tracked[1]} frames))" in err
+    assert "pass --animal NAME" in err
+    assert main(base + ["--animal", "fish"]) == 2
+    assert "--animal 'fish': no such individual" in error_line(capsys) and not out.exists()
+    assert main(base + ["--animal", "worm"]) == 0
+    got = read_recording(out)
+    keep = ~mask
+    np.testing.assert_allclose(got.r, rec.r[:n][keep], atol=TOL, rtol=0)
+    np.testing.assert_allclose(got.pose[:, :2], rec.pose[:n][keep, :2] - origin, atol=TOL, rtol=0)

@@ -125,6 +125,131 @@ def test_wcon_errors_name_the_problem(tmp_path: Path, text: str, match: str) -> 
     assert exc.value.code == BAD_TRACK_FILE
 
 
+def test_wcon_records_in_any_order_are_put_in_time_order_and_a_repeated_time_is_refused(tmp_path: Path) -> None:
+    data = [{"id": 1, "t": [2, 3], "x": [[2, 2], [3, 3]], "y": [[0, 1], [0, 1]]},
+            {"id": 1, "t": 0, "x": [0, 0], "y": [0, 1]},
+            {"id": 1, "t": [1, None], "x": [[1, 1], [9, 9]], "y": [[0, 1], [0, 1]]}]
+    got = read_tracks(write(tmp_path / "o.wcon", wcon(data, {"t": "s", "x": "mm", "y": "mm"})))
+    assert got.t.tolist() == [0, 1, 2, 3] and got.points[:, 0, 0].tolist() == [0, 1, 2, 3]
+    assert got.notes == ("1 frames with a null time dropped (cannot be placed)",)
+    data[1]["t"] = 3
+    with pytest.raises(SudsDataError, match=r"two frames of the animal at t = 3 s \(.*data\[0\] and .*data\[1\]\)"):
+        read_tracks(write(tmp_path / "d.wcon", wcon(data, {"t": "s", "x": "mm", "y": "mm"})))
+    only_null = [{"id": 1, "t": [None], "x": [[0, 0]], "y": [[0, 1]]}]
+    with pytest.raises(SudsDataError, match="no frame with a time"):
+        read_tracks(write(tmp_path / "n.wcon", wcon(only_null)))
+
+
+def test_wcon_head_order(tmp_path: Path) -> None:
+    """``head`` "R": the head is the last point, so the frame is reversed; "?" is kept and noted."""
+    rec = {"id": 1, "t": [0, 1, 2], "x": [[0, 1, 2]] * 3, "y": [[0, 0, 0]] * 3, "head": ["L", "R", "?"]}
+    got = read_tracks(write(tmp_path / "h.wcon", wcon(rec)))
+    assert got.points[:, 0, 0].tolist() == [0, 2, 0] and got.points[:, 2, 0].tolist() == [2, 0, 2]
+    assert got.notes == ('head "R" (the head is the last point) in 1 frames: their points reversed',
+                         'head "?" (not known) in 1 frames: the first point is taken as the head')
+    for head, match in (("up", r'data\[0\].head: expected "L", "R" or "\?", got \'up\''),
+                        (["R"], r"data\[0\].head: expected one value or 3 \(one per time\), got 1")):
+        with pytest.raises(SudsDataError, match=match):
+            read_tracks(write(tmp_path / "bad.wcon", wcon(dict(rec, head=head))))
+
+
+def test_wcon_origins_in_their_own_units_and_the_centroid_read_either_way(tmp_path: Path) -> None:
+    """ox/oy in µm under x in mm; cx/cy alone: the origin (tracker-commons), unless the points lie around them."""
+    units = {"t": "s", "x": "mm", "y": "mm", "ox": "um", "oy": "um", "cx": "mm", "cy": "mm"}
+    rel = {"id": 1, "t": [0, 1], "x": [[-1, 1], [-1, 1]], "y": [[0, 0], [0, 0]]}
+    got = read_tracks(write(tmp_path / "o.wcon", wcon(dict(rel, ox=[1000, 2000], oy=500), units)))
+    np.testing.assert_allclose(got.points[:, :, 0], [[0, 2], [1, 3]])
+    np.testing.assert_allclose(got.points[:, :, 1], 0.5)
+    assert got.notes == ()
+    got = read_tracks(write(tmp_path / "c.wcon", wcon(dict(rel, cx=[10, 20], cy=[5, 5]), units)))
+    np.testing.assert_allclose(got.points[:, :, 0], [[9, 11], [19, 21]])
+    assert "relative to the centroid" in got.notes[0]
+    absolute = {"id": 1, "t": [0, 1], "x": [[9, 11], [19, 21]], "y": [[5, 5], [5, 5]], "cx": [10, 20], "cy": [5, 5]}
+    got = read_tracks(write(tmp_path / "a.wcon", wcon(absolute, units)))
+    np.testing.assert_allclose(got.points[:, :, 0], [[9, 11], [19, 21]])
+    assert "taken as absolute" in got.notes[0]
+    with pytest.raises(SudsDataError, match=r"data\[0\]: `ox` and `oy` go in pairs; got only `ox`"):
+        read_tracks(write(tmp_path / "p.wcon", wcon(dict(rel, ox=1), units)))
+    with pytest.raises(SudsDataError, match=r"units.ox: expected a length"):
+        read_tracks(write(tmp_path / "u.wcon", wcon(dict(rel, ox=1, oy=1), dict(units, ox="s"))))
+
+
+def test_wcon_several_animals_need_one_named(tmp_path: Path) -> None:
+    data = [{"id": 1, "t": [0, 1], "x": [[0, 1]] * 2, "y": [[0, 0]] * 2},
+            {"id": "b", "t": 0.5, "x": [5, 6], "y": [0, 0]}]
+    f = write(tmp_path / "m.wcon", wcon(data, {"t": "s", "x": "mm", "y": "mm"}))
+    with pytest.raises(SudsDataError, match=r"2 animals \(ids 1 \(2 times, 0–1 s\), b \(1 times, 0.5–0.5 s\)\); "
+                                            r".*pass --animal ID"):
+        read_tracks(f)
+    assert read_tracks(f, animal="b").points[0, :, 0].tolist() == [5, 6]
+    assert read_tracks(f, animal="1").t.tolist() == [0, 1]
+    with pytest.raises(SudsConfigError, match="--animal '2': no such id .* its ids: 1, b"):
+        read_tracks(f, animal="2")
+    plate = [{"id": k, "t": list(range(k)), "x": [[0, 1]] * k, "y": [[0, 0]] * k} for k in range(1, 16)]
+    with pytest.raises(SudsDataError, match=r"15 animals \(ids 15 \(15 times, 0–14 s\), 14 .* 6 \(6 times, 0–5 s\), "
+                                            r"and 5 more\)"):
+        read_tracks(write(tmp_path / "plate.wcon", wcon(plate, {"t": "s", "x": "mm", "y": "mm"})))
+    with pytest.raises(SudsConfigError, match="--animal 'x': a midline csv holds one animal"):
+        read_tracks(write(tmp_path / "m.csv", "t,x0,y0\n0,1,2\n"), animal="x")
+
+
+def test_wcon_archives_and_chunks(tmp_path: Path) -> None:
+    """A .wcon.zip of one file is that file; chunks (``files``) are joined from a directory or an archive."""
+    import zipfile
+
+    units = {"t": "s", "x": "mm", "y": "mm"}
+    one = wcon({"id": 1, "t": [0, 1], "x": [[0, 1]] * 2, "y": [[0, 0]] * 2}, units)
+    z = tmp_path / "one.wcon.zip"
+    with zipfile.ZipFile(z, "w") as f:
+        f.writestr("inside/anything.json", one)
+    assert detect_format(z) == "wcon"
+    got = read_tracks(z)
+    assert got.t.tolist() == [0, 1] and got.units == "mm" and got.notes == ()
+
+    def chunk(k: int, prev: object, nxt: object, unit: str = "mm") -> str:
+        return json.dumps({"files": {"this": f"_{k}", "prev": prev, "next": nxt}, "units": dict(units, x=unit, y=unit),
+                           "data": {"id": 1, "t": [2 * k, 2 * k + 1], "x": [[k, 1]] * 2, "y": [[0, 0]] * 2}})
+    d = tmp_path / "run"
+    d.mkdir()
+    write(d / "w_0.wcon", chunk(0, None, ["_1", "_2"]))
+    write(d / "w_1.wcon", chunk(1, ["_0"], ["_2"]))
+    write(d / "w_2.wcon", chunk(2, ["_1", "_0"], [], unit="um"))
+    got = read_tracks(d / "w_1.wcon")  # any chunk names them all
+    assert got.t.tolist() == [0, 1, 2, 3, 4, 5] and got.units == "m"  # mm and µm chunks: metres
+    np.testing.assert_allclose(got.points[:, 0, 0], [0, 0, 1e-3, 1e-3, 2e-6, 2e-6])
+    assert got.notes[-1].startswith("3 chunks joined: ")
+    (d / "w_2.wcon").unlink()
+    with pytest.raises(SudsDataError, match="files: the chunk 'w_2.wcon' it names is not there"):
+        read_tracks(d / "w_0.wcon")
+    z = tmp_path / "chunks.wcon.zip"
+    with zipfile.ZipFile(z, "w") as f:
+        f.writestr("w_1.wcon", chunk(1, "_0", None))
+        f.writestr("w_0.wcon", chunk(0, [], "_1"))
+    assert read_tracks(z).t.tolist() == [0, 1, 2, 3]
+    with zipfile.ZipFile(z, "w") as f:
+        f.writestr("a.wcon", one)
+        f.writestr("b.wcon", one)
+    with pytest.raises(SudsDataError, match=r"zip archive of 2 files \(a.wcon, b.wcon\) with no first chunk"):
+        read_tracks(z)
+    with zipfile.ZipFile(z, "w"):
+        pass
+    with pytest.raises(SudsDataError, match="zip archive without a file in it"):
+        read_tracks(z)
+    with zipfile.ZipFile(z, "w") as f:
+        f.writestr("a.wcon", one * 50)
+    raw = bytearray(z.read_bytes())
+    raw[60:90] = b"x" * 30  # inside the compressed member
+    z.write_bytes(bytes(raw))
+    with pytest.raises(SudsDataError, match="chunks.wcon.zip: damaged zip archive: Bad CRC-32 for file 'a.wcon'"):
+        read_tracks(z)
+    z.write_bytes(bytes(raw[:40]))
+    with pytest.raises(SudsDataError, match="chunks.wcon.zip: damaged zip archive: no zip directory"):
+        read_tracks(z)
+    bad = write(tmp_path / "this.wcon", json.dumps({"files": {"this": "_9"}, "units": units, "data": []}))
+    with pytest.raises(SudsDataError, match="files.this: '_9' is not part of the file name 'this.wcon'"):
+        read_tracks(bad)
+
+
 DLC_CSV = """scorer,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50,DLC_resnet50
 bodyparts,snout,snout,snout,tail,tail,tail
 coords,x,y,likelihood,x,y,likelihood
