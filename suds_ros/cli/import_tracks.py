@@ -79,6 +79,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     p.add_argument("--px-size", type=float, metavar="M", help="metres per pixel (with --units px)")
     p.add_argument("--fps", type=float, metavar="F",
                    help="frames per second, for files with frame numbers instead of times")
+    p.add_argument("--keep-head-tail", action="store_true",
+                   help="take each frame's head as the tracker gave it (default: frames whose head and tail the "
+                        "tracker swapped, against the frames next to them, are reversed and reported)")
     p.add_argument("--animal", metavar="ID",
                    help="the animal to import from a file of several: a WCON id, or a DeepLabCut / SLEAP / "
                         "LightningPose individual (a file of several without it is refused, with their names)")
@@ -208,6 +211,25 @@ def _gaps(t: np.ndarray, frame: np.ndarray | None) -> list[dict[str, Any]]:
             for _, a, b in time_gaps(t)]
 
 
+def _head_tail(tracks: Any, keep: np.ndarray, tk: np.ndarray, t: np.ndarray, fix: bool
+               ) -> tuple[np.ndarray, dict[str, Any]]:
+    """The kept frames' points, those the tracker gave tail first reversed (``fix``), and what was found."""
+    from suds_ros.core.midline import head_tail_swaps
+
+    pts = np.array(tracks.points[keep], dtype=float)
+    found = head_tail_swaps(pts, tk)
+    if fix:
+        counts = tracks.counts[keep] if tracks.counts is not None else None
+        for i in np.flatnonzero(found.swapped):
+            c = pts.shape[1] if counts is None else int(counts[i])  # a shorter midline: its own points only
+            pts[i, :c] = pts[i, :c][::-1].copy()
+            pts[i, c:] = pts[i, c - 1]
+    mask = np.zeros(keep.size, dtype=bool)
+    mask[np.flatnonzero(keep)[found.swapped]] = True
+    return pts, {"swapped": int(found.swapped.sum()), "runs": _runs(mask, t, tracks.frame),
+                 "reversed": bool(fix), "unlinked": found.unlinked, "linked_runs": int(found.runs[-1]) + 1}
+
+
 def _model(name: str, lengths: np.ndarray, joint_names: tuple[str, ...], passive: list[str],
            body_link: int, gait_hz: float, drive: np.ndarray) -> Any:
     """The ``ChainModel`` written beside the recording (nominal drag, placeholder springs)."""
@@ -308,7 +330,8 @@ def run(args: argparse.Namespace) -> int:
         raise SudsDataError(f"{src}: every one of the {tracks.n_frames} frames is lost (NaN or no points): "
                             "no midline to import", code=NO_MIDLINE)
     tk = t[keep]
-    fit = fit_chain(tracks.points[keep] * scale, n, body - 1, fractions)
+    pts, head_tail = _head_tail(tracks, keep, tk, t, fix=not args.keep_head_tail)
+    fit = fit_chain(pts * scale, n, body - 1, fractions)
     if args.gait_hz is not None:
         if not (math.isfinite(args.gait_hz) and args.gait_hz > 0):
             raise SudsConfigError(f"--gait-hz: expected a frequency > 0 Hz, got {args.gait_hz}")
@@ -354,6 +377,7 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.animal is not None:
         summary["animal"] = args.animal
+    summary["head_tail"] = head_tail
     if segment is not None:
         summary["segment"] = segment
     if args.json:
@@ -375,6 +399,18 @@ def _describe(s: dict[str, Any]) -> str:
                      f"({run['t_first']:.6g} … {run['t_last']:.6g} s)")
     if len(s["lost"]["runs"]) > 10:
         lines.append(f"  … {len(s['lost']['runs']) - 10} more runs (see --json)")
+    h = s["head_tail"]
+    if h["swapped"]:
+        lines.append(f"head–tail: {h['swapped']} frames in {len(h['runs'])} runs given tail first against the frames "
+                     "next to them; " + ("reversed" if h["reversed"] else "kept as given (--keep-head-tail)"))
+        for run in h["runs"][:10]:
+            lines.append(f"  tail first: frames {run['first_frame']}–{run['last_frame']} "
+                         f"({run['t_first']:.6g} … {run['t_last']:.6g} s)")
+        if len(h["runs"]) > 10:
+            lines.append(f"  … {len(h['runs']) - 10} more runs (see --json)")
+    if h["unlinked"]:
+        lines.append(f"head–tail: at {h['unlinked']} frames the midline read the same either way round (a curled "
+                     f"body); the {h['linked_runs']} stretches between them keep the tracker's heads")
     if s["missing"]:
         total = sum(g["frames"] for g in s["missing"])
         lines.append(f"absent from the file: about {total} frames in {len(s['missing'])} gaps")

@@ -362,3 +362,72 @@ def time_gaps(t: FloatArray, factor: float = 1.5) -> list[tuple[int, float, floa
     d = np.diff(t)
     at = np.flatnonzero(d > factor * float(np.median(d)))
     return [(int(k), float(t[k]), float(t[k + 1])) for k in at]
+
+
+#: a frame is linked to the one before it when its midline lies this many times nearer that one's
+#: as given than reversed (or reversed than as given); between, the two readings are too alike
+#: (a curled, nearly symmetric body) and the frames are not linked
+SWAP_MARGIN = 2.0
+#: frames further apart than this many median frame intervals are not linked
+SWAP_GAP = 10.0
+
+
+@dataclass(frozen=True)
+class HeadTail:
+    """Head–tail swaps of a tracker, found by continuity (:func:`head_tail_swaps`).
+
+    Attributes
+    ----------
+    swapped : (n,) bool
+        Frames whose points the tracker gave tail first, against the frames linked to them.
+    runs : (n,) int
+        The linked run of each frame (0, 1, …): frames of one run are oriented alike.
+    unlinked : int
+        Boundaries between consecutive frames that could not be linked because the midline read
+        as given and reversed were too alike (not counting gaps in time).
+    """
+
+    swapped: BoolArray
+    runs: IntArray
+    unlinked: int
+
+
+def head_tail_swaps(points: FloatArray, t: FloatArray, margin: float = SWAP_MARGIN,
+                    gap: float = SWAP_GAP) -> HeadTail:
+    """Frames whose head and tail a tracker swapped, from the continuity of the midline.
+
+    A midline tracker decides the head of each frame afresh, and now and then picks the tail.
+    Consecutive frames (``gap`` median intervals apart or less) are compared at equal arc-length
+    fractions: the mean distance of a frame's points from the previous frame's, as given (d) and
+    reversed (d_rev).  They are linked as given when d_rev ≥ ``margin`` · d, as swapped when
+    d ≥ ``margin`` · d_rev, and not linked otherwise.  Each run of linked frames is put in the
+    orientation the tracker gave most of its frames (a tie: its first frame's), so the frames
+    against that are the swapped ones.  A run that could not be linked to its neighbours keeps
+    the tracker's orientation: the data cannot say more there.
+
+    Parameters
+    ----------
+    points : (n, P, 2) float
+        Kept frames, finite, head first as the tracker gave them.
+    t : (n,) float
+        Their times, increasing.
+    """
+    pts = np.asarray(points, dtype=float)
+    n = pts.shape[0]
+    if n < 2:
+        return HeadTail(np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64), 0)
+    q = resample(pts, np.linspace(0.0, 1.0, min(pts.shape[1], 25)))
+    d = np.mean(np.linalg.norm(q[1:] - q[:-1], axis=2), axis=1)
+    d_rev = np.mean(np.linalg.norm(q[1:, ::-1] - q[:-1], axis=2), axis=1)
+    dt = np.diff(np.asarray(t, dtype=float))
+    near = dt <= gap * float(np.median(dt))
+    as_given, swap = d_rev >= margin * d, d >= margin * d_rev
+    linked = near & (as_given | swap)
+    runs = np.concatenate([[0], np.cumsum(~linked)])
+    flips = np.concatenate([[0], np.cumsum(linked & swap)])
+    start = np.concatenate([[0], np.flatnonzero(~linked) + 1])  # each run's first frame
+    parity = (flips - flips[start[runs]]) % 2 == 1  # orientation against the run's first frame
+    against = np.bincount(runs, weights=parity.astype(float))
+    size = np.bincount(runs)
+    flip_run = against > size - against  # most of the run's frames disagree with its first
+    return HeadTail(parity != flip_run[runs], runs.astype(np.int64), int(np.count_nonzero(near & ~linked)))

@@ -194,6 +194,38 @@ def test_wcon_archive_of_a_multi_worm_tracker_chunked_tail_first_round_trip_exac
     assert "2 chunks joined" in notes and summary["animal"] == "7"
 
 
+def test_frames_the_tracker_gave_tail_first_are_turned_round_and_reported(  # type: ignore[no-untyped-def]
+        run, tmp_path, capsys) -> None:
+    """A midline tracker's head–tail swaps (runs of frames, one across a lost run) import exactly, and are listed."""
+    rec, q = run
+    q = q.copy()
+    mask = lost_mask(rec.n_samples)
+    q[mask] = np.nan
+    swapped = np.zeros(rec.n_samples, dtype=bool)
+    swapped[[7, 45, 46]] = True  # 45, 46: right after the lost run 40–44
+    swapped[500:620] = True
+    given = np.where(swapped[:, None, None], q[:, ::-1], q)
+    src = write_csv(tmp_path / "worm.csv", rec.t, given, 1e-3)
+    out = tmp_path / "worm8.mcap"
+    base = ["import", str(src), "-o", str(out), "--links", "8", "--units", "mm", "--body-link", "4"]
+    assert main(base + ["--json"]) == 0
+    h = json.loads(capsys.readouterr().out)["head_tail"]
+    check_import(rec, out, ~mask)
+    assert h["swapped"] == 123 and h["reversed"] and h["unlinked"] == 0
+    assert [(x["first_frame"], x["last_frame"]) for x in h["runs"]] == [(7, 7), (45, 46), (500, 619)]
+    assert main(base + ["--overwrite"]) == 0
+    text = capsys.readouterr().out
+    assert "head–tail: 123 frames in 3 runs given tail first against the frames next to them; reversed" in text
+    assert "tail first: frames 500–619" in text
+    assert main(base + ["--overwrite", "--keep-head-tail", "--json"]) == 0
+    h = json.loads(capsys.readouterr().out)["head_tail"]
+    assert h["swapped"] == 123 and not h["reversed"]
+    got = read_recording(out)
+    kept = np.flatnonzero(~mask)
+    wrong = np.any(np.abs(got.r - rec.r[kept]) > 1e-6, axis=1)
+    np.testing.assert_array_equal(wrong, swapped[kept])  # as given: exactly those frames wrong
+
+
 def test_dense_midline_with_fractions_frame_numbers_and_pixels(  # type: ignore[no-untyped-def]
         run, tmp_path, capsys) -> None:
     rec, q = run

@@ -1,4 +1,4 @@
-"""core.midline: chain fit to tracked points, its inverse, lost frames, gait frequency."""
+"""core.midline: chain fit to tracked points, its inverse, lost frames, gait frequency, head–tail swaps."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from suds_ros.core.midline import (
     fit_chain,
     fit_gait,
     frame_gaps,
+    head_tail_swaps,
     link_fractions,
     lost_frames,
     lost_runs,
@@ -147,3 +148,42 @@ def test_dominant_frequency_and_drive_fit() -> None:
     assert dominant_frequency(t, np.zeros((t.size, 2))) is None
     with pytest.raises(SudsDataError, match="at least 8 frames"):
         dominant_frequency(t[:5], r[:5])
+
+
+def test_head_tail_swaps_found_by_continuity_and_put_right() -> None:
+    """Runs the tracker gave tail first are found against their neighbours, however long (short of half)."""
+    t, r, pose = wave()
+    q = densify(chain_points(r, pose, LENGTHS, 3), 3)
+    truth = np.zeros(t.size, dtype=bool)
+    truth[[0, 57]] = True
+    truth[100:180] = True  # 80 of 400 frames
+    truth[399] = True
+    given = np.where(truth[:, None, None], q[:, ::-1], q)
+    found = head_tail_swaps(given, t)
+    np.testing.assert_array_equal(found.swapped, truth)
+    assert found.unlinked == 0 and found.runs.max() == 0
+    assert not head_tail_swaps(q, t).swapped.any()
+    # the majority decides which end is the head: continuity alone cannot tell a tracker that is
+    # mostly wrong, so the few frames it gave the other way round are the ones turned
+    mostly = np.where(~truth[:, None, None], q[:, ::-1], q)
+    np.testing.assert_array_equal(head_tail_swaps(mostly, t).swapped, truth)
+
+
+def test_head_tail_swaps_are_not_guessed_where_frames_cannot_be_linked() -> None:
+    """Across a long gap, or a jump as large as the body, a stretch keeps the tracker's orientation."""
+    t, r, pose = wave()
+    q = densify(chain_points(r, pose, LENGTHS, 3), 3)
+    given = q.copy()
+    given[200:] = given[200:, ::-1]  # the tracker turned round at frame 200 ...
+    gap = t.copy()
+    gap[200:] += 5.0  # ... after a gap of 5 s: nothing links the two stretches
+    found = head_tail_swaps(given, gap)
+    assert not found.swapped.any() and found.runs.max() == 1 and found.unlinked == 0
+    jump = given.copy()
+    jump[200:] += np.array([0.5, 0.0])  # a jump of about the body's length: the two readings alike
+    found = head_tail_swaps(jump, t)
+    assert not found.swapped.any() and found.runs.max() == 1 and found.unlinked == 1
+    # one swapped frame inside each stretch is still found
+    jump[50] = jump[50, ::-1]
+    jump[300] = jump[300, ::-1]
+    np.testing.assert_array_equal(np.flatnonzero(head_tail_swaps(jump, t).swapped), [50, 300])
