@@ -290,7 +290,9 @@ def report(results: list[dict], sources: dict[str, Path]) -> str:
             lines.append(f"- **{a.name}** — {a.species}: `{a.file}`, {fps}, {a.note}. "
                          f"{imp['frames']} frames, {imp['kept']} kept ({imp['lost']['frames']} lost by the "
                          f"tracker, dropped), chain of {imp['links']} links, gait {imp['gait_hz']:.3g} Hz "
-                         "(dominant frequency of the joint angles).")
+                         "(dominant frequency of the joint angles); head–tail swaps found by continuity: "
+                         f"{imp['head_tail']['swapped']} frames, {imp['head_tail']['unlinked']} frames where the "
+                         "midline read alike either way round.")
         lines.append("")
     lines += [
         f"Pixel size: not stated by the fish files; imported with a nominal {PX * 1e3:g} mm per pixel, which "
