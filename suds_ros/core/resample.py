@@ -117,10 +117,10 @@ class Grid:
         return out
 
     def pose_stamps(self, rec: Recording) -> FloatArray:
-        """Where ``rec``'s pose values belong (s): their stamps, or, when :attr:`snapped` and each pose
-        sample shares its stamp with a shape sample (one video frame, one message), that sample's
-        grid point: the two values were taken at the same moment.
+        """Where ``rec``'s pose values belong (s): their stamps, or the shape samples' grid points.
 
+        The grid points when :attr:`snapped` and each pose sample shares its stamp with a shape
+        sample (one video frame, one message): the two values were taken at the same moment.
         Snapping the shape values alone puts them a stamp error away from the poses taken with
         them: measured on the real tracked worm of ``docs/results/organisms.md`` (frame times
         rounded to 10 ms at 25.5 fps, judged stamped late), `suds identify`'s held-out Γ body was

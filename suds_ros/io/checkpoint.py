@@ -37,7 +37,7 @@ from suds_ros.core.errors import CHECKPOINT_DAMAGED, CHECKPOINT_VERSION, SudsDat
 from suds_ros.core.fourier import NormalEquations
 from suds_ros.core.ident.featurise import StreamFeaturiser
 from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator
-from suds_ros.core.ident.pairing import StampPairer
+from suds_ros.core.ident.pairing import FrameJoiner, StampPairer
 from suds_ros.core.ident.phase_init import GaitInitialiser
 from suds_ros.core.ident.prequential import PrequentialSelector
 from suds_ros.core.ident.shape_kernel import KernelScale
@@ -49,7 +49,7 @@ from suds_ros.core.resample import LiveGrid
 #: the ``format`` field of the header
 FORMAT = "suds_ros.estimator_checkpoint"
 #: bumped whenever the state of a class below changes shape
-FORMAT_VERSION = 12
+FORMAT_VERSION = 13
 #: arrays up to this many elements are written inside the JSON header
 INLINE_MAX = 64
 
@@ -57,7 +57,7 @@ INLINE_MAX = 64
 STATE_CLASSES: dict[str, type] = {c.__name__: c for c in (
     OnlineSudsEstimator, OnlineConfig, SudsConfig, StampPairer, GaitInitialiser, FourierTemplate,
     FourierTemplateConfig, PhaseTracker, StreamFeaturiser, PrequentialSelector, SudsRegressor,
-    NormalEquations, KernelScale, FeatureLayout, LiveGrid)}
+    NormalEquations, KernelScale, FeatureLayout, LiveGrid, FrameJoiner)}
 
 _NUMERIC = "fiub"  # float, signed and unsigned integer, bool: what np.load takes without pickle
 

@@ -27,6 +27,7 @@ samples at or before the last processed stamp count as already seen.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -35,13 +36,13 @@ import scipy.sparse
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.config import check_settings, setting
-from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.resample import BRIDGED_RUN, LiveGrid
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
-from suds_ros.core.ident.pairing import StampPairer
+from suds_ros.core.ident.pairing import FRAME_PROBE, FRAME_PROBE_MAX, FrameJoiner, StampPairer
 from suds_ros.core.ident.phase_init import GaitInitialiser, GaitStart
 from suds_ros.core.ident.prequential import PrequentialSelector
 from suds_ros.core.ident.scoring import BODY_CHANNELS
@@ -141,6 +142,11 @@ class OnlineSudsEstimator:
         Mean phase rate ω̄ of the initial cycles, rad/s; set at initialisation.
     regressor : SudsRegressor
         The incremental SUDS regression published now.
+    frames : FrameJoiner or None
+        With ``regrid``, when the pose stream shares the shape stream's stamps (one frame, one stamp:
+        decided on the first stamps, :meth:`_decide_frames`): each frame's shape and pose go through
+        the grid stage together, so a stamp it takes to its tick takes both, as the batch
+        identifier does (:meth:`~suds_ros.core.resample.Grid.pose_stamps`).  None otherwise.
     """
 
     def __init__(
@@ -158,6 +164,13 @@ class OnlineSudsEstimator:
         self.channels = tuple(BODY_CHANNELS) + tuple(f"rdot_{j}" for j in self.passive)
         self.pairer = StampPairer(config.max_pose_wait)
         self.regrid: LiveGrid | None = LiveGrid() if config.regrid else None
+        # with the grid stage: the first samples of both streams, held (in arrival order) until their
+        # stamps say whether the two are one frame's (then joined, and the pose goes through the stage
+        # with the shape: a stamp taken to its tick takes both); None once that is decided
+        self._probe: list[tuple[str, float, object]] | None = [] if config.regrid else None
+        self.frames: FrameJoiner | None = None  # the joiner, when the streams share their stamps
+        self._last_shape = -np.inf  # newest shape / pose stamps accepted (as given)
+        self._last_pose = -np.inf
         self.initialiser: GaitInitialiser | None = GaitInitialiser(
             config.init_cycles, config.gait_hz, config.template_order, config.phaser_order)
         self._early_poses: list[tuple[float, tuple[float, float, float]]] = []  # poses before the start
@@ -203,27 +216,34 @@ class OnlineSudsEstimator:
     @property
     def last_shape_stamp(self) -> float:
         """Newest shape stamp accepted, s (as given: before any regridding)."""
-        return self.pairer.last_shape_stamp if self.regrid is None else self.regrid.last_stamp
+        return self.pairer.last_shape_stamp if self.regrid is None else self._last_shape
 
     @property
     def held(self) -> int:
-        """Shape samples held by the regridding stage (released a few grid points late, or by :meth:`drain`)."""
-        return 0 if self.regrid is None else self.regrid.held
+        """Shape samples held by the regridding stage (released a few grid points late, or by :meth:`drain`).
+
+        With it, also the first samples while the streams' stamps are compared (frames waiting for
+        their pose count in :attr:`waiting_for_pose`).
+        """
+        if self.regrid is None:
+            return 0
+        probe = sum(kind == "shape" for kind, _, _ in self._probe) if self._probe is not None else 0
+        return self.regrid.held + probe
 
     @property
     def last_pose_stamp(self) -> float:
-        """Newest pose stamp accepted, s."""
-        return self.pairer.last_pose_stamp
+        """Newest pose stamp accepted, s (as given)."""
+        return self.pairer.last_pose_stamp if self.regrid is None else self._last_pose
 
     @property
     def dropped_no_pose(self) -> int:
         """Shape samples dropped for want of a covering pose."""
-        return self.pairer.dropped_no_pose
+        return self.pairer.dropped_no_pose + (self.frames.dropped_shapes if self.frames is not None else 0)
 
     @property
     def waiting_for_pose(self) -> int:
         """Shape samples waiting for a covering pose."""
-        return self.pairer.waiting
+        return self.pairer.waiting + (self.frames.waiting if self.frames is not None else 0)
 
     # ------------------------------------------------------------------ input
     def add_pose(self, t: float, x: float, y: float, yaw: float) -> int:
@@ -234,14 +254,33 @@ class OnlineSudsEstimator:
         SudsDataError
             NaN values, or a stamp not after the previous pose stamp.
         """
-        self.pairer.add_pose(float(t), float(x), float(y), float(yaw))
+        t, x, y, yaw = float(t), float(x), float(y), float(yaw)
+        if self.regrid is None:
+            self._to_pairer(t, x, y, yaw)
+            self.n_pose += 1
+            return self._release()
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
+            raise SudsDataError(f"pose sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
+        check_stamp("pose", t, self._last_pose)
+        self._last_pose = t
         self.n_pose += 1
+        if self._probe is not None:
+            self._probe.append(("pose", t, (x, y, yaw)))
+            return self._decide_frames()
+        if self.frames is not None:
+            self.frames.add_pose(t, x, y, yaw)
+            return self._push_frames()
+        self._to_pairer(t, x, y, yaw)
+        return self._release()
+
+    def _to_pairer(self, t: float, x: float, y: float, yaw: float) -> None:
+        """A pose (at the time it belongs to) to the pairer and the body-velocity rows."""
+        self.pairer.add_pose(t, x, y, yaw)
         pose = self.pairer.last_pose
         if self._rows is None:
-            self._early_poses.append((float(t), pose))
+            self._early_poses.append((t, pose))
         else:
-            self._rows.add_pose(float(t), pose)
-        return self._release()
+            self._rows.add_pose(t, pose)
 
     def add_shape(self, t: float, names: tuple[str, ...], position: FloatArray) -> int:
         """Add a shape sample; returns the number of shape samples released for processing.
@@ -254,19 +293,79 @@ class OnlineSudsEstimator:
         r = check_shape_sample(t, names, position, self.joint_names)
         if self.regrid is None:
             self.pairer.add_shape(float(t), r)
-        else:
-            check_stamp("shape", float(t), self.regrid.last_stamp)
-            self._pair_shapes(*self.regrid.add(float(t), r))
+            self.n_shape += 1
+            return self._release()
+        t = float(t)
+        check_stamp("shape", t, self._last_shape)
+        self._last_shape = t
         self.n_shape += 1
+        if self._probe is not None:
+            self._probe.append(("shape", t, r))
+            return self._decide_frames()
+        if self.frames is not None:
+            self.frames.add_shape(t, r)
+            return self._push_frames()
+        self._pair_shapes(*self.regrid.add(t, r))
         return self._release()
+
+    def _decide_frames(self, final: bool = False) -> int:
+        """Whether the two streams are one frame's, joined or apart; returns the samples released.
+
+        Joined once :data:`FRAME_PROBE` stamps matched; apart at once when a stamp of one stream is
+        passed by the other without a match.  Apart too when one stream has given
+        :data:`FRAME_PROBE_MAX` samples first, and at a ``final`` drain.  The held samples then go
+        on, in their order.
+        """
+        probe = self._probe
+        assert probe is not None
+        shapes = [t for kind, t, _ in probe if kind == "shape"]
+        poses = [t for kind, t, _ in probe if kind == "pose"]
+        both = set(shapes) & set(poses)
+        apart = bool(shapes and poses) and (any(t < shapes[-1] and t not in both for t in poses)
+                                            or any(t < poses[-1] and t not in both for t in shapes))
+        joined = not apart and len(both) >= FRAME_PROBE
+        if not (apart or joined or final or max(len(shapes), len(poses)) >= FRAME_PROBE_MAX):
+            return 0
+        self._probe = None
+        if joined:
+            self.frames = FrameJoiner(self.config.max_pose_wait)
+        for kind, t, v in probe:
+            if kind == "pose":
+                if self.frames is not None:
+                    self.frames.add_pose(t, *v)  # type: ignore[misc]
+                else:
+                    self._to_pairer(t, *v)  # type: ignore[misc]
+            elif self.frames is not None:
+                self.frames.add_shape(t, v)  # type: ignore[arg-type]
+            else:
+                self._pair_shapes(*self.regrid.add(t, v))  # type: ignore[union-attr, arg-type]
+        return self._push_frames() if self.frames is not None else self._release()
+
+    def _push_frames(self) -> int:
+        """The joined frames complete now through the grid stage (pose values beside the joints), then paired."""
+        assert self.frames is not None and self.regrid is not None
+        for t, r, pose in self.frames.frames():
+            self._pair_frames(*self.regrid.add(t, np.concatenate([r, pose])))
+        return self._release()
+
+    def _pair_frames(self, ts: list[float], vs: list[FloatArray]) -> None:
+        """Frames the grid stage released, at its times: the pose first, then the shape it covers exactly."""
+        nj = len(self.joint_names)
+        for tg, v in zip(ts, vs):  # (the yaw is continuous already: the joiner unwrapped it)
+            self._to_pairer(tg, float(v[nj]), float(v[nj + 1]), float(v[nj + 2]))
+            self.pairer.add_shape(tg, v[:nj])
 
     def drain(self) -> int:
         """Release the shape samples the regridding stage holds (the stream ended or paused); returns how many."""
         if self.regrid is None:
             return 0
+        n = self._decide_frames(final=True) if self._probe is not None else 0
         ts, rs = self.regrid.drain()
-        self._pair_shapes(ts, rs)
-        return self._release() if ts else 0
+        if self.frames is not None:
+            self._pair_frames(ts, rs)
+        else:
+            self._pair_shapes(ts, rs)
+        return n + (self._release() if ts else 0)
 
     def _pair_shapes(self, ts: list[float], rs: list[FloatArray]) -> None:
         """The samples the regridding released, to the pairer."""

@@ -138,3 +138,76 @@ class StampPairer:
             rs.append(wr.popleft())
             ps.append(np.array(pose))
         return ts, rs, ps
+
+
+#: the first stamps of each stream the estimator compares to tell one frame's samples (shared stamps)
+FRAME_PROBE = 4
+#: samples of one stream held while the other has given fewer than FRAME_PROBE (it may never come)
+FRAME_PROBE_MAX = 64
+
+
+class FrameJoiner:
+    """Shape and pose samples stamped alike (one video frame, one message) joined into frames.
+
+    A tracker that reads a frame's midline and its pose, or a rig that derives joint angles from
+    the same camera frame as the body pose, stamps the two alike; whatever a later stage does to
+    that time (a grid stage taking it to the camera's tick) must then be done to both.  Samples
+    are given as they arrive (each stream in stamp order, any interleaving); :meth:`frames`
+    returns the frames complete now, in stamp order: (stamp, joint values, pose (x, y, unwrapped
+    yaw)).  A shape sample whose pose was lost gets the pose interpolated between the poses
+    either side, once the later one is in (as :class:`StampPairer` would give it).  A shape sample
+    before the first pose, or one the shape stream has run more than ``max_wait`` stamp seconds
+    past with no pose at or after it (the pose stream stalled or stopped), is dropped and counted
+    (``dropped_shapes``), as the pairer drops it; a pose whose shape sample was lost is dropped too
+    (``dropped_poses``).
+    """
+
+    def __init__(self, max_wait: float) -> None:
+        self.max_wait = float(max_wait)
+        self._shapes: deque[tuple[float, FloatArray]] = deque()
+        self._poses: deque[tuple[float, FloatArray]] = deque()
+        self._prev: tuple[float, FloatArray] | None = None  # the newest pose taken off the queue
+        self._yaw = math.nan
+        self.dropped_shapes = 0
+        self.dropped_poses = 0
+
+    @property
+    def waiting(self) -> int:
+        """Shape samples waiting for a pose at or after their stamp."""
+        return len(self._shapes)
+
+    def add_shape(self, t: float, r: FloatArray) -> None:
+        """A checked shape sample (its stamp after the previous one's)."""
+        self._shapes.append((t, r))
+
+    def add_pose(self, t: float, x: float, y: float, yaw: float) -> None:
+        """A checked pose sample (finite, its stamp after the previous one's); yaw unwrapped here."""
+        self._yaw = yaw if math.isnan(self._yaw) else unwrap_next(self._yaw, yaw)
+        self._poses.append((t, np.array([x, y, self._yaw])))
+
+    def frames(self) -> list[tuple[float, FloatArray, FloatArray]]:
+        """The frames complete now, in stamp order."""
+        out: list[tuple[float, FloatArray, FloatArray]] = []
+        shapes, poses = self._shapes, self._poses
+        while shapes and poses:
+            ts, r = shapes[0]
+            tp, p = poses[0]
+            if tp <= ts:
+                poses.popleft()
+                self._prev = (tp, p)
+                if tp == ts:
+                    shapes.popleft()
+                    out.append((ts, r, p))
+                else:
+                    self.dropped_poses += 1  # its shape sample was lost
+                continue
+            shapes.popleft()  # this sample's pose was lost: between the poses either side
+            if self._prev is None:
+                self.dropped_shapes += 1
+                continue
+            t0, p0 = self._prev
+            out.append((ts, r, p0 + (ts - t0) / (tp - t0) * (p - p0)))
+        while shapes and shapes[-1][0] - shapes[0][0] > self.max_wait:  # no pose came for it in time
+            shapes.popleft()
+            self.dropped_shapes += 1
+        return out

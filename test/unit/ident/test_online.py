@@ -18,6 +18,7 @@ from suds_ros.core.errors import (
     SudsDataError,
 )
 from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier, split_cycles
+import suds_ros.core.ident.online as online
 from suds_ros.core.ident.online import OnlineConfig, OnlineSudsEstimator, fit_streaming
 from suds_ros.core.ident.predictor import evaluate_model
 from suds_ros.core.ident.scoring import score_prediction
@@ -148,3 +149,43 @@ def test_a_jittered_shape_stream_is_learned_on_its_grid_as_the_batch_identifier_
     raw = gamma(fit_streaming(train, OnlineConfig(regrid=False)))
     batch_grid = gamma(fit_streaming(on_shape_grid(train), OnlineConfig(regrid=False)))
     assert gamma(live) > raw + 0.02 and gamma(live) > batch_grid - 0.01
+
+
+def test_a_pose_stamped_with_its_shape_goes_through_the_grid_stage_with_it(monkeypatch) -> None:  # type: ignore
+    """Video-like frames: shape and pose of one frame stamped alike, 2 ms off the camera's tick.
+
+    The grid stage takes such a stamp to its tick; the estimator sends the frame's pose through
+    the stage with its joints, so both move (as the batch identifier's ``Grid.pose_stamps``), and
+    the live model is as good as on the jitter-free stamps.  Apart, the pose stayed at its stamp:
+    Γ body 0.71 against 0.89.  A separate pose stream (lab) is decided apart at its first stamp.
+    """
+    from suds_ros.core.physics.lab import LabConditions, simulate_lab
+    from suds_ros.core.physics.sim import SimConfig, simulate
+    from suds_ros.core.physics.systems import make_system
+    from suds_ros.core.resample import on_shape_grid
+
+    system = make_system("purcell3")
+    rec = simulate(system, SimConfig(cycles=40, seed=0))
+    jitter = np.clip(np.random.default_rng(0).normal(0.0, 0.002, rec.t.size), -0.004, 0.004)
+    video = replace(rec, t=rec.t + jitter, pose_t=rec.t + jitter, truth={})
+    train, test = split_cycles(video, 25, 15)
+    clean_train, clean_test = split_cycles(rec, 25, 15)
+
+    def gamma(est: OnlineSudsEstimator, test_rec: object) -> float:
+        return score_prediction(evaluate_model(est.model(), on_shape_grid(test_rec))).gamma_body  # type: ignore
+
+    live = fit_streaming(train)
+    assert live.frames is not None and live.regrid.mode == "snap"
+    assert live.frames.dropped_shapes == live.frames.dropped_poses == live.dropped_no_pose == 0
+    clean = gamma(fit_streaming(clean_train), clean_test)
+    assert gamma(live, test) > clean - 0.01
+    monkeypatch.setattr(online, "FRAME_PROBE", 10**9)  # never joined: the pose at its stamp
+    apart = fit_streaming(train)
+    assert apart.frames is None and gamma(apart, test) < clean - 0.1
+    monkeypatch.undo()
+    lab = simulate_lab(system, SimConfig(cycles=4, seed=0), LabConditions(jitter=0.002))
+    est = OnlineSudsEstimator(lab.joint_names, lab.actuated)
+    est.add_shape(float(lab.t[0]), lab.joint_names, lab.r[0])
+    est.add_pose(float(lab.pose_t[0]), *map(float, lab.pose[0]))
+    est.add_shape(float(lab.t[1]), lab.joint_names, lab.r[1])
+    assert est._probe is None and est.frames is None  # the pose's stamp passed without a shape of its own
