@@ -26,7 +26,9 @@ class Data:
     """A recording in the model's joint order, cut to whole gait cycles (first half trains).
 
     Samples [0, n_train) are the training half, [n_train, n_used) the held-out half.  ``t`` is a
-    uniform grid (spacing ``dt``); ``pose_t``/``pose_raw`` are the recorded pose stream as received.
+    uniform grid (spacing ``dt``); ``pose_t``/``pose_raw`` are the recorded pose stream as received,
+    timed where its values belong (:meth:`~suds_ros.core.resample.Grid.pose_stamps`: a pose stream
+    sharing a stamped-late shape stream's stamps is timed at the shape samples' grid points).
     ``resampled``: the streams were brought onto the grid (:mod:`.grid`).
     """
 
@@ -96,6 +98,7 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
     t, dt = grid.t, grid.dt
     r = grid.shape(rec)[:, order]
     pose = grid.pose(rec)
+    pose_t = grid.pose_stamps(rec)
     phase, source, note = gait_phase(r, t, f)
     lost = grid.unreliable(rec.t)
     anchors = None
@@ -105,7 +108,7 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         t=t,
         r=r,
         pose=pose,
-        pose_t=rec.pose_t,
+        pose_t=pose_t,
         pose_raw=rec.pose,
         dt=dt,
         spc=spc,
@@ -120,7 +123,7 @@ def prepare(rec: Recording, model: ChainModel) -> Data:
         shape_gap=lost,
         shape_lost=lost,
         anchors=anchors,
-        pose_gap=grid.unreliable(rec.pose_t),
+        pose_gap=grid.unreliable(pose_t),
         resampled=grid.resampled,
     )
 
