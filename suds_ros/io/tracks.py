@@ -109,7 +109,7 @@ class Tracks:
         return int(self.points.shape[1])
 
 
-def _fail(path: Path, what: str) -> SudsDataError:
+def _fail(path: Path | str, what: str) -> SudsDataError:
     return SudsDataError(f"{path}: {what}", code=BAD_TRACK_FILE)
 
 
@@ -310,7 +310,7 @@ def wcon_unit(expr: str) -> tuple[float, dict[str, int]]:
     return scale, dims
 
 
-def _unit(path: Path, units: dict[str, Any], key: str, dim: str) -> float:
+def _unit(path: Path | str, units: dict[str, Any], key: str, dim: str) -> float:
     """SI factor of ``units[key]``, which must be a length (``dim`` "L") or a time ("T")."""
     u = units.get(key)
     kind = {"L": "a length (m, mm, um, micrometers, ...)", "T": "a time (s, ms, seconds, 0.04*s, ...)"}[dim]
@@ -325,7 +325,7 @@ def _unit(path: Path, units: dict[str, Any], key: str, dim: str) -> float:
     return scale
 
 
-def _series(path: Path, where: str, value: Any, n: int) -> list[Any]:
+def _series(path: Path | str, where: str, value: Any, n: int) -> list[Any]:
     """A per-time list of length n (a scalar or flat list for one time is wrapped)."""
     if n == 1 and not (isinstance(value, list) and value and isinstance(value[0], list)):
         return [value]
@@ -385,10 +385,9 @@ def _load_json(where: str, raw: bytes) -> Any:
     try:
         return json.loads(raw.decode("utf-8-sig"))
     except UnicodeDecodeError:
-        raise SudsDataError(f"{where}: not WCON (not UTF-8 text)", code=BAD_TRACK_FILE) from None
+        raise _fail(where, "not WCON (not UTF-8 text)") from None
     except json.JSONDecodeError as exc:
-        raise SudsDataError(f"{where}: not WCON: invalid JSON (line {exc.lineno}: {exc.msg})",
-                            code=BAD_TRACK_FILE) from None
+        raise _fail(where, f"not WCON: invalid JSON (line {exc.lineno}: {exc.msg})") from None
 
 
 def wcon_documents(path: Path) -> list[tuple[str, Any]]:
@@ -457,8 +456,7 @@ def _per_time(where: str, value: Any, n: int) -> list[Any]:
     """A value given once for a record or once per time (``head``, ``ox`` …): n entries."""
     if isinstance(value, list):
         if len(value) != n:
-            raise SudsDataError(f"{where}: expected one value or {n} (one per time), got {len(value)}",
-                                code=BAD_TRACK_FILE)
+            raise _fail(where, f"expected one value or {n} (one per time), got {len(value)}")
         return value
     return [value] * n
 
@@ -473,8 +471,7 @@ def _origin(where: str, rec: dict[str, Any], n: int, factor: dict[str, float], x
     for a, b in (("ox", "oy"), ("cx", "cy")):
         if a in rec or b in rec:
             if not (a in rec and b in rec):
-                raise SudsDataError(f"{where}: `{a}` and `{b}` go in pairs; got only "
-                                    f"`{a if a in rec else b}`", code=BAD_TRACK_FILE)
+                raise _fail(where, f"`{a}` and `{b}` go in pairs; got only `{a if a in rec else b}`")
             o = [[math.nan if v is None else float(v) * factor[k] for v in _per_time(f"{where}.{k}", rec[k], n)]
                  for k in (a, b)]
             if a == "ox":
@@ -506,59 +503,57 @@ def read_wcon(path: Path, animal: str | None = None) -> Tracks:
     cx_read: set[str] = set()
     scales = set()
     for label, doc in docs:
-        def fail(what: str) -> SudsDataError:
-            return SudsDataError(f"{label}: {what}", code=BAD_TRACK_FILE)
         if not isinstance(doc, dict) or "units" not in doc or "data" not in doc:
-            raise fail("not WCON: expected a JSON object with `units` and `data`")
+            raise _fail(label, "not WCON: expected a JSON object with `units` and `data`")
         units = doc["units"]
         if not isinstance(units, dict):
-            raise fail(f"units: expected an object, got {units!r}")
-        t_scale = _unit(Path(label), units, "t", "T")
-        scale = _unit(Path(label), units, "x", "L")
-        if not math.isclose(_unit(Path(label), units, "y", "L"), scale, rel_tol=1e-12):
-            raise fail(f"units: x in {units['x']!r} but y in {units['y']!r}; expected one length unit")
+            raise _fail(label, f"units: expected an object, got {units!r}")
+        t_scale = _unit(label, units, "t", "T")
+        scale = _unit(label, units, "x", "L")
+        if not math.isclose(_unit(label, units, "y", "L"), scale, rel_tol=1e-12):
+            raise _fail(label, f"units: x in {units['x']!r} but y in {units['y']!r}; expected one length unit")
         scales.add(scale)
-        factor = {k: (_unit(Path(label), units, k, "L") / scale if k in units else 1.0)
+        factor = {k: (_unit(label, units, k, "L") / scale if k in units else 1.0)
                   for k in ("ox", "oy", "cx", "cy")}
         records = doc["data"] if isinstance(doc["data"], list) else [doc["data"]]
         for k, rec in enumerate(records):
             where = f"data[{k}]"
             if not isinstance(rec, dict) or not {"id", "t", "x", "y"} <= set(rec):
-                raise fail(f"{where}: expected a record with id, t, x, y")
+                raise _fail(label, f"{where}: expected a record with id, t, x, y")
             if isinstance(rec["id"], (list, dict)) or rec["id"] is None:
-                raise fail(f"{where}.id: expected one number or string, got {rec['id']!r}")
+                raise _fail(label, f"{where}.id: expected one number or string, got {rec['id']!r}")
             name = str(rec["id"])
             t = rec["t"] if isinstance(rec["t"], list) else [rec["t"]]
             seen.setdefault(name, []).extend(float(v) * t_scale for v in t if isinstance(v, (int, float)))
             if animal is not None and name != animal:
                 continue
             n = len(t)
-            xs, ys = (_series(Path(label), f"{where}.{c}", rec[c], n) for c in ("x", "y"))
+            xs, ys = (_series(label, f"{where}.{c}", rec[c], n) for c in ("x", "y"))
             try:
                 x = [_numbers(v) for v in xs]
                 y = [_numbers(v) for v in ys]
             except (TypeError, ValueError):
-                raise fail(f"{where}: x and y: expected numbers or null") from None
+                raise _fail(label, f"{where}: x and y: expected numbers or null") from None
             for i in range(n):
                 if x[i].size != y[i].size:
-                    raise fail(f"{where} time {i}: x has {x[i].size} values, y {y[i].size}")
+                    raise _fail(label, f"{where} time {i}: x has {x[i].size} values, y {y[i].size}")
             heads = _per_time(f"{label}: {where}.head", rec.get("head", "L"), n)
             try:
                 ox, oy, how = _origin(f"{label}: {where}", rec, n, factor, x, y)
             except SudsDataError:
                 raise
             except (TypeError, ValueError):
-                raise fail(f"{where}: ox, oy, cx, cy: expected numbers or null") from None
+                raise _fail(label, f"{where}: ox, oy, cx, cy: expected numbers or null") from None
             if how is not None:
                 cx_read.add(how)
             for i in range(n):
                 if heads[i] not in ("L", "R", "?"):
-                    raise fail(f"{where}.head: expected \"L\", \"R\" or \"?\", got {heads[i]!r}")
+                    raise _fail(label, f"{where}.head: expected \"L\", \"R\" or \"?\", got {heads[i]!r}")
                 if t[i] is None:
                     no_time += 1
                     continue
                 if not isinstance(t[i], (int, float)) or isinstance(t[i], bool) or not math.isfinite(t[i]):
-                    raise fail(f"{where}.t: expected numbers or null, got {t[i]!r}")
+                    raise _fail(label, f"{where}.t: expected numbers or null, got {t[i]!r}")
                 pts = np.column_stack([x[i] + ox[i], y[i] + oy[i]])
                 if heads[i] == "R":
                     pts = pts[::-1]
