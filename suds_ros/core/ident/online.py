@@ -27,7 +27,6 @@ samples at or before the last processed stamp count as already seen.
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -36,13 +35,13 @@ import scipy.sparse
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.config import check_settings, setting
-from suds_ros.core.errors import NAN_OR_INF, TOO_LITTLE_DATA, SudsConfigError, SudsDataError
+from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import is_fitted
 from suds_ros.core.fourier import NormalEquations, fourier_basis
 from suds_ros.core.resample import BRIDGED_RUN, LiveGrid
 from suds_ros.core.ident.featurise import Rows, StreamFeaturiser
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp
-from suds_ros.core.ident.pairing import FRAME_PROBE, FRAME_PROBE_MAX, FrameJoiner, StampPairer
+from suds_ros.core.ident.pairing import FRAME_PROBE, FRAME_PROBE_MAX, FrameJoiner, StampPairer, check_pose_sample
 from suds_ros.core.ident.phase_init import GaitInitialiser, GaitStart
 from suds_ros.core.ident.prequential import PrequentialSelector
 from suds_ros.core.ident.scoring import BODY_CHANNELS
@@ -259,9 +258,7 @@ class OnlineSudsEstimator:
             self._to_pairer(t, x, y, yaw)
             self.n_pose += 1
             return self._release()
-        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
-            raise SudsDataError(f"pose sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
-        check_stamp("pose", t, self._last_pose)
+        check_pose_sample(t, x, y, yaw, self._last_pose)
         self._last_pose = t
         self.n_pose += 1
         if self._probe is not None:

@@ -31,6 +31,19 @@ from suds_ros.core.ident.model import check_stamp
 _TWO_PI = 2.0 * math.pi
 
 
+def check_pose_sample(t: float, x: float, y: float, yaw: float, last: float) -> None:
+    """Refuse a pose sample with NaN or Inf (``nan_or_inf``) or a stamp not after ``last`` (s).
+
+    Raises
+    ------
+    SudsDataError
+        ``nan_or_inf``, ``duplicate_stamp`` or ``out_of_order_stamp``.
+    """
+    if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
+        raise SudsDataError(f"pose sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
+    check_stamp("pose", t, last)
+
+
 def unwrap_next(prev: float, yaw: float) -> float:
     """``yaw`` shifted by whole turns to lie within half a turn of ``prev`` (rad)."""
     return prev + ((yaw - prev + math.pi) % _TWO_PI - math.pi)
@@ -83,9 +96,7 @@ class StampPairer:
             NaN or Inf (``nan_or_inf``), a stamp not after the previous pose's
             (``duplicate_stamp``, ``out_of_order_stamp``).
         """
-        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
-            raise SudsDataError(f"pose sample at {t!r} s contains NaN or Inf", code=NAN_OR_INF)
-        check_stamp("pose", t, self.last_pose_stamp)
+        check_pose_sample(t, x, y, yaw, self.last_pose_stamp)
         self._yaw = yaw if math.isnan(self._yaw) else unwrap_next(self._yaw, yaw)
         self.last_pose_stamp = t
         self._pose_t.append(t)
