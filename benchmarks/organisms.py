@@ -153,11 +153,11 @@ def midline_csv(animal: Animal, text: str, path: Path) -> tuple[np.ndarray, np.n
 
 
 def run_cli(argv: list[str]) -> tuple[int, str]:
-    """``suds argv``: exit code and what it printed."""
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    """``suds argv``: exit code and what it printed (on failure, what it printed to stderr too)."""
+    buf, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
         rc = suds(argv)
-    return rc, buf.getvalue()
+    return rc, buf.getvalue() + (err.getvalue() if rc != 0 else "")
 
 
 def gamma(pred: np.ndarray, truth: np.ndarray, template: np.ndarray) -> np.ndarray:
@@ -196,6 +196,11 @@ def one(animal: Animal, source: Path, work: Path) -> dict:
     if rc != 0:
         raise SystemExit(f"suds identify failed for {animal.name}")
     cli = json.loads(text)
+    # the live estimator's algorithm on the same split (what the estimator node would publish)
+    rc, text = run_cli(["identify", str(rec_path), "--model", str(model_path), "--train-cycles", str(n_train),
+                        "--test-cycles", "1000", "--streaming", "--init-cycles", str(min(5, n_train)), "--json"])
+    # too few cycles for the phaser is an answer (the error is reported), not a failed benchmark
+    live = json.loads(text) if rc == 0 else {"error": (text.strip().splitlines() or ["(no message)"])[-1]}
     rc, text = run_cli(["diagnose", str(rec_path), "--model", str(model_path), "--json"])
     if rc != 0:
         raise SystemExit(f"suds diagnose failed for {animal.name}")
@@ -215,7 +220,7 @@ def one(animal: Animal, source: Path, work: Path) -> dict:
     krr, _, krr_params = run_krr(dtr, dte, groups_of(pred.channels), 0)
     body = [i for i, c in enumerate(pred.channels) if c.startswith("xi_")]
     return {
-        "animal": animal, "import": imp, "identify": cli, "diagnose": diag,
+        "animal": animal, "import": imp, "identify": cli, "streaming": live, "diagnose": diag,
         "channels": [pred.channels[i] for i in body],
         "gamma_ours": gamma(pred.model[:, body], pred.truth[:, body], pred.template[:, body]).tolist(),
         "gamma_krr": gamma(krr[:, body], pred.truth[:, body], pred.template[:, body]).tolist(),
@@ -324,6 +329,18 @@ def report(results: list[dict], sources: dict[str, Path]) -> str:
                      f"Γ body {cli['gamma_body']:.3f}, regressor set {cli['regressors']}, "
                      f"{cli['parameters_per_output']} parameters per output, train {cli['train_cycles']} / test "
                      f"{cli['test_cycles']} cycles; kernel ridge {res['krr_params']}.")
+    lines += ["", "The live estimator's algorithm (`suds identify --streaming`, the model the estimator node "
+              "would publish after the training cycles; same split, scored the same way; the phase initialised "
+              "on the first 5 cycles, the prickleback's 3):", ""]
+    for res in results:
+        live = res["streaming"]
+        if "error" in live:
+            lines.append(f"- {res['animal'].name}: no model: `{live['error']}` (its training cycles span less "
+                         "than the phaser's first cycles at the file's gait frequency).")
+            continue
+        lines.append(f"- {res['animal'].name}: Γ body {live['gamma_body']:.3f}, "
+                     f"{live['parameters_per_output']} parameters per output (the candidate with the lowest "
+                     f"prequential loss), running Γ body {live['running_gamma']['body']:.3f}.")
     lines += ["", "## `suds diagnose` against the imported model file", "",
               "The model file `suds import` writes is a nominal guess (resistive force theory with a swimmer's "
               "c⊥/c∥ = 2, the measured link lengths, every joint driven); `suds diagnose REC --model REC.yaml` "

@@ -63,13 +63,21 @@ class PrequentialSelector:
             self.loss_ = np.zeros(len(self.candidates))
             self.weight_ = 0.0
             self.current_ = 0
-        if all(is_fitted(c) for c in self.candidates) and ref_body.sum() > 0 and ref_rest.sum() > 0:
+        # a group without channels (the passive rates of a fully actuated robot) has no error to
+        # score: the loss averages the groups that have one (before 2026-12-06 such a robot was
+        # never scored, so its first candidate stayed current whatever the data said)
+        body = nb > 0 and ref_body.sum() > 0
+        rest = Y.shape[1] > 0 and ref_rest.sum() > 0
+        if all(is_fitted(c) for c in self.candidates) and (body or rest):
             decay = 0.5 ** (1.0 / self.memory)
             for i, c in enumerate(self.candidates):
-                pred_body = np.asarray(avg.weights @ c.predict(avg.X)[:, :nb])  # type: ignore[operator]
-                e_body = np.abs(pred_body - avg.y).sum()
-                e_rest = np.abs(c.predict(X)[:, nb:] - Y).sum()
-                self.loss_[i] = decay * self.loss_[i] + 0.5 * (e_body / ref_body.sum() + e_rest / ref_rest.sum())
+                ratios = []
+                if body:
+                    pred_body = np.asarray(avg.weights @ c.predict(avg.X)[:, :nb])  # type: ignore[operator]
+                    ratios.append(np.abs(pred_body - avg.y).sum() / ref_body.sum())
+                if rest:
+                    ratios.append(np.abs(c.predict(X)[:, nb:] - Y).sum() / ref_rest.sum())
+                self.loss_[i] = decay * self.loss_[i] + float(np.mean(ratios))
             self.weight_ = decay * self.weight_ + 1.0
             self.current_ = int(np.argmin(self.loss_))
         for c in self.candidates:
