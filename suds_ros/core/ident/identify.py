@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from suds_ros.core._typing import BoolArray, FloatArray
+from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import TOO_LITTLE_DATA, SudsConfigError, SudsDataError
 from suds_ros.core.estimator import BaseEstimator, check_is_fitted
 from suds_ros.core.fourier import fourier_basis
@@ -22,11 +22,11 @@ from suds_ros.core.ident.intervals import (
     PoseIntervals,
     interval_features,
     make_intervals,
+    measured_intervals,
     pose_intervals,
     segment_states,
 )
 from suds_ros.core.recording import Recording
-from suds_ros.core.resample import window_any
 from suds_ros.core.ident.scoring import (
     BODY_CHANNELS,
     PoseIntervalPrediction,
@@ -276,7 +276,7 @@ class SudsIdentifier(BaseEstimator):
                 raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
             Y = np.concatenate([Y, iv.effort], axis=1)
         t0, t1 = rec.t[:-w], rec.t[w:]
-        keep = _measured(rec, w)
+        keep = measured_intervals(rec, w)
         if keep is not None:  # no interval over shapes bridged across lost samples; no pose interval over those
             iv = Intervals(t=iv.t[keep], k=iv.k[keep], r=iv.r[keep], rdot=iv.rdot[keep], xi=iv.xi[keep],
                            effort=None if iv.effort is None else iv.effort[keep], dt=iv.dt[keep])
@@ -409,8 +409,9 @@ class SudsIdentifier(BaseEstimator):
     def _blocks(self, rec: Recording, phase: FloatArray):  # type: ignore[no-untyped-def]
         """(k, X, Y, phase) of consecutive blocks of intervals (see :meth:`_samples`); k: each row's interval.
 
-        Intervals over a bridged shape sample are left out (:func:`_measured`), so a block's rows
-        need not be consecutive.  Y's body channels are NaN on intervals without a pose at both ends.
+        Intervals over a bridged shape sample are left out
+        (:func:`~suds_ros.core.ident.intervals.measured_intervals`), so a block's rows need not be
+        consecutive.  Y's body channels are NaN on intervals without a pose at both ends.
         """
         w = self.config.window
         for a, b in _ranges(rec.n_samples - w, self.config.block_samples):
@@ -423,7 +424,7 @@ class SudsIdentifier(BaseEstimator):
                     raise SudsDataError("torque identification needs recorded `effort` on /suds/shape")
                 Y = np.concatenate([Y, iv.effort], axis=1)
             X, k = self.features(sub, iv, ph), np.arange(a, b)
-            keep = _measured(sub, w)
+            keep = measured_intervals(sub, w)
             if keep is not None:
                 X, Y, ph, k = X[keep], Y[keep], ph[keep], k[keep]
             yield k, X, Y, ph
@@ -621,14 +622,6 @@ def _joined(recs: list[Recording]) -> Recording:
     return replace(recs[0], t=t, r=r, pose_t=t[[0, -1]], pose=np.zeros((2, 3)), effort=None, truth={}, bridged=None)
 
 
-def _measured(rec: Recording, window: int) -> BoolArray | None:
-    """Intervals k → k + ``window`` whose samples were all measured (none ``rec.bridged``); None: every one."""
-    if rec.bridged is None:
-        return None
-    bad = window_any(rec.bridged, window)
-    return ~bad if bad.any() else None
-
-
 def _check_measured(rec: Recording, window: int) -> None:
     """Refuse a recording in which every interval spans a bridged shape sample (nothing measured to use).
 
@@ -637,7 +630,7 @@ def _check_measured(rec: Recording, window: int) -> None:
     SudsDataError
         (code ``too_little_data``) naming how many shape samples were bridged and over what span.
     """
-    keep = _measured(rec, window)
+    keep = measured_intervals(rec, window)
     if keep is None or keep.any():
         return
     lost = np.flatnonzero(rec.bridged)

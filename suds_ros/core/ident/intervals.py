@@ -20,6 +20,7 @@ from suds_ros.core._typing import BoolArray, FloatArray, IntArray
 from suds_ros.core.errors import SudsDataError
 from suds_ros.core.ident.sysid import SudsConfig, regressor_input, segment_state
 from suds_ros.core.recording import POSE_SPAN_TOL, Recording
+from suds_ros.core.resample import window_any
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,18 @@ class Intervals:
     xi: FloatArray
     effort: FloatArray | None
     dt: FloatArray
+
+
+def measured_intervals(rec: Recording, window: int = 1) -> BoolArray | None:
+    """Intervals k → k + ``window`` whose shape samples were all measured (none ``rec.bridged``); None: every one.
+
+    The one rule for what is fitted and scored: an interval over a shape sample bridged across
+    a run of lost messages was never measured (:func:`~suds_ros.core.resample.bridged`).
+    """
+    if rec.bridged is None:
+        return None
+    bad = window_any(rec.bridged, window)
+    return ~bad if bad.any() else None
 
 
 def make_intervals(rec: Recording, window: int = 1, pose: FloatArray | None = None) -> Intervals:

@@ -15,7 +15,7 @@ import numpy as np
 
 from suds_ros.core._typing import FloatArray
 from suds_ros.core.errors import SudsDataError, SudsError
-from suds_ros.core.ident.intervals import make_intervals
+from suds_ros.core.ident.intervals import make_intervals, measured_intervals
 from suds_ros.core.ident.model import SudsModel, check_shape_sample, check_stamp, joint_order, model_template
 from suds_ros.core.ident.scoring import Prediction, average_over_pose_intervals
 from suds_ros.core.phase.phase_tracker import PhaseTracker
@@ -268,7 +268,13 @@ def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:
     """Run :class:`StreamingPredictor` over a recording and compare with its measured velocities.
 
     Returns a :class:`~suds_ros.core.ident.scoring.Prediction` whose ``template`` column is the model's
-    phase-only template at the tracked phases (score it with ``score_prediction``).
+    phase-only template at the tracked phases (score it with ``score_prediction``).  The predictor
+    sees every sample; intervals over shape samples bridged across a run of lost messages, and
+    pose intervals over those, are left out of the comparison
+    (:func:`~suds_ros.core.ident.intervals.measured_intervals`), as the batch identifier leaves them
+    out of its scores.  Before 2026-12-06 they were compared: `suds identify --streaming` on a lab
+    purcell3 with 30 % of its shape messages lost in 0.3 s bursts read Γ body 0.54 for a model
+    that scores 0.80 on the measured intervals.
     """
     if rec.joint_names != model.joint_names or rec.actuated != model.actuated:
         raise SudsDataError(
@@ -286,7 +292,11 @@ def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:
     ph = np.asarray(phases)
     truth = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
     pred_rows, template = np.asarray(out), model.template(ph)
+    t = iv.t
+    keep = measured_intervals(rec)
+    if keep is not None:
+        t, ph, truth, pred_rows, template = t[keep], ph[keep], truth[keep], pred_rows[keep], template[keep]
     return Prediction(
-        t=iv.t, phase=ph, channels=model.channels, truth=truth, model=pred_rows, template=template,
-        body=average_over_pose_intervals(rec, pred_rows, template),
+        t=t, phase=ph, channels=model.channels, truth=truth, model=pred_rows, template=template,
+        body=average_over_pose_intervals(rec, pred_rows, template, keep=keep),
     )

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from suds_ros.core._typing import FloatArray
+from suds_ros.core._typing import BoolArray, FloatArray
 from suds_ros.core.errors import SudsDataError
 
 if TYPE_CHECKING:
@@ -48,21 +48,25 @@ class PoseIntervalPrediction:
     template: FloatArray
 
 
-def average_over_pose_intervals(rec: "Recording", model: FloatArray, template: FloatArray, window: int = 1
-                                ) -> PoseIntervalPrediction | None:
+def average_over_pose_intervals(rec: "Recording", model: FloatArray, template: FloatArray, window: int = 1,
+                                keep: BoolArray | None = None) -> PoseIntervalPrediction | None:
     """Body-channel predictions on the shape intervals of ``rec``, averaged over its pose intervals.
 
-    Returns the averaged predictions (rows k → k + ``window``, columns ``BODY_CHANNELS`` first)
-    beside the measured body velocity there; None when both streams share their stamps (nothing
-    to average).
+    Returns the averaged predictions (rows: the shape intervals k → k + ``window``, or those of
+    them ``keep`` marks; columns ``BODY_CHANNELS`` first) beside the measured body velocity
+    there; None when both streams share their stamps (nothing to average).  A pose interval
+    over a shape interval left out (a hole in ``keep``) is left out too.
 
     The predictions are taken as constant on each shape interval, so the average is the
     overlap-weighted mean (what a live predictor publishing one value per interval claims).
     """
     from suds_ros.core.ident.intervals import pose_intervals
 
-    pv = pose_intervals(rec, rec.t[:-window], rec.t[window:], window)
-    mid = 0.5 * (rec.t[:-window] + rec.t[window:])
+    t0, t1 = rec.t[:-window], rec.t[window:]
+    if keep is not None:
+        t0, t1 = t0[keep], t1[keep]
+    pv = pose_intervals(rec, t0, t1, window)
+    mid = 0.5 * (t0 + t1)
     if pv.is_identity(mid):
         return None
     W = pv.over_shape(mid.size)

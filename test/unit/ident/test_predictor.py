@@ -76,6 +76,31 @@ def test_evaluate_model_scores_a_recording(fitted, swimmer9_run) -> None:
         evaluate_model(model, swimmer9_run)
 
 
+def test_evaluate_model_leaves_out_what_was_bridged_across_lost_messages(fitted) -> None:
+    """A shape stream with runs of lost messages: only measured intervals are compared, as in batch scores.
+
+    Before 2026-12-06 the intervals bridged across each run were compared too, and Γ read the
+    straight line drawn over the gap as the model's error.
+    """
+    from suds_ros.core.ident.identify import IdentifyConfig, SudsIdentifier
+    from suds_ros.core.resample import on_shape_grid
+
+    model, test = fitted
+    lost = np.zeros(test.t.size, dtype=bool)
+    for start in range(40, test.t.size - 60, 150):  # 20 messages (0.2 s) lost every 1.5 s
+        lost[start:start + 20] = True
+    gappy = on_shape_grid(replace(test, t=test.t[~lost], r=test.r[~lost], truth={}))
+    assert gappy.bridged is not None and gappy.bridged.sum() >= 20 * 5
+    pred = evaluate_model(model, gappy)
+    inside = gappy.bridged[:-1] | gappy.bridged[1:]  # intervals with a bridged end
+    assert pred.t.size == (~inside).sum() and not np.isin(pred.t, 0.5 * (gappy.t[:-1] + gappy.t[1:])[inside]).any()
+    whole = score_prediction(evaluate_model(model, test))
+    sc = score_prediction(pred)
+    assert sc.gamma_body > whole.gamma_body - 0.05 and sc.gamma_passive > whole.gamma_passive - 0.05
+    batch = SudsIdentifier(IdentifyConfig()).fit(split_cycles(gappy, 5)[0])
+    assert batch.predict(gappy).t.size == pred.t.size  # the batch identifier compares the same intervals
+
+
 def test_grid_predictor_on_a_uniform_stream_is_the_streaming_predictor(fitted) -> None:
     """Every sample passes the grid stage at once and unchanged: the same predictions, at the same stamps."""
     model, test = fitted
