@@ -114,6 +114,13 @@ def breakdown(name: str, seed: int) -> list[str]:
     return lines + [""]
 
 
+def streaming_gamma(rec) -> float:  # type: ignore[no-untyped-def]
+    """Γ body of the streaming estimator's model (30 / 30 cycles), scored on the shape grid as `--streaming` is."""
+    train, test = split_cycles(rec, 30, 30)
+    model = fit_streaming(train, OnlineConfig(gait_hz=rec.gait_hz or 1.0)).model()
+    return score_prediction(evaluate_model(model, on_shape_grid(test))).gamma_body
+
+
 def scores(system, rec) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
     """Γ body / passive: batch, streaming, and the exact-physics limit."""
     train, test = split_cycles(rec, 30, 30)

@@ -49,7 +49,7 @@ from suds_ros.core.resample import LiveGrid
 #: the ``format`` field of the header
 FORMAT = "suds_ros.estimator_checkpoint"
 #: bumped whenever the state of a class below changes shape
-FORMAT_VERSION = 13
+FORMAT_VERSION = 14
 #: arrays up to this many elements are written inside the JSON header
 INLINE_MAX = 64
 

@@ -268,13 +268,16 @@ def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:
     """Run :class:`StreamingPredictor` over a recording and compare with its measured velocities.
 
     Returns a :class:`~suds_ros.core.ident.scoring.Prediction` whose ``template`` column is the model's
-    phase-only template at the tracked phases (score it with ``score_prediction``).  The predictor
-    sees every sample; intervals over shape samples bridged across a run of lost messages, and
-    pose intervals over those, are left out of the comparison
-    (:func:`~suds_ros.core.ident.intervals.measured_intervals`), as the batch identifier leaves them
-    out of its scores.  Before 2026-12-06 they were compared: `suds identify --streaming` on a lab
-    purcell3 with 30 % of its shape messages lost in 0.3 s bursts read Γ body 0.54 for a model
-    that scores 0.80 on the measured intervals.
+    phase-only template at the tracked phases (score it with ``score_prediction``).
+
+    Shape samples bridged across a run of lost messages (``rec.bridged``, from
+    :func:`~suds_ros.core.resample.on_shape_grid`) were never measured: the predictor does not
+    see them, as a live one would not (it tracks the phase across the gap), and the intervals
+    over them, and the pose intervals over those, are left out of the comparison
+    (:func:`~suds_ros.core.ident.intervals.measured_intervals`), as the batch identifier leaves
+    them out of its scores.  Before 2026-12-06 the bridged straight lines were fed and compared:
+    `suds identify --streaming` on a lab purcell3 with 30 % of its shape messages lost in 0.3 s
+    bursts read Γ body 0.54 for a model that scores 0.80 on the measured intervals.
     """
     if rec.joint_names != model.joint_names or rec.actuated != model.actuated:
         raise SudsDataError(
@@ -282,20 +285,23 @@ def evaluate_model(model: SudsModel, rec: Recording) -> Prediction:
             f"model's {list(model.joint_names)} (actuated {list(model.actuated)})"
         )
     pred = StreamingPredictor(model)
-    out, phases = [], []
-    for k in range(rec.n_samples):
+    seen = np.ones(rec.n_samples, dtype=bool) if rec.bridged is None else ~rec.bridged
+    keep = measured_intervals(rec)  # intervals k → k + 1 with both samples seen
+    out, phases, done = [], [], []
+    for k in np.flatnonzero(seen):
         o = pred.update(float(rec.t[k]), rec.joint_names, rec.r[k])
-        if o is not None:
+        if o is not None and k >= 1 and seen[k - 1]:  # the interval k − 1 → k
             out.append(np.concatenate(o))
             phases.append(pred.last_mid_phase)
+            done.append(k - 1)
     iv = make_intervals(rec)
+    rows = np.flatnonzero(keep) if keep is not None else np.arange(iv.t.size)
+    if not np.array_equal(np.asarray(done, dtype=int), rows):
+        raise SudsError(f"the predictor gave {len(done)} interval predictions for {rows.size} measured intervals")
     ph = np.asarray(phases)
-    truth = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)
+    truth = np.concatenate([iv.xi, iv.rdot[:, rec.passive_index]], axis=1)[rows]
     pred_rows, template = np.asarray(out), model.template(ph)
-    t = iv.t
-    keep = measured_intervals(rec)
-    if keep is not None:
-        t, ph, truth, pred_rows, template = t[keep], ph[keep], truth[keep], pred_rows[keep], template[keep]
+    t = iv.t[rows]
     return Prediction(
         t=t, phase=ph, channels=model.channels, truth=truth, model=pred_rows, template=template,
         body=average_over_pose_intervals(rec, pred_rows, template, keep=keep),
