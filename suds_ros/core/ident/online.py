@@ -52,6 +52,8 @@ from suds_ros.core.phase.template import FourierTemplate
 from suds_ros.core.recording import Recording, stream_period
 #: relative ridge of the phase-only output template's normal equations
 _OUTPUT_TEMPLATE_RIDGE = 1e-9
+#: fewest interval rows in a chunk (a chunk is at most one gait cycle of rows, see ``OnlineConfig.chunk``)
+MIN_CHUNK = 10
 
 
 @dataclass(frozen=True)
@@ -67,12 +69,14 @@ class OnlineConfig:
         lowest discounted prequential loss (:mod:`~suds_ros.core.ident.prequential`).  With
         ``suds`` (set 2) the defaults are three: set 3 with a smaller ridge, which wins once
         some 15–20 cycles support it (``docs/results/peers.md``), and a small model (set 1,
-        gains of Fourier order 2, no products) for thin data.  Video of an animal at 25 fps with
-        frames lost has some 10–20 rows a cycle against set 2's hundreds of parameters per
-        output: on the real tracked worm of ``docs/results/organisms.md`` (7 joints, 9 training
-        cycles) the published model's held-out Γ body was 0.34 with the pair, 0.82 with the
-        small model beside it (batch: 0.83).  On purcell3 at 100 Hz it wins the first few
-        cycles; from 10 on the published model is the same as with the pair.
+        gains of Fourier order 1, no products; the batch identifier's cross-validated choice on
+        the tracked animals of ``docs/results/organisms.md``) for thin data.  Video of an animal
+        at 25 fps with frames lost has some 10–20 rows a cycle against set 2's hundreds of
+        parameters per output: on the real tracked worm (7 joints, 9 training cycles) the
+        published model's held-out Γ body was 0.34 with the pair, 0.84 with the small model
+        beside it (batch: 0.83).  At 100 Hz it wins the first few cycles of purcell3 (lab
+        recording, 10 cycles: Γ body / passive 0.81 / 0.90 against the pair's 0.83 / 0.96; the
+        same model from 20 on) and none of swimmer9's.
     selection_memory : float
         Chunks after which a chunk's prequential loss counts half in that choice (5: a candidate
         that starts badly can take over within a few cycles once it fits better).
@@ -85,7 +89,10 @@ class OnlineConfig:
     phaser_order : int
         Fourier order of the phaser's correction.
     chunk : int
-        Interval rows per ``partial_fit`` call.
+        Interval rows per ``partial_fit`` call, and per prequential score: at most this many, and
+        at most one gait cycle's (rows a cycle at ``gait_hz`` and the stream's period; at least
+        :data:`MIN_CHUNK`).  A 50 fps fish at 5 Hz gives some 10 rows a cycle: 12 training
+        cycles made one chunk of 100 rows and a 5-row flush, on which the candidates were chosen.
     max_pose_wait : float
         Stamp seconds a shape sample may wait for a pose covering its stamp while later shape
         samples arrive, before it is dropped (``dropped_no_pose``): longer than the lag of a
@@ -96,7 +103,7 @@ class OnlineConfig:
                                description="regression hyperparameters of the first candidate model")
     alternatives: tuple[SudsConfig, ...] = setting(
         (SudsConfig(regressors=3, linear_order=6, bilinear_order=3, ridge=1e-7),
-         SudsConfig(regressors=1, linear_order=2, bilinear_order=0)),
+         SudsConfig(regressors=1, linear_order=1, bilinear_order=0)),
         "further candidate models fitted side by side")
     selection_memory: float = setting(5.0, "chunks after which a chunk's prequential loss counts half",
                                       gt=0.0, le=1e6)
@@ -184,6 +191,7 @@ class OnlineSudsEstimator:
         self._phase0 = float("nan")
         self._tracker: PhaseTracker | None = None
         self._rows: StreamFeaturiser | None = None
+        self._chunk = int(config.chunk)  # set from the gait cycle at the start
         self.selector = self._selector(None)
         nb = len(BODY_CHANNELS)
         self._out_normal = NormalEquations(2 * config.template_order + 1, len(self.channels) - nb)
@@ -407,6 +415,9 @@ class OnlineSudsEstimator:
         self._phase0 = float(s.phase[0])
         # a shape interval over a run of BRIDGED_RUN or more lost samples is not measured
         period = stream_period(s.t)
+        # a chunk is at most one nominal gait cycle of rows, so the candidates are compared cycle by cycle
+        per_cycle = int(round(1.0 / (self.config.gait_hz * period)))
+        self._chunk = max(MIN_CHUNK, min(self.config.chunk, per_cycle))
         self._rows = StreamFeaturiser(self.config.suds, s.template, s.omega, self._act, self._pas,
                                       max_interval=(BRIDGED_RUN + 0.5) * period)
         for tp, pose in self._early_poses:
@@ -418,7 +429,7 @@ class OnlineSudsEstimator:
     def _add(self, t: float, r: FloatArray, pose: FloatArray, phase: float) -> None:
         self.phase = phase
         self._rows.add(t, r, pose, phase)  # type: ignore[union-attr]
-        if self._rows.pending >= self.config.chunk:  # type: ignore[union-attr]
+        if self._rows.pending >= self._chunk:  # type: ignore[union-attr]
             self.flush()
 
     def flush(self) -> None:
@@ -433,7 +444,9 @@ class OnlineSudsEstimator:
         order = self.config.template_order
         Bt = fourier_basis(X[:, 0], order)
         Bb = np.asarray(avg.weights @ fourier_basis(avg.X[:, 0], order))  # type: ignore[operator]
-        if is_fitted(self.regressor):
+        # scored once the phase-only template of the outputs has two rows per coefficient: on fewer
+        # it can be wild, and its errors, the denominators, would swamp the running sums for good
+        if is_fitted(self.regressor) and self.n_rows >= 2 * (2 * order + 1):
             tc = self._output_template_coef()
             pred = self.regressor.predict(avg.X)[:, :nb]
             err_m = np.abs(np.asarray(avg.weights @ pred) - avg.y)  # type: ignore[operator]
@@ -462,6 +475,11 @@ class OnlineSudsEstimator:
                                self._out_normal.solve(_OUTPUT_TEMPLATE_RIDGE)], axis=1)
 
     # ---------------------------------------------------------------- results
+    @property
+    def chunk_rows(self) -> int:
+        """Interval rows per chunk in force (``config.chunk``, or one gait cycle's once started)."""
+        return self._chunk
+
     @property
     def cycles_seen(self) -> float:
         """Gait cycles processed (by phase once initialised, by time before)."""

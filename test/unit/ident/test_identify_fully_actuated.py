@@ -97,6 +97,9 @@ def test_the_live_estimator_learns_from_thin_video_like_data(worm8_run) -> None:
     train, test = split_cycles(video, 10, 10)
     cfg = OnlineConfig(gait_hz=1.0)
     est = fit_streaming(train, cfg)
+    assert est.chunk_rows == 25  # one gait cycle of rows (25 fps, 1 Hz): the candidates are compared cycle by cycle
+    running = est.running_gamma()["body"]
+    assert running is not None and 0.0 < running < 0.95  # prequential, so below the held-out Γ; not swamped
     live = score_prediction(evaluate_model(est.model(), test)).gamma_body
     batch = SudsIdentifier(IdentifyConfig()).fit(train).scores(test).gamma_body
     rich = fit_streaming(train, replace(cfg, alternatives=cfg.alternatives[:1]))
