@@ -112,7 +112,8 @@ class OnlineConfig:
     gait_hz: float = setting(1.0, "nominal gait frequency, Hz (counts the initial cycles)", gt=0.0, le=1000.0)
     template_order: int = setting(8, "Fourier order of the gait template θ(φ)", ge=1, le=64)
     phaser_order: int = setting(10, "Fourier order of the phaser correction", ge=1, le=64)
-    chunk: int = setting(100, "interval rows per regression update", ge=1, le=1_000_000)
+    chunk: int = setting(100, "most interval rows per regression update and prequential score (and at most one "
+                              "gait cycle's)", ge=1, le=1_000_000)
     max_pose_wait: float = setting(60.0, "stamp s a shape sample may wait for a covering pose while later "
                                          "shape samples arrive, before it is dropped", gt=0.0, le=3600.0)
     regrid: bool = setting(True, "bring a shape stream with stamp jitter onto its fitted uniform grid before "
