@@ -83,7 +83,7 @@ class GaitInitialiser:
         SudsPhaseError
             The phaser still fails on four times the configured span.
         """
-        if self._t and t - self._t[-1] > INIT_GAP_CYCLES / self.gait_hz:
+        if self._lost_run(t):
             self._t, self._r, self._p = [], [], []
             self.restarts_ += 1
         self._t.append(t)
@@ -105,6 +105,19 @@ class GaitInitialiser:
         tmpl = FourierTemplate(FourierTemplateConfig(order=self.template_order)).fit(phase, R)
         self._t, self._r, self._p = [], [], []
         return GaitStart(T, R, P, np.asarray(phase, dtype=float), tmpl, omega)
+
+    def _lost_run(self, t: float) -> bool:
+        """Whether the interval to the sample at ``t`` is a run of lost samples to start afresh after.
+
+        Longer than :data:`INIT_GAP_CYCLES` cycles *and* than 3 of the buffer's recent intervals: a
+        stream sampled that sparsely throughout has no gap to restart after (it reaches the
+        phaser, which says whether it can read a phase from it).
+        """
+        if len(self._t) < 3:
+            return False
+        gap = t - self._t[-1]
+        typical = float(np.median(np.diff(self._t[-33:])))
+        return gap > INIT_GAP_CYCLES / self.gait_hz and gap > 3.0 * typical
 
     def _phase(self, T: FloatArray, R: FloatArray) -> FloatArray:
         """The phaser's phase of the buffered samples ``R`` at their stamps ``T``.

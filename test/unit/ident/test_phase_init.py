@@ -53,3 +53,17 @@ def test_a_long_run_of_lost_messages_starts_the_buffer_afresh() -> None:
     init, start = _start(t, _gait(t))
     assert init.restarts_ == 1 and start.t[0] > 3.3
     assert start.omega == pytest.approx(2 * np.pi, rel=0.02)
+
+
+def test_a_stream_sampled_sparsely_throughout_is_not_restarted_for_ever() -> None:
+    """Samples 0.6 cycles apart everywhere: no run of lost samples to restart after; the phaser judges it."""
+    from suds_ros.core.errors import SudsPhaseError
+
+    t = np.arange(0.0, 40.0, 0.6)
+    init = GaitInitialiser(5.0, 1.0, 8, 10)
+    try:
+        for k in range(t.size):
+            init.add(float(t[k]), _gait(t[k:k + 1])[0], np.zeros(3))
+    except SudsPhaseError:
+        pass  # the phaser's own verdict on so sparse a gait: a coded error, not a silent wait
+    assert init.restarts_ == 0
