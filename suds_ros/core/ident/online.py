@@ -280,11 +280,8 @@ class OnlineSudsEstimator:
         if self._probe is not None:
             self._probe.append(("pose", t, (x, y, yaw)))
             return self._decide_frames()
-        if self.frames is not None:
-            self.frames.add_pose(t, x, y, yaw)
-            return self._push_frames()
-        self._to_pairer(t, x, y, yaw)
-        return self._release()
+        self._route("pose", t, (x, y, yaw))
+        return self._released()
 
     def _to_pairer(self, t: float, x: float, y: float, yaw: float) -> None:
         """A pose (at the time it belongs to) to the pairer and the body-velocity rows."""
@@ -315,11 +312,27 @@ class OnlineSudsEstimator:
         if self._probe is not None:
             self._probe.append(("shape", t, r))
             return self._decide_frames()
-        if self.frames is not None:
-            self.frames.add_shape(t, r)
-            return self._push_frames()
-        self._pair_shapes(*self.regrid.add(t, r))
-        return self._release()
+        self._route("shape", t, r)
+        return self._released()
+
+    def _route(self, kind: str, t: float, value: object) -> None:
+        """A checked sample past the frame probe: to the frame joiner when joined, else on its own way.
+
+        A pose (x, y, yaw) goes to the pairer; a shape sample through the grid stage to the pairer.
+        """
+        if kind == "pose":
+            if self.frames is not None:
+                self.frames.add_pose(t, *value)  # type: ignore[misc]
+            else:
+                self._to_pairer(t, *value)  # type: ignore[misc]
+        elif self.frames is not None:
+            self.frames.add_shape(t, value)  # type: ignore[arg-type]
+        else:
+            self._pair_shapes(*self.regrid.add(t, value))  # type: ignore[union-attr, arg-type]
+
+    def _released(self) -> int:
+        """Samples released now: the joined frames through the grid stage, or the pairer's pairs."""
+        return self._push_frames() if self.frames is not None else self._release()
 
     def _decide_frames(self, final: bool = False) -> int:
         """Whether the two streams are one frame's, joined or apart; returns the samples released.
@@ -343,16 +356,8 @@ class OnlineSudsEstimator:
         if joined:
             self.frames = FrameJoiner(self.config.max_pose_wait)
         for kind, t, v in probe:
-            if kind == "pose":
-                if self.frames is not None:
-                    self.frames.add_pose(t, *v)  # type: ignore[misc]
-                else:
-                    self._to_pairer(t, *v)  # type: ignore[misc]
-            elif self.frames is not None:
-                self.frames.add_shape(t, v)  # type: ignore[arg-type]
-            else:
-                self._pair_shapes(*self.regrid.add(t, v))  # type: ignore[union-attr, arg-type]
-        return self._push_frames() if self.frames is not None else self._release()
+            self._route(kind, t, v)
+        return self._released()
 
     def _push_frames(self) -> int:
         """The joined frames complete now through the grid stage (pose values beside the joints), then paired."""
