@@ -114,11 +114,16 @@ def breakdown(name: str, seed: int) -> list[str]:
     return lines + [""]
 
 
-def streaming_gamma(rec) -> float:  # type: ignore[no-untyped-def]
-    """Γ body of the streaming estimator's model (30 / 30 cycles), scored on the shape grid as `--streaming` is."""
+def streaming_scores(rec):  # type: ignore[no-untyped-def]
+    """Scores of the streaming estimator's model (30 / 30 cycles), on the shape grid as `--streaming` scores."""
     train, test = split_cycles(rec, 30, 30)
     model = fit_streaming(train, OnlineConfig(gait_hz=rec.gait_hz or 1.0)).model()
-    return score_prediction(evaluate_model(model, on_shape_grid(test))).gamma_body
+    return score_prediction(evaluate_model(model, on_shape_grid(test)))
+
+
+def streaming_gamma(rec) -> float:  # type: ignore[no-untyped-def]
+    """Γ body of :func:`streaming_scores`."""
+    return float(streaming_scores(rec).gamma_body)
 
 
 def scores(system, rec) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
@@ -126,7 +131,7 @@ def scores(system, rec) -> tuple[float, ...]:  # type: ignore[no-untyped-def]
     train, test = split_cycles(rec, 30, 30)
     ident = SudsIdentifier(IdentifyConfig()).fit(train)
     b = ident.scores(test)
-    s = score_prediction(evaluate_model(fit_streaming(train, OnlineConfig()).model(), on_shape_grid(test)))
+    s = streaming_scores(rec)
     x = exact_physics(system, ident, test)
     return b.gamma_body, b.gamma_passive, s.gamma_body, s.gamma_passive, x.gamma_body, x.gamma_passive
 
